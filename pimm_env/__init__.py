@@ -1,0 +1,13 @@
+"""PIMM's simulated world: the iiLab building, a diff-drive robot with a 3D and a 2D LiDAR, as a Gymnasium env.
+
+``import pimm_env`` registers ``pimm/IILab-v0``.
+"""
+
+from gymnasium.envs.registration import register
+
+from pimm_env.base_env import SimConfig
+from pimm_env.semantics import SemanticClass
+
+register(id="pimm/IILab-v0", entry_point="pimm_env.iilab_env:IILabEnv", max_episode_steps=20_000)
+
+__all__ = ["SemanticClass", "SimConfig"]

@@ -38,7 +38,10 @@ def occupancy_from_world(world: World, resolution: float, height: float) -> Occu
 
 
 def save_map_server(occupancy: OccupancyGrid, yaml_path: Path) -> None:
-    """Write ``<name>.pgm`` and ``<name>.yaml`` as ROS map_server reads them (trinary, not negated)."""
+    """Write ``<name>.pgm`` and ``<name>.yaml`` as ROS map_server reads them (trinary, not negated).
+
+    Free is 254, occupied 0 and unknown 205, with map_saver's thresholds, so that 205 reads back unknown.
+    """
     yaml_path = Path(yaml_path)
     image = np.full(occupancy.grid.shape, UNKNOWN, dtype=np.uint8)
     image[occupancy.free] = FREE
@@ -51,7 +54,7 @@ def save_map_server(occupancy: OccupancyGrid, yaml_path: Path) -> None:
     ox, oy = occupancy.grid.origin
     yaml_path.write_text(
         f"image: {pgm_path.name}\nmode: trinary\nresolution: {occupancy.grid.resolution}\n"
-        f"origin: [{ox:.4f}, {oy:.4f}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.25\n"
+        f"origin: [{ox:.4f}, {oy:.4f}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
     )
 
 

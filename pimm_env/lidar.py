@@ -1,0 +1,91 @@
+"""The 3D and 2D LiDARs: ray patterns, batched ray casting in pybullet, range noise and labels."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pimm_env.semantics import NO_RETURN
+
+#: pybullet's rayTestBatch takes at most 16384 rays and drops one at exactly that count.
+MAX_RAYS_PER_BATCH = 8192
+
+
+@dataclass(frozen=True)
+class Lidar3DConfig:
+    """Defaults: the thesis's 3D LiDAR, 40 layers x 360 points over 360 x 120 deg, 10 m range."""
+
+    layers: int = 40
+    points_per_layer: int = 360
+    vertical_fov_deg: float = 120.0
+    max_range: float = 10.0
+    min_range: float = 0.05
+    noise_std: float = 0.01
+    rate_hz: float = 10.0
+    height: float = 0.50  # above the floor
+
+    @property
+    def num_points(self) -> int:
+        return self.layers * self.points_per_layer
+
+
+@dataclass(frozen=True)
+class Lidar2DConfig:
+    """Defaults: the thesis's 2D LiDAR, 360 beams over 360 deg, 10 m range."""
+
+    beams: int = 360
+    max_range: float = 10.0
+    min_range: float = 0.05
+    noise_std: float = 0.01
+    rate_hz: float = 10.0
+    height: float = 0.30  # above the floor; the occupancy grid is cut at this height
+
+
+def directions_3d(config: Lidar3DConfig) -> np.ndarray:
+    """Unit ray directions in the sensor frame, (layers * points, 3), layer by layer from the lowest."""
+    half = np.radians(config.vertical_fov_deg) / 2
+    elevation = np.linspace(-half, half, config.layers)
+    azimuth = -np.pi + 2 * np.pi * np.arange(config.points_per_layer) / config.points_per_layer
+    el, az = np.meshgrid(elevation, azimuth, indexing="ij")
+    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1).reshape(-1, 3)
+
+
+def beam_angles_2d(config: Lidar2DConfig) -> np.ndarray:
+    """Beam angles in the sensor frame, from -pi, counter-clockwise."""
+    return -np.pi + 2 * np.pi * np.arange(config.beams) / config.beams
+
+
+def cast_rays(client, origins: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Hit fraction (1 where nothing was hit) and body id (-1) of each ray from ``origins`` to ``ends``."""
+    n = len(origins)
+    fractions = np.ones(n)
+    bodies = np.full(n, -1, dtype=np.int64)
+    for start in range(0, n, MAX_RAYS_PER_BATCH):
+        stop = min(n, start + MAX_RAYS_PER_BATCH)
+        results = client.rayTestBatch(origins[start:stop].tolist(), ends[start:stop].tolist(), numThreads=0)
+        if len(results) != stop - start:
+            raise RuntimeError(f"pybullet returned {len(results)} ray results for {stop - start} rays")
+        ids, _, frac = zip(*[r[:3] for r in results], strict=True)
+        bodies[start:stop] = ids
+        fractions[start:stop] = frac
+    fractions[bodies < 0] = 1.0
+    return fractions, bodies
+
+
+def noisy_ranges(
+    fractions: np.ndarray, hit: np.ndarray, max_range: float, min_range: float, noise_std: float, rng: np.random.Generator
+) -> np.ndarray:
+    """Ranges with Gaussian noise; rays with no return, or closer than ``min_range``, get ``max_range``."""
+    ranges = fractions * max_range + noise_std * rng.standard_normal(len(fractions))
+    ranges = np.clip(ranges, 0.0, max_range)
+    ranges[~hit | (ranges < min_range)] = max_range
+    return ranges
+
+
+def labels_of(bodies: np.ndarray, body_classes: np.ndarray) -> np.ndarray:
+    """Semantic label of each ray's hit body, NO_RETURN where nothing was hit."""
+    labels = np.full(len(bodies), NO_RETURN, dtype=np.int8)
+    hit = bodies >= 0
+    labels[hit] = body_classes[bodies[hit]]
+    return labels
