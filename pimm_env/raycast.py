@@ -120,6 +120,8 @@ class PrismRayCaster:
         s_in = np.take_along_axis(s_in, order, axis=1)[None]
         s_out = np.take_along_axis(s_out, order, axis=1)[None]
         ok = np.take_along_axis(valid, order, axis=1)[None]
+        s_in = np.where(ok, s_in, 0.0)  # padding columns: keep them finite, they are masked below
+        s_out = np.where(ok, s_out, -1.0)
         z0 = self.z_range[order, 0][None]
         z1 = self.z_range[order, 1][None]
         slope = np.tan(np.asarray(elevations, dtype=float))[:, None, None]

@@ -44,8 +44,9 @@ class Box:
         rows, cols, xs, ys = window
         c, s = np.cos(self.yaw), np.sin(self.yaw)
         dx, dy = xs - self.center[0], ys - self.center[1]
-        # Half a cell of slack so that thin panels (glass, 1 cm) still mark the cells they cross.
-        slack = grid.resolution / 2
+        # Just under half a cell of slack: thin panels (glass, 1 cm) still mark the cells they cross, while
+        # a cell whose centre lies exactly on a face stays free.
+        slack = 0.49 * grid.resolution
         inside = (np.abs(c * dx + s * dy) <= self.half_extents[0] + slack) & (
             np.abs(-s * dx + c * dy) <= self.half_extents[1] + slack
         )
@@ -71,7 +72,7 @@ class Cylinder:
         if window is None:
             return mask
         rows, cols, xs, ys = window
-        mask[rows, cols] = np.hypot(xs - cx, ys - cy) <= r + grid.resolution / 2
+        mask[rows, cols] = np.hypot(xs - cx, ys - cy) <= r + 0.49 * grid.resolution
         return mask
 
 

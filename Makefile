@@ -1,0 +1,31 @@
+PY ?= .venv/bin/python
+PIP ?= .venv/bin/pip
+
+.PHONY: install run test test-all lint format type maps bench
+
+install:
+	./scripts/setup.sh
+
+run:
+	$(PY) evaluate.py
+
+test:
+	$(PY) -m pytest -q
+
+test-all:
+	$(PY) -m pytest -q -m "expensive or not expensive"
+
+lint:
+	$(PY) -m ruff check .
+
+format:
+	$(PY) -m ruff format .
+
+type:
+	$(PY) -m mypy pimm_env
+
+maps:
+	$(PY) -m pimm_env.derived_maps iilab
+
+bench:
+	$(PY) evaluate.py bench

@@ -1,0 +1,57 @@
+"""Stage timings for ``evaluate.py bench``: medians over repeated runs, in milliseconds."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+
+def median_ms(fn: Callable[[], object], repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return 1000 * float(np.median(times))
+
+
+def run_benchmarks(repeats: int = 30) -> dict[str, float]:
+    """Env step with and without a fresh 3D scan, both ray casters, and an area_a rollout's real-time factor."""
+    from pimm_env.base_env import SimConfig
+    from pimm_env.iilab_env import IILabEnv
+    from pimm_env.raycast import BulletRayCaster, PrismRayCaster
+    from pimm_env.rollout import run
+    from pimm_env.scenarios import get_scenario
+
+    figures: dict[str, float] = {}
+    env = IILabEnv(terminate_on_collision=False)
+    env.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
+    stepped_plain, stepped_scan = [], []
+    action = np.array([0.2, 0.0], dtype=np.float32)
+    while min(len(stepped_plain), len(stepped_scan)) < repeats:
+        start = time.perf_counter()
+        _, _, _, _, info = env.step(action)
+        elapsed = time.perf_counter() - start
+        (stepped_scan if info["fresh_cloud"] else stepped_plain).append(elapsed)
+        if env.robot.pose[0] > -2.0:
+            env.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
+    figures["env_step_ms"] = 1000 * float(np.median(stepped_plain))
+    figures["env_step_scan_ms"] = 1000 * float(np.median(stepped_scan))
+    l3 = env.config.lidar3d
+    origin = np.array([-10.0, 4.2, env.world.floor_z + l3.height])
+    prism = PrismRayCaster(env.world)
+    bullet = BulletRayCaster(env.scene.client, env.scene.body_classes)
+    figures["lidar3d_prism_ms"] = median_ms(lambda: prism.cast(origin, env._azimuths3d, env._elevations, l3.max_range), repeats)
+    figures["lidar3d_bullet_ms"] = median_ms(
+        lambda: bullet.cast(origin, env._azimuths3d, env._elevations, l3.max_range), max(3, repeats // 5)
+    )
+    env.close()
+    config = replace(SimConfig(), lidar3d=replace(SimConfig().lidar3d, rate_hz=10.0))
+    rollout_env = IILabEnv(config=config, terminate_on_collision=False)
+    result = run(get_scenario("area_a"), env=rollout_env)
+    rollout_env.close()
+    figures["realtime_factor"] = result.realtime_factor
+    return figures

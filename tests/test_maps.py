@@ -1,0 +1,94 @@
+import numpy as np
+import pytest
+
+from pimm_env.corner_map import derive_corner_map, load_corner_map
+from pimm_env.derived_maps import build_derived_maps, corner_matches, fidelity_iou, load_derived_maps
+from pimm_env.occupancy import load_map_server, occupancy_from_world, save_map_server, tolerant_iou
+from pimm_env.world import load_world
+
+from .conftest import shared_file
+
+
+def test_map_server_round_trip(tmp_path, room_file):
+    occupancy = occupancy_from_world(load_world(room_file), 0.05, 0.3)
+    save_map_server(occupancy, tmp_path / "m.yaml")
+    text = (tmp_path / "m.yaml").read_text()
+    for field in ("image: m.pgm", "resolution: 0.05", "origin:", "negate: 0", "occupied_thresh", "free_thresh"):
+        assert field in text
+    loaded = load_map_server(tmp_path / "m.yaml")
+    assert np.array_equal(loaded.occupied, occupancy.occupied)
+    assert np.array_equal(loaded.free, occupancy.free)
+    assert loaded.grid.origin == pytest.approx(occupancy.grid.origin)
+
+
+def test_room_occupancy_has_walls_post_and_free_inside(room_file):
+    occupancy = occupancy_from_world(load_world(room_file), 0.05, 0.3)
+    rows, cols, _ = occupancy.grid.cells_of(np.array([[3.0, 2.0], [4.5, 2.0], [-0.1, 2.0], [8.0, 2.0]]))
+    assert occupancy.free[rows[0], cols[0]] and occupancy.occupied[rows[1], cols[1]]
+    assert occupancy.occupied[rows[2], cols[2]]
+
+
+def test_tolerant_iou():
+    a = np.zeros((10, 10), bool)
+    b = np.zeros((10, 10), bool)
+    a[5, :] = True
+    b[6, :] = True
+    assert tolerant_iou(a, b, 0) == 0.0
+    assert tolerant_iou(a, b, 1) == 1.0
+    assert tolerant_iou(a, a, 0) == 1.0
+
+
+def test_room_corners_are_exact(room_file):
+    corners = derive_corner_map(load_world(room_file))
+    assert len(corners) == 4, "a post is clutter and makes no corner"
+    expected = {(0.0, 0.0): 45.0, (6.0, 0.0): 135.0, (6.0, 4.0): -135.0, (0.0, 4.0): -45.0}
+    for (x, y), theta in expected.items():
+        d = np.hypot(corners.xy[:, 0] - x, corners.xy[:, 1] - y)
+        i = int(np.argmin(d))
+        assert d[i] <= 0.05 + 1e-9  # one cell of the 0.05 m grid
+        assert np.degrees(corners.theta[i]) == pytest.approx(theta)
+        assert corners.z[i] == pytest.approx(3.0)
+
+
+def test_doorway_wall_ends_make_no_corner(tmp_path, room_file):
+    text = room_file.read_text().replace(
+        "  - {name: south, class: wall, box: {min: [-0.2, -0.2, 0.0], max: [6.2, 0.0, 3.0]}}",
+        "  - {name: south_a, class: wall, box: {min: [-0.2, -0.2, 0.0], max: [2.5, 0.0, 3.0]}}\n"
+        "  - {name: south_b, class: wall, box: {min: [3.5, -0.2, 0.0], max: [6.2, 0.0, 3.0]}}",
+    )
+    room_file.write_text(text)
+    corners = derive_corner_map(load_world(room_file))
+    assert len(corners) == 4
+    assert not np.any((corners.xy[:, 0] > 2.0) & (corners.xy[:, 0] < 4.0) & (corners.xy[:, 1] < 1.0))
+
+
+def test_no_ceiling_no_corner(room_file):
+    room_file.write_text("\n".join(l for l in room_file.read_text().splitlines() if "ceiling" not in l))
+    assert len(derive_corner_map(load_world(room_file))) == 0
+
+
+def test_derived_maps_are_cached_and_rebuilt_when_the_world_changes(room_file):
+    world = load_world(room_file)
+    build_derived_maps(world)
+    assert (room_file.parent / "occupancy.pgm").is_file() and (room_file.parent / "corners.yaml").is_file()
+    again = load_derived_maps(load_world(room_file))
+    assert len(again.corners) == 4
+    room_file.write_text(room_file.read_text().replace("max: [6.2, 4.0, 3.0]", "max: [6.2, 4.0, 2.0]"))
+    changed = load_derived_maps(load_world(room_file))
+    assert len(changed.corners) == 2, "the east wall no longer reaches the ceiling"
+
+
+def test_iilab_occupancy_matches_the_thesis_map():
+    reference = load_map_server(shared_file("iilab", "iilab.yaml"))
+    ours = load_derived_maps(load_world("iilab")).occupancy
+    assert ours.grid.resolution == 0.05
+    assert fidelity_iou(ours, reference, tolerance=0.1) >= 0.8
+
+
+def test_every_thesis_corner_has_a_derived_corner():
+    reference = load_corner_map(shared_file("iilab", "corners_thesis.yaml"))
+    assert len(reference) == 10
+    ours = load_derived_maps(load_world("iilab")).corners
+    matches = corner_matches(ours, reference, max_dist=0.3, max_angle_deg=20.0)
+    missing = [tuple(reference.xy[i]) for i, m in enumerate(matches) if m is None]
+    assert not missing, f"thesis corners without a derived corner: {missing}"

@@ -1,0 +1,94 @@
+import numpy as np
+import pytest
+
+from pimm_env.base_env import LidarRobotEnv
+from pimm_env.mesh_world import read_obj
+from pimm_env.semantics import SemanticClass
+from pimm_env.world import WorldFileError, load_world
+
+from .conftest import shared_file
+
+
+def _box_obj(name: str, lo, hi, first: int) -> tuple[list[str], int]:
+    """OBJ lines of an axis-aligned box (Y-up file coordinates: map (x, y, z) is file (x, z, -y))."""
+    lines = [f"o {name}"]
+    for z in (lo[2], hi[2]):
+        for x, y in ((lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])):
+            lines.append(f"v {x} {z} {-y}")
+    quads = [(1, 2, 3, 4), (5, 8, 7, 6), (1, 5, 6, 2), (2, 6, 7, 3), (3, 7, 8, 4), (4, 8, 5, 1)]
+    lines += ["f " + " ".join(str(first + i - 1) for i in q) for q in quads]
+    return lines, first + 8
+
+
+@pytest.fixture
+def mesh_world_file(tmp_path):
+    parts = [
+        ("Floor", (-1, -1, -0.1), (5, 5, 0.0)),
+        ("Cealing_main", (-1, -1, 3.0), (5, 5, 3.1)),
+        ("Wall1", (-0.2, -0.2, 0.0), (4.2, 0.0, 3.0)),
+        ("Wall2", (-0.2, 4.0, 0.0), (4.2, 4.2, 3.0)),
+        ("Wall3", (-0.2, 0.0, 0.0), (0.0, 4.0, 3.0)),
+        ("Wall4", (4.0, 0.0, 0.0), (4.2, 4.0, 3.0)),
+        ("Crate", (2.0, 2.0, 0.0), (2.5, 2.5, 0.5)),
+    ]
+    lines, first = ["# tiny test building"], 1
+    for name, lo, hi in parts:
+        box, first = _box_obj(name, lo, hi, first)
+        lines += box
+    (tmp_path / "room.obj").write_text("\n".join(lines) + "\n")
+    (tmp_path / "world.yaml").write_text(
+        "format: pimm-mesh-world/1\nname: tiny-mesh\nmesh: room.obj\nup_axis: y\n"
+        "rules:\n  - {match: 'Cealing*', class: ceiling}\n  - {match: Floor, class: floor}\n"
+        "  - {match: 'Wall*', class: wall}\n  - {match: '*', class: clutter}\n"
+        "areas: {room: [[0, 0], [4, 0], [4, 4], [0, 4]]}\n"
+    )
+    return tmp_path / "world.yaml"
+
+
+def test_obj_objects_are_read_in_the_map_frame(mesh_world_file):
+    meshes = read_obj(mesh_world_file.parent / "room.obj", up_axis="y")
+    assert set(meshes) == {"Floor", "Cealing_main", "Wall1", "Wall2", "Wall3", "Wall4", "Crate"}
+    wall = meshes["Wall2"]
+    assert wall.vertices[:, 1].min() == pytest.approx(4.0) and wall.vertices[:, 2].max() == pytest.approx(3.0)
+    assert len(wall.triangles) == 12
+
+
+def test_rules_assign_classes_and_the_env_runs_on_the_mesh(mesh_world_file):
+    world = load_world(mesh_world_file)
+    by_name = {e.name: e.semantic for e in world.elements}
+    assert by_name["Cealing_main"] == SemanticClass.CEILING and by_name["Crate"] == SemanticClass.CLUTTER
+    assert by_name["Floor"] == SemanticClass.FLOOR and by_name["Wall3"] == SemanticClass.WALL
+    env = LidarRobotEnv(world=world)
+    try:
+        _, info = env.reset(seed=0, options={"pose": [1.0, 1.0, 0.0]})
+        labels = info["labels"]
+        seen = set(np.unique(labels[labels >= 0]).tolist())
+        assert {int(SemanticClass.WALL), int(SemanticClass.FLOOR), int(SemanticClass.CEILING)} <= seen
+        assert env.maps.occupancy.occupied.any()
+        with pytest.raises(ValueError, match="inside an obstacle"):
+            env.reset(options={"pose": [2.0, 2.25, 0.0]})  # on the crate's face (mesh solids are hollow)
+    finally:
+        env.close()
+
+
+def test_mesh_world_errors_name_the_field(tmp_path, mesh_world_file):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("format: pimm-mesh-world/1\nmesh: room.obj\nrules:\n  - {match: 'Wall*', class: wall}\n")
+    with pytest.raises(WorldFileError, match=r"bad.yaml: rules: no rule matches object 'Floor'"):
+        load_world(bad)
+    bad.write_text("format: pimm-mesh-world/1\nmesh: missing.obj\nrules: [{match: '*', class: wall}]\n")
+    with pytest.raises(WorldFileError, match="mesh: file .*missing.obj does not exist"):
+        load_world(bad)
+    (tmp_path / "broken.obj").write_text("v 1 2\n")
+    bad.write_text("format: pimm-mesh-world/1\nmesh: broken.obj\nrules: [{match: '*', class: wall}]\n")
+    with pytest.raises(ValueError, match=r"broken.obj:1"):
+        load_world(bad)
+
+
+def test_iilab_mesh_world_is_available_with_the_reference_data():
+    shared_file("iilab", "iilab.obj")
+    world = load_world("iilab-mesh")
+    assert len(world.elements) == 99
+    classes = {e.name: e.semantic for e in world.elements}
+    assert classes["Cealing_004"] == SemanticClass.CEILING and classes["Wall1"] == SemanticClass.WALL
+    assert classes["RoundedPosts"] == SemanticClass.CLUTTER and classes["Floor"] == SemanticClass.FLOOR

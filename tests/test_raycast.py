@@ -1,0 +1,61 @@
+import numpy as np
+import pytest
+
+from pimm_env.lidar import Lidar3DConfig, cast_rays, directions_3d
+from pimm_env.raycast import BulletRayCaster, PrismRayCaster
+from pimm_env.scene import BulletScene
+from pimm_env.world import load_world
+
+
+@pytest.fixture(scope="module")
+def iilab():
+    world = load_world("iilab")
+    scene = BulletScene(world, 0.25)
+    yield world, scene
+    scene.close()
+    scene.close()  # closing twice is harmless
+
+
+def test_directions_are_organized_and_unit():
+    dirs = directions_3d(Lidar3DConfig())
+    assert dirs.shape == (14400, 3)
+    assert np.allclose(np.linalg.norm(dirs, axis=1), 1.0)
+    assert np.degrees(np.arcsin(dirs[:, 2])).min() == pytest.approx(-60.0)
+
+
+def test_ray_batches_are_chunked(iilab):
+    _, scene = iilab
+    n = 16384 + 10
+    origins = np.tile([-10.0, 4.2, 0.8], (n, 1))
+    angles = np.linspace(-np.pi, np.pi, n)
+    ends = origins + 10 * np.stack([np.cos(angles), np.sin(angles), np.zeros(n)], axis=1)
+    fractions, bodies = cast_rays(scene.client, origins, ends)
+    assert fractions.shape == (n,) and bodies.shape == (n,)
+    head = cast_rays(scene.client, origins[:5000], ends[:5000])
+    tail = cast_rays(scene.client, origins[5000:], ends[5000:])
+    assert np.array_equal(bodies, np.concatenate([head[1], tail[1]]))
+    assert np.array_equal(fractions, np.concatenate([head[0], tail[0]]))
+    assert 0.5 < np.mean(bodies >= 0) < 1.0  # some rays run down the corridor beyond 10 m
+
+
+@pytest.mark.parametrize("origin", [[-10.0, 4.2, 0.8], [-24.0, 11.0, 0.8], [-20.0, 16.0, 0.8], [-26.0, 5.0, 0.8]])
+def test_prism_caster_agrees_with_pybullet(iilab, origin):
+    world, scene = iilab
+    elevations = np.linspace(-np.pi / 3, np.pi / 3, 40)
+    azimuths = -np.pi + 2 * np.pi * np.arange(360) / 360 + 0.3
+    r_bullet, l_bullet = BulletRayCaster(scene.client, scene.body_classes).cast(np.array(origin), azimuths, elevations, 10.0)
+    r_prism, l_prism = PrismRayCaster(world).cast(np.array(origin), azimuths, elevations, 10.0)
+    assert np.mean(np.isfinite(r_bullet) == np.isfinite(r_prism)) > 0.999
+    assert np.mean(l_bullet == l_prism) > 0.99
+    both = np.isfinite(r_bullet) & np.isfinite(r_prism)
+    assert np.percentile(np.abs(r_bullet[both] - r_prism[both]), 99) < 0.01
+
+
+def test_prism_caster_single_box_range(room_file):
+    world = load_world(room_file)
+    ranges, labels = PrismRayCaster(world).cast(np.array([3.0, 2.0, 1.0]), np.array([0.0, np.pi]), np.zeros(1), 10.0)
+    assert ranges[0, 1] == pytest.approx(3.0)  # west wall's inner face at x = 0
+    assert ranges[0, 0] == pytest.approx(1.3)  # the post at x = 4.5, radius 0.2
+    assert labels[0, 0] == 3 and labels[0, 1] == 0
+    ranges, labels = PrismRayCaster(world).cast(np.array([3.0, 2.0, 1.0]), np.zeros(1), np.array([-np.pi / 4]), 10.0)
+    assert ranges[0, 0] == pytest.approx(np.sqrt(2.0)) and labels[0, 0] == 2  # the floor

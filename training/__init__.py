@@ -1,0 +1,1 @@
+"""Dataset generation, PointNet training and fingerprint-map building (the perception issue)."""
