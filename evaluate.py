@@ -50,7 +50,9 @@ def rollout(
     available = load_scenarios(world)
     unknown = [s for s in scenarios if s not in available]
     if unknown:
-        raise typer.BadParameter(f"unknown scenario(s) {unknown}; valid: {', '.join(available)}", param_hint="--scenarios")
+        raise typer.BadParameter(
+            f"unknown scenario(s) {unknown}; valid: {', '.join(available)}", param_hint="--scenarios"
+        )
     folder = _results_dir(out, "rollout")
     results = []
     for name in scenarios:
@@ -60,7 +62,9 @@ def rollout(
     summary = {
         r.scenario: {
             "length_m": round(r.length_m, 3),
-            "path_length_m": round(available[r.scenario].length * (2 if available[r.scenario].kidnap_to is not None else 1), 3),
+            "path_length_m": round(
+                available[r.scenario].length * (2 if available[r.scenario].kidnap_to is not None else 1), 3
+            ),
             "thesis_length_m": available[r.scenario].thesis_length_m,
             "duration_s": round(r.duration_s, 2),
             "thesis_duration_s": available[r.scenario].thesis_duration_s,
@@ -77,7 +81,10 @@ def rollout(
     if json_out:
         typer.echo(json.dumps({"world": world, "seed": seed, "rollouts": summary, "folder": str(folder)}))
         return
-    header = f"{'scenario':<14}{'length m':>10}{'thesis m':>10}{'time s':>9}{'thesis s':>10}{'drift m':>9}{'drift %':>9}{'RTF':>6}  ok"
+    header = (
+        f"{'scenario':<14}{'length m':>10}{'thesis m':>10}{'time s':>9}{'thesis s':>10}"
+        f"{'drift m':>9}{'drift %':>9}{'RTF':>6}  ok"
+    )
     typer.echo(header)
     for name, row in summary.items():
         drift = "-" if row["odometry_drift_m"] is None else f"{row['odometry_drift_m']:.2f}"

@@ -46,7 +46,9 @@ class LidarRobotEnv(gym.Env):
         self, world: str | World = "iilab", config: SimConfig | None = None, render_mode: str | None = None
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode {render_mode!r} is not supported; use one of {self.metadata['render_modes']}")
+            raise ValueError(
+                f"render_mode {render_mode!r} is not supported; use one of {self.metadata['render_modes']}"
+            )
         self.render_mode = render_mode
         self.config = config or SimConfig()
         self._world_arg = world
@@ -142,7 +144,9 @@ class LidarRobotEnv(gym.Env):
             pose = self._random_pose() if kidnap is True else self._checked_pose(kidnap, "kidnap")
             self.robot.teleport(pose)
         else:
-            pose = self._checked_pose(options["pose"], "pose") if options.get("pose") is not None else self._random_pose()
+            pose = (
+                self._checked_pose(options["pose"], "pose") if options.get("pose") is not None else self._random_pose()
+            )
             self.robot.reset(pose, self.np_random)
             self._time = 0.0
             self._next_cloud = self._next_scan = 0.0
@@ -204,7 +208,7 @@ class LidarRobotEnv(gym.Env):
             raise ValueError(f"reset option {name!r} must be three finite numbers [x, y, theta], got {pose!r}")
         x, y = arr[0], arr[1]
         rows, cols, valid = self.maps.occupancy.grid.cells_of(arr[None, :2])
-        if not valid[0] or not self.maps.occupancy.free[rows[0], cols[0]] and self.world.area_of(x, y) is None:
+        if not valid[0] or (not self.maps.occupancy.free[rows[0], cols[0]] and self.world.area_of(x, y) is None):
             raise ValueError(f"reset option {name!r}: ({x:.2f}, {y:.2f}) is outside the map of {self.world.name!r}")
         if self._blocked(x, y):
             raise ValueError(
@@ -225,8 +229,9 @@ class LidarRobotEnv(gym.Env):
             ranges, labels = self.caster.cast(origin, self._azimuths3d + theta, self._elevations, l3.max_range)
             ranges, labels = ranges.reshape(-1), labels.reshape(-1)
             hit = np.isfinite(ranges)
-            noisy = noisy_ranges(np.where(hit, ranges, 0) / l3.max_range, hit, l3.max_range, l3.min_range,
-                                 l3.noise_std, self.np_random)
+            noisy = noisy_ranges(
+                np.where(hit, ranges, 0) / l3.max_range, hit, l3.max_range, l3.min_range, l3.noise_std, self.np_random
+            )
             returned = hit & (noisy < l3.max_range)
             el, az = np.meshgrid(self._elevations, self._azimuths3d, indexing="ij")
             dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1).reshape(-1, 3)
@@ -241,8 +246,9 @@ class LidarRobotEnv(gym.Env):
             ranges, _ = self.caster.cast(origin, self._azimuths2d + theta, np.zeros(1), l2.max_range)
             ranges = ranges.reshape(-1)
             hit = np.isfinite(ranges)
-            scan = noisy_ranges(np.where(hit, ranges, 0) / l2.max_range, hit, l2.max_range, l2.min_range,
-                                l2.noise_std, self.np_random)
+            scan = noisy_ranges(
+                np.where(hit, ranges, 0) / l2.max_range, hit, l2.max_range, l2.min_range, l2.noise_std, self.np_random
+            )
             self._scan = scan.astype(np.float32)
             self._scan_time = self._time
             self._next_scan = self._next_scan + 1.0 / l2.rate_hz
@@ -252,8 +258,14 @@ class LidarRobotEnv(gym.Env):
     def _observation(self) -> dict[str, np.ndarray]:
         odom = self.robot.odom
         return {
-            "odom": np.array([np.clip(odom[0], -MAX_ODOM, MAX_ODOM), np.clip(odom[1], -MAX_ODOM, MAX_ODOM),
-                              np.clip(odom[2], -np.pi, np.pi)], dtype=np.float32),
+            "odom": np.array(
+                [
+                    np.clip(odom[0], -MAX_ODOM, MAX_ODOM),
+                    np.clip(odom[1], -MAX_ODOM, MAX_ODOM),
+                    np.clip(odom[2], -np.pi, np.pi),
+                ],
+                dtype=np.float32,
+            ),
             "cloud": self._cloud.copy(),
             "cloud_mask": self._cloud_mask.copy(),
             "scan": self._scan.copy(),
@@ -275,8 +287,13 @@ class LidarRobotEnv(gym.Env):
 
     # ------------------------------------------------------------------ pickling
     def __getstate__(self) -> dict[str, Any]:
-        dynamic = {k: v for k, v in self.__dict__.items() if k.startswith("_") and k not in {
-            "_world_arg", "_collision_clearance", "_start_cells", "_elevations", "_azimuths3d", "_azimuths2d"}}
+        dynamic = {
+            k: v
+            for k, v in self.__dict__.items()
+            if k.startswith("_")
+            and k
+            not in {"_world_arg", "_collision_clearance", "_start_cells", "_elevations", "_azimuths3d", "_azimuths2d"}
+        }
         return {
             "world": self._world_arg,
             "config": asdict(self.config),

@@ -44,7 +44,9 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     origin = np.array([-10.0, 4.2, env.world.floor_z + l3.height])
     prism = PrismRayCaster(env.world)
     bullet = BulletRayCaster(env.scene.client, env.scene.body_classes)
-    figures["lidar3d_prism_ms"] = median_ms(lambda: prism.cast(origin, env._azimuths3d, env._elevations, l3.max_range), repeats)
+    figures["lidar3d_prism_ms"] = median_ms(
+        lambda: prism.cast(origin, env._azimuths3d, env._elevations, l3.max_range), repeats
+    )
     figures["lidar3d_bullet_ms"] = median_ms(
         lambda: bullet.cast(origin, env._azimuths3d, env._elevations, l3.max_range), max(3, repeats // 5)
     )

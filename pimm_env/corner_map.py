@@ -63,7 +63,7 @@ def _corners_of_mask(
     walls: np.ndarray, allowed: np.ndarray, grid: GridSpec, config: CornerMapConfig
 ) -> list[tuple[float, float, float]]:
     """Corner vertices of the wall mask: (x, y, theta) for each vertex with one odd cell out of four."""
-    n_face = max(1, int(round(config.min_face / grid.resolution)))
+    n_face = max(1, round(config.min_face / grid.resolution))
     quad = {  # quadrant (sx, sy) of each cell of the 2x2 block around vertex (r, c)
         (-1, -1): walls[:-1, :-1],
         (1, -1): walls[:-1, 1:],

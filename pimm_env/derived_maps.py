@@ -96,13 +96,13 @@ def fidelity_iou(ours: OccupancyGrid, reference: OccupancyGrid, tolerance: float
     ref_free[rows[valid], cols[valid]] = True
     ref_free &= ~ref_occupied
     near_free = ndimage.distance_transform_edt(~(ours.free | ref_free)) * grid.resolution <= band
-    cells = int(round(tolerance / grid.resolution))
+    cells = round(tolerance / grid.resolution)
     return tolerant_iou(ours.occupied & near_free, ref_occupied & near_free, cells)
 
 
-def corner_matches(ours: CornerMap, reference: CornerMap, max_dist: float = 0.3, max_angle_deg: float = 20.0) -> list[
-    tuple[float, float] | None
-]:
+def corner_matches(
+    ours: CornerMap, reference: CornerMap, max_dist: float = 0.3, max_angle_deg: float = 20.0
+) -> list[tuple[float, float] | None]:
     """For each reference corner, (distance m, angle error deg) of the nearest matching derived corner."""
     out: list[tuple[float, float] | None] = []
     for xy, theta in zip(reference.xy, reference.theta, strict=True):

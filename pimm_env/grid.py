@@ -41,9 +41,7 @@ class GridSpec:
         valid = (rows >= 0) & (rows < self.shape[0]) & (cols >= 0) & (cols < self.shape[1])
         return rows, cols, valid
 
-    def window(
-        self, points: np.ndarray, pad: float = 0.0
-    ) -> tuple[slice, slice, np.ndarray, np.ndarray] | None:
+    def window(self, points: np.ndarray, pad: float = 0.0) -> tuple[slice, slice, np.ndarray, np.ndarray] | None:
         """Slices and cell-centre coordinates of the sub-grid bounding ``points``, or None if outside."""
         lo = points.min(axis=0) - pad
         hi = points.max(axis=0) + pad

@@ -74,7 +74,12 @@ def cast_rays(client, origins: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray
 
 
 def noisy_ranges(
-    fractions: np.ndarray, hit: np.ndarray, max_range: float, min_range: float, noise_std: float, rng: np.random.Generator
+    fractions: np.ndarray,
+    hit: np.ndarray,
+    max_range: float,
+    min_range: float,
+    noise_std: float,
+    rng: np.random.Generator,
 ) -> np.ndarray:
     """Ranges with Gaussian noise; rays with no return, or closer than ``min_range``, get ``max_range``."""
     ranges = fractions * max_range + noise_std * rng.standard_normal(len(fractions))

@@ -23,7 +23,12 @@ def plot_rollouts(world: str, results: Sequence[RolloutResult], path: Path) -> P
 
     occupancy = load_derived_maps(load_world(world)).occupancy
     g = occupancy.grid
-    extent = [g.origin[0], g.origin[0] + g.shape[1] * g.resolution, g.origin[1], g.origin[1] + g.shape[0] * g.resolution]
+    extent = [
+        g.origin[0],
+        g.origin[0] + g.shape[1] * g.resolution,
+        g.origin[1],
+        g.origin[1] + g.shape[0] * g.resolution,
+    ]
     n = max(1, len(results))
     fig, axes = plt.subplots(1, n, figsize=(7 * n, 5), squeeze=False)
     for ax, result in zip(axes[0], results, strict=False):

@@ -17,7 +17,7 @@ CLASS_COLORS = np.array([[200, 60, 40], [60, 140, 220], [150, 150, 150], [230, 1
 
 def map_image(occupancy: OccupancyGrid) -> np.ndarray:
     """RGB image of the map, north up: free white, occupied black, unknown grey."""
-    image = np.full(occupancy.grid.shape + (3,), 190, dtype=np.uint8)
+    image = np.full((*occupancy.grid.shape, 3), 190, dtype=np.uint8)
     image[occupancy.free] = 255
     image[occupancy.occupied] = 0
     return image

@@ -31,7 +31,9 @@ class RobotConfig:
     slip: float = 0.02  # relative std of each wheel's travel per substep
 
 
-def integrate_odometry(pose: np.ndarray, d_phi_left: float, d_phi_right: float, r: float, half_axle: float) -> np.ndarray:
+def integrate_odometry(
+    pose: np.ndarray, d_phi_left: float, d_phi_right: float, r: float, half_axle: float
+) -> np.ndarray:
     """One odometry update from wheel angle increments, eqs. 3.1-3.5 of the thesis."""
     d = r / 2 * (d_phi_right + d_phi_left)
     d_theta = r / (2 * half_axle) * (d_phi_right - d_phi_left)

@@ -43,7 +43,11 @@ def odom_to_map(odom: np.ndarray, start: np.ndarray) -> np.ndarray:
 
 
 def drive(
-    env: LidarRobotEnv, waypoints: np.ndarray, speed: float, on_step: StepCallback | None = None, max_steps: int = 20_000
+    env: LidarRobotEnv,
+    waypoints: np.ndarray,
+    speed: float,
+    on_step: StepCallback | None = None,
+    max_steps: int = 20_000,
 ) -> tuple[bool, bool, list[np.ndarray], list[np.ndarray]]:
     """Follow ``waypoints`` from the env's current pose; returns (completed, collided, true poses, odometry)."""
     controller = PurePursuit(waypoints, PursuitConfig(speed=speed))

@@ -25,6 +25,7 @@ World file, version 1::
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -290,7 +291,7 @@ class _Reader:
         thickness = self.positive(spec.get("thickness"), f"{where}.thickness")
         z0, z1 = self.z_range(spec.get("z"), f"{where}.z")
         boxes: list[Shape] = []
-        for k, (a, b) in enumerate(zip(points[:-1], points[1:], strict=True)):
+        for k, (a, b) in enumerate(itertools.pairwise(points)):
             length = float(np.linalg.norm(b - a))
             if length == 0:
                 raise self.fail(f"{where}.path[{k + 1}]", f"repeats the previous point {a.tolist()}")

@@ -43,7 +43,9 @@ def test_prism_caster_agrees_with_pybullet(iilab, origin):
     world, scene = iilab
     elevations = np.linspace(-np.pi / 3, np.pi / 3, 40)
     azimuths = -np.pi + 2 * np.pi * np.arange(360) / 360 + 0.3
-    r_bullet, l_bullet = BulletRayCaster(scene.client, scene.body_classes).cast(np.array(origin), azimuths, elevations, 10.0)
+    r_bullet, l_bullet = BulletRayCaster(scene.client, scene.body_classes).cast(
+        np.array(origin), azimuths, elevations, 10.0
+    )
     r_prism, l_prism = PrismRayCaster(world).cast(np.array(origin), azimuths, elevations, 10.0)
     assert np.mean(np.isfinite(r_bullet) == np.isfinite(r_prism)) > 0.999
     assert np.mean(l_bullet == l_prism) > 0.99

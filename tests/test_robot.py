@@ -12,7 +12,9 @@ def test_odometry_equations():
     assert pose == pytest.approx([0.0, 0.0, 0.094 / 0.165])
     pose = integrate_odometry(np.array([1.0, 2.0, np.pi / 2]), 0.5, 1.5, r, half_axle)
     d, dth = r / 2 * 2.0, r / (2 * half_axle) * 1.0
-    assert pose == pytest.approx([1.0 + d * np.cos(np.pi / 2 + dth / 2), 2.0 + d * np.sin(np.pi / 2 + dth / 2), np.pi / 2 + dth])
+    assert pose == pytest.approx(
+        [1.0 + d * np.cos(np.pi / 2 + dth / 2), 2.0 + d * np.sin(np.pi / 2 + dth / 2), np.pi / 2 + dth]
+    )
 
 
 def test_perfect_robot_odometry_follows_the_truth():

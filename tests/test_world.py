@@ -35,7 +35,7 @@ def test_iilab_areas_and_doorways():
 def test_room_world_from_file(room_file):
     world = load_world(room_file)
     assert world.name == "room"
-    north = [e for e in world.elements if e.name == "north"][0]
+    north = next(e for e in world.elements if e.name == "north")
     assert isinstance(north.shape, Box)
     assert north.shape.half_extents[0] == pytest.approx(3.1 + 0.1)  # segment plus half the thickness
     lower, upper = world.bounds()
@@ -49,7 +49,11 @@ def test_room_world_from_file(room_file):
         ({"box": {"min": [0, 0, 0], "max": [1, 0, 1]}}, "elements[0] (w).box.max", "min [0.0, 0.0, 0.0]"),
         ({"box": {"min": [0, 0], "max": [1, 1, 1]}}, "elements[0] (w).box.min", "[0, 0]"),
         ({"occupancy": "yes"}, "elements[0] (w).occupancy", "'yes'"),
-        ({"cylinder": {"center": [0, 0], "radius": -1, "z": [0, 1]}, "box": None}, "elements[0] (w).cylinder.radius", "-1"),
+        (
+            {"cylinder": {"center": [0, 0], "radius": -1, "z": [0, 1]}, "box": None},
+            "elements[0] (w).cylinder.radius",
+            "-1",
+        ),
     ],
 )
 def test_bad_element_names_file_field_and_value(tmp_path, patch, field, value):
