@@ -14,7 +14,7 @@ from gymnasium import spaces
 from scipy import ndimage
 
 from pimm_env.derived_maps import DerivedMaps, load_derived_maps
-from pimm_env.lidar import Lidar2DConfig, Lidar3DConfig, beam_angles_2d, noisy_ranges
+from pimm_env.lidar import Lidar2DConfig, Lidar3DConfig, beam_angles_2d, directions_3d, noisy_ranges
 from pimm_env.raycast import BulletRayCaster, PrismRayCaster, RayCaster
 from pimm_env.robot import DiffDriveRobot, RobotConfig, wrap_angle
 from pimm_env.scene import BulletScene
@@ -64,6 +64,7 @@ class LidarRobotEnv(gym.Env):
         self._elevations = np.linspace(-half, half, l3.layers)
         self._azimuths3d = -np.pi + 2 * np.pi * np.arange(l3.points_per_layer) / l3.points_per_layer
         self._azimuths2d = beam_angles_2d(l2)
+        self._directions3d = directions_3d(l3)  # sensor frame, same order as the cast
         n = l3.num_points
         r = self.config.robot
         self.action_space = spaces.Box(
@@ -233,9 +234,7 @@ class LidarRobotEnv(gym.Env):
                 np.where(hit, ranges, 0) / l3.max_range, hit, l3.max_range, l3.min_range, l3.noise_std, self.np_random
             )
             returned = hit & (noisy < l3.max_range)
-            el, az = np.meshgrid(self._elevations, self._azimuths3d, indexing="ij")
-            dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1).reshape(-1, 3)
-            self._cloud = np.where(returned[:, None], dirs * noisy[:, None], 0.0).astype(np.float32)
+            self._cloud = np.where(returned[:, None], self._directions3d * noisy[:, None], 0.0).astype(np.float32)
             self._cloud_mask = returned.astype(np.int8)
             self._labels = np.where(returned, labels, -1).astype(np.int8)
             self._cloud_time = self._time
@@ -292,7 +291,15 @@ class LidarRobotEnv(gym.Env):
             for k, v in self.__dict__.items()
             if k.startswith("_")
             and k
-            not in {"_world_arg", "_collision_clearance", "_start_cells", "_elevations", "_azimuths3d", "_azimuths2d"}
+            not in {
+                "_world_arg",
+                "_collision_clearance",
+                "_start_cells",
+                "_elevations",
+                "_azimuths3d",
+                "_azimuths2d",
+                "_directions3d",
+            }
         }
         return {
             "world": self._world_arg,

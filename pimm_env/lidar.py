@@ -6,8 +6,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pimm_env.semantics import NO_RETURN
-
 #: pybullet's rayTestBatch takes at most 16384 rays and drops one at exactly that count.
 MAX_RAYS_PER_BATCH = 8192
 
@@ -86,11 +84,3 @@ def noisy_ranges(
     ranges = np.clip(ranges, 0.0, max_range)
     ranges[~hit | (ranges < min_range)] = max_range
     return ranges
-
-
-def labels_of(bodies: np.ndarray, body_classes: np.ndarray) -> np.ndarray:
-    """Semantic label of each ray's hit body, NO_RETURN where nothing was hit."""
-    labels = np.full(len(bodies), NO_RETURN, dtype=np.int8)
-    hit = bodies >= 0
-    labels[hit] = body_classes[bodies[hit]]
-    return labels
