@@ -6,6 +6,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
 from pimm_env.base_env import LidarRobotEnv, SimConfig
@@ -43,7 +44,7 @@ def odom_to_map(odom: np.ndarray, start: np.ndarray) -> np.ndarray:
 
 
 def drive(
-    env: LidarRobotEnv,
+    env: LidarRobotEnv | gym.Wrapper,
     waypoints: np.ndarray,
     speed: float,
     on_step: StepCallback | None = None,
@@ -52,7 +53,7 @@ def drive(
     """Follow ``waypoints`` from the env's current pose; returns (completed, collided, true poses, odometry)."""
     controller = PurePursuit(waypoints, PursuitConfig(speed=speed))
     true_poses, odoms = [], []
-    pose = env.robot.pose
+    pose = env.unwrapped.robot.pose
     for _ in range(max_steps):
         obs, _, terminated, truncated, info = env.step(np.array(controller.command(pose), dtype=np.float32))
         pose = info["true_pose"]
@@ -75,7 +76,7 @@ def run(
     seed: int = 0,
     lidar3d: bool = True,
     on_step: StepCallback | None = None,
-    env: LidarRobotEnv | None = None,
+    env: LidarRobotEnv | gym.Wrapper | None = None,
 ) -> RolloutResult:
     """Roll out ``scenario`` in a fresh env (or ``env``); kidnap scenarios drive the path twice."""
     import time
@@ -101,8 +102,8 @@ def run(
             completed, collided, more_true, more_odom = drive(env, scenario.waypoints, scenario.speed, on_step)
             true_poses += more_true
             odoms += more_odom
-        duration = float(env._time)
-        travelled = float(env.robot.travelled)
+        duration = float(env.unwrapped._time)
+        travelled = float(env.unwrapped.robot.travelled)
     finally:
         if own_env:
             env.close()

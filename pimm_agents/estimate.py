@@ -1,0 +1,59 @@
+"""What every localizer reports, and the small surface every localizer has."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+Observation = dict[str, np.ndarray]
+
+
+@dataclass(frozen=True)
+class PoseEstimate:
+    """A pose in the map frame with its 3 x 3 covariance (x, y, theta) and per-stage timings in ms.
+
+    ``stamp`` is the sim time of the observation the estimate was made from.
+    """
+
+    x: float
+    y: float
+    theta: float
+    covariance: np.ndarray
+    stamp: float = 0.0
+    timings: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        values = np.array([self.x, self.y, self.theta])
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"pose estimate is not finite: {values}")
+        if np.shape(self.covariance) != (3, 3):
+            raise ValueError(f"covariance must be 3 x 3, got shape {np.shape(self.covariance)}")
+
+    @property
+    def pose(self) -> np.ndarray:
+        return np.array([self.x, self.y, self.theta])
+
+
+class Localizer(Protocol):
+    """Built from a world's maps and one config object; consumes the env's observations one at a time."""
+
+    name: str
+
+    def reset(self, seed: int | None = None) -> None:
+        """Forget everything: the pose is unknown (global localization)."""
+
+    def update(self, obs: Observation) -> PoseEstimate:
+        """Consume one observation and return the current estimate."""
+        ...
+
+
+def require(obs: Observation, key: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    """``obs[key]`` as a float array, with a clear error if it is missing or has the wrong shape."""
+    if key not in obs:
+        raise KeyError(f"observation has no {key!r} (keys: {sorted(obs)})")
+    value = np.asarray(obs[key], dtype=float)
+    if shape is not None and value.shape != shape:
+        raise ValueError(f"observation {key!r} has shape {value.shape}, expected {shape}")
+    return value

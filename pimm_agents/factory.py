@@ -1,0 +1,55 @@
+"""Build a localizer by name for a world: the one place that knows which localizers exist."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import fields, replace
+from typing import Any
+
+from pimm_agents.estimate import Localizer
+from pimm_env.lidar import Lidar2DConfig
+from pimm_env.world import World, load_world
+
+
+def _amcl(world: World, overrides: dict[str, Any], name: str, preset: dict[str, Any]) -> Localizer:
+    from pimm_agents.amcl import Amcl, AmclConfig
+    from pimm_env.derived_maps import load_derived_maps
+
+    config = _configured(AmclConfig(), {**preset, **overrides}, name)
+    lidar = overrides.get("lidar2d") or Lidar2DConfig()
+    return Amcl(load_derived_maps(world).occupancy, config, lidar, name=name)
+
+
+def _configured(config: Any, overrides: dict[str, Any], name: str) -> Any:
+    known = {f.name for f in fields(config)}
+    unknown = sorted(set(overrides) - known - {"lidar2d"})
+    if unknown:
+        raise ValueError(f"localizer {name!r} has no setting(s) {unknown}; valid: {', '.join(sorted(known))}")
+    return replace(config, **{k: v for k, v in overrides.items() if k in known})
+
+
+def _amcl_recovery_preset() -> dict[str, Any]:
+    from pimm_agents.amcl import AMCL_RECOVERY
+
+    return AMCL_RECOVERY
+
+
+LOCALIZERS: dict[str, Callable[[World, dict[str, Any]], Localizer]] = {
+    "amcl": lambda world, overrides: _amcl(world, overrides, "amcl", {}),
+    "amcl-recovery": lambda world, overrides: _amcl(world, overrides, "amcl-recovery", _amcl_recovery_preset()),
+}
+
+
+def available_localizers() -> list[str]:
+    return list(LOCALIZERS)
+
+
+def make_localizer(name: str, world: str | World = "iilab", **overrides: Any) -> Localizer:
+    """The localizer ``name`` for ``world`` (a name, a world file or a loaded world).
+
+    Keyword arguments override fields of the localizer's config object, e.g. ``max_particles=500``.
+    """
+    if name not in LOCALIZERS:
+        raise ValueError(f"unknown localizer {name!r}; valid: {', '.join(LOCALIZERS)}")
+    loaded = world if isinstance(world, World) else load_world(world)
+    return LOCALIZERS[name](loaded, overrides)
