@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """PIMM's command line: run the experiments, measure the parts, time the stages.
 
-    python evaluate.py                 # the main job on the default world (quick)
+    python evaluate.py                 # the main job on the default world: 3 trials of every scenario
+    python evaluate.py run --scenarios area_b a_c_b --localizers amcl --trials 10 --seed 0 --out results/
+    python evaluate.py score results/*/logs/*.csv
     python evaluate.py rollout --scenarios area_a area_b --seed 0 --out results/
     python evaluate.py bench [--json]
 
@@ -29,9 +31,146 @@ def _results_dir(out: Path, kind: str) -> Path:
 
 @app.callback(invoke_without_command=True)
 def main(ctx: typer.Context) -> None:
-    """With no command: the main job, a rollout of every scenario on the default world."""
+    """With no command: the main job, 3 trials of every scenario with every localizer on the default world."""
     if ctx.invoked_subcommand is None:
-        rollout(scenarios=DEFAULT_SCENARIOS, world="iilab", seed=0, out=Path("results"), json_out=False)
+        from pimm_agents import available_localizers
+
+        run(
+            scenarios=DEFAULT_SCENARIOS,
+            localizers=available_localizers(),
+            trials=3,
+            seed=0,
+            world="iilab",
+            out=Path("results"),
+            workers=0,
+            settings=[],
+            json_out=False,
+        )
+
+
+def _parse_settings(settings: list[str]) -> dict[str, float | int | bool | str]:
+    parsed: dict[str, float | int | bool | str] = {}
+    for item in settings:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise typer.BadParameter(f"expected KEY=VALUE, got {item!r}", param_hint="--set")
+        value: float | int | bool | str = raw
+        for cast in (int, float):
+            try:
+                value = cast(raw)
+                break
+            except ValueError:
+                continue
+        if raw in ("true", "false"):
+            value = raw == "true"
+        parsed[key] = value
+    return parsed
+
+
+@app.command()
+def run(
+    scenarios: list[str] = typer.Option(DEFAULT_SCENARIOS, "--scenarios", help="scenario names"),
+    localizers: list[str] = typer.Option(["amcl", "amcl-recovery"], "--localizers", help="localizer names"),
+    trials: int = typer.Option(10, min=1, help="trials per scenario and localizer (thesis: 10)"),
+    seed: int = typer.Option(0, help="trial i uses seed + i for the simulation and the localizer"),
+    world: str = typer.Option("iilab", help="world name or world file"),
+    out: Path = typer.Option(Path("results"), help="where the timestamped results folder goes"),
+    workers: int = typer.Option(0, help="worker processes (0: one per core)"),
+    settings: list[str] = typer.Option([], "--set", help="localizer setting KEY=VALUE, e.g. max_particles=500"),
+    json_out: bool = typer.Option(False, "--json", help="print the summary as one JSON object"),
+) -> None:
+    """Run localizers on scenarios, trials in parallel; print the thesis's tables and write logs and figures."""
+    import os
+    import time
+
+    from tqdm import tqdm
+
+    from pimm_agents import available_localizers, make_localizer
+    from pimm_agents.trials import TrialSpec, run_trials
+    from pimm_env.report import format_tables, format_timings, write_results
+    from pimm_env.scenarios import load_scenarios
+    from pimm_env.world import load_world
+
+    available = load_scenarios(load_world(world).name)
+    unknown = [s for s in scenarios if s not in available]
+    if unknown:
+        raise typer.BadParameter(
+            f"unknown scenario(s) {unknown}; valid: {', '.join(available)}", param_hint="--scenarios"
+        )
+    bad = [name for name in localizers if name not in available_localizers()]
+    if bad:
+        raise typer.BadParameter(
+            f"unknown localizer(s) {bad}; valid: {', '.join(available_localizers())}", param_hint="--localizers"
+        )
+    overrides = _parse_settings(settings)
+    configs = {}
+    for name in localizers:  # fail here, not in a worker, on a bad setting; and record the resolved config
+        try:
+            configs[name] = getattr(make_localizer(name, world, **overrides), "config", None)
+        except ValueError as error:
+            raise typer.BadParameter(str(error), param_hint="--set") from None
+    specs = [
+        TrialSpec(scenario, localizer, trial, seed + trial, world, overrides)
+        for scenario in scenarios
+        for localizer in localizers
+        for trial in range(trials)
+    ]
+    workers = workers or os.cpu_count() or 1
+    folder = _results_dir(out, "run")
+    start = time.perf_counter()
+    with tqdm(total=len(specs), desc="trials", unit="trial", disable=json_out) as bar:
+        results = run_trials(specs, workers=min(workers, len(specs)), on_done=lambda _: bar.update())
+    config = {
+        "world": world,
+        "scenarios": scenarios,
+        "localizers": {name: repr(cfg) for name, cfg in configs.items()},
+        "trials": trials,
+        "seed": seed,
+        "workers": workers,
+        "settings": overrides,
+        "wall_s": round(time.perf_counter() - start, 1),
+    }
+    summary = write_results(folder, results, config, world)
+    if json_out:
+        typer.echo(json.dumps({**summary, "folder": str(folder)}))
+        return
+    typer.echo(format_tables(summary))
+    typer.echo(format_timings(summary))
+    typer.echo(f"\n{len(specs)} trials in {config['wall_s']} s; results: {folder}/ (summary.json, logs/, figures/)")
+
+
+@app.command()
+def score(
+    files: list[Path] = typer.Argument(..., help="trial logs in the thesis's CSV format"),
+    json_out: bool = typer.Option(False, "--json", help="print one JSON object"),
+) -> None:
+    """The thesis's metrics from trial logs made anywhere (columns timestamp_real ... cov_theta)."""
+    from pimm_env.metrics import summarize, trial_metrics
+    from pimm_env.trial_log import read_csv
+
+    per_file = {}
+    for path in files:
+        try:
+            per_file[str(path)] = trial_metrics(read_csv(path))
+        except (ValueError, FileNotFoundError) as error:  # the message names the file and line: print it whole
+            typer.echo(f"error: {error}", err=True)
+            raise typer.Exit(1) from None
+    overall = summarize(list(per_file.values()))
+    if json_out:
+        typer.echo(json.dumps({"trials": {k: vars(v) for k, v in per_file.items()}, "summary": overall}))
+        return
+    for path, m in per_file.items():
+        verdict = (
+            f"converged at {m.convergence_time_s:.2f} s, error {m.position_error_m:.2f} m / {m.angle_error_deg:.2f} deg"
+            if m.converged
+            else "did not converge"
+        )
+        typer.echo(f"{path}: {verdict}")
+    rate = 100 * overall["convergence_rate"]
+    typer.echo(
+        f"\n{overall['trials']} trials: convergence rate {rate:.0f} %, time {overall['convergence_time_s']} s, "
+        f"position error {overall['position_error_m']} m, angle error {overall['angle_error_deg']} deg"
+    )
 
 
 @app.command()
@@ -113,5 +252,28 @@ def bench(
         typer.echo(f"{key:<24}{value:>10.3f}")
 
 
+#: Options that take several values after one flag (``--scenarios a b c``), as ARCHITECTURE.md writes them.
+LIST_OPTIONS = ("--scenarios", "--localizers")
+
+
+def expand_list_options(argv: list[str]) -> list[str]:
+    """Rewrite ``--scenarios a b`` as ``--scenarios a --scenarios b``, the form click parses."""
+    out: list[str] = []
+    current = None
+    for token in argv:
+        if token.startswith("-"):
+            current = token if token in LIST_OPTIONS else None
+            out.append(token)
+        elif current is not None and out[-1] != current:
+            out += [current, token]
+        else:
+            out.append(token)
+    return out
+
+
+def cli() -> int:
+    return app(args=expand_list_options(sys.argv[1:]))
+
+
 if __name__ == "__main__":
-    sys.exit(app())
+    sys.exit(cli())

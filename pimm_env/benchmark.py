@@ -56,4 +56,32 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     result = run(get_scenario("area_a"), env=rollout_env)
     rollout_env.close()
     figures["realtime_factor"] = result.realtime_factor
+    figures.update(amcl_benchmarks(repeats))
+    return figures
+
+
+def amcl_benchmarks(repeats: int) -> dict[str, float]:
+    """AMCL's measurement update (2 000 particles x 60 beams, the stage the thesis timed) and a whole
+    filter update (motion, measurement, KLD resampling, cluster estimate) from a global start."""
+    from pimm_agents.amcl import Amcl
+    from pimm_agents.factory import make_localizer
+    from pimm_env.iilab_env import IILabEnv
+
+    env = IILabEnv(terminate_on_collision=False)
+    obs, _ = env.reset(seed=0, options={"pose": [-18.5, 14.0, 1.5708]})
+    env.close()
+    amcl = make_localizer("amcl")
+    assert isinstance(amcl, Amcl)
+    amcl.reset(seed=0)
+    scan = np.asarray(obs["scan"], dtype=float)
+    figures = {"amcl_update_ms": median_ms(lambda: amcl._sensor_update(scan), repeats)}
+    assert amcl.particle_count == amcl.config.max_particles == 2000
+
+    particles, weights = amcl.particles.copy(), amcl.weights.copy()
+
+    def whole_update() -> None:
+        amcl.particles, amcl.weights = particles.copy(), weights.copy()
+        amcl._filter(np.zeros(3), scan, (0.0, 0.3, 0.0), {})
+
+    figures["amcl_filter_update_ms"] = median_ms(whole_update, max(5, repeats // 3))
     return figures

@@ -1,4 +1,5 @@
 import json
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -21,3 +22,58 @@ def test_rollout_command_writes_results(tmp_path):
     assert row["completed"] and not row["collided"] and row["length_m"] > 20
     folder = next(tmp_path.iterdir())
     assert (folder / "rollouts.json").is_file() and (folder / "rollouts.png").stat().st_size > 10_000
+
+
+def test_list_options_take_several_values_after_one_flag():
+    argv = ["run", "--scenarios", "area_a", "area_b", "--localizers", "amcl", "--trials", "2"]
+    assert evaluate.expand_list_options(argv) == [
+        "run", "--scenarios", "area_a", "--scenarios", "area_b", "--localizers", "amcl", "--trials", "2",
+    ]  # fmt: skip
+
+
+def test_run_rejects_unknown_names_and_settings(tmp_path):
+    runner = CliRunner()
+    result = runner.invoke(evaluate.app, ["run", "--localizers", "magic", "--out", str(tmp_path)])
+    assert result.exit_code != 0 and "amcl-recovery" in result.output and "magic" in result.output
+    result = runner.invoke(evaluate.app, ["run", "--scenarios", "moon", "--out", str(tmp_path)])
+    assert result.exit_code != 0 and "a_c_b_kidnap" in result.output
+    result = runner.invoke(evaluate.app, ["run", "--set", "particles=5", "--out", str(tmp_path)])
+    assert result.exit_code != 0 and "max_particles" in result.output
+    assert not list(tmp_path.iterdir())  # nothing written for a rejected run
+
+
+@pytest.mark.expensive
+def test_run_one_trial_end_to_end_then_score_its_log(tmp_path):
+    args = ["run", "--scenarios", "area_b", "--localizers", "amcl", "--trials", "1", "--workers", "1"]
+    args += ["--set", "max_particles=500", "--set", "min_particles=100", "--out", str(tmp_path), "--json"]
+    result = CliRunner().invoke(evaluate.app, args)
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output.strip().splitlines()[-1])
+    row = data["scenarios"]["area_b"]["amcl"]
+    assert set(row) == {
+        "trials", "convergence_rate", "convergence_time_s", "position_error_m", "angle_error_deg", "timings_ms",
+    }  # fmt: skip
+    assert row["trials"] == 1 and 0.0 <= row["convergence_rate"] <= 1.0
+    assert set(row["timings_ms"]) >= {"sensor", "total"} and row["timings_ms"]["sensor"]["max"] > 0
+    folder = Path(data["folder"])
+    assert json.loads((folder / "summary.json").read_text())["scenarios"]["area_b"]["amcl"] == row
+    assert "max_particles=500" in (folder / "config.json").read_text()
+    logs = sorted((folder / "logs").glob("*.csv"))
+    assert [p.name for p in logs] == ["area_b_amcl_trial00.csv"]
+    assert len(list((folder / "figures").glob("*.png"))) >= 1
+    scored = CliRunner().invoke(evaluate.app, ["score", str(logs[0]), "--json"])
+    assert scored.exit_code == 0, scored.output
+    summary = json.loads(scored.output)["summary"]
+    assert summary["convergence_rate"] == row["convergence_rate"]
+    if row["convergence_time_s"] is not None:
+        assert summary["convergence_time_s"] == pytest.approx(row["convergence_time_s"], abs=1e-3)
+
+
+def test_score_names_the_bad_line(tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text(
+        "timestamp_real,timestamp_est,real_x,real_y,real_theta,est_x,est_y,est_theta,cov_x,cov_y,cov_theta\n"
+        "0,0,0,0,0,0,0,0,0,0,0\n0,0,0,0,0,x,0,0,0,0,0\n"
+    )
+    result = CliRunner().invoke(evaluate.app, ["score", str(bad)])
+    assert result.exit_code != 0 and "line 3" in result.output and "est_x" in result.output
