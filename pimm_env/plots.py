@@ -17,22 +17,12 @@ def plot_rollouts(world: str, results: Sequence[RolloutResult], path: Path) -> P
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from pimm_env.derived_maps import load_derived_maps
-    from pimm_env.render import map_image
-    from pimm_env.world import load_world
+    from pimm_env.render import show_map
 
-    occupancy = load_derived_maps(load_world(world)).occupancy
-    g = occupancy.grid
-    extent = [
-        g.origin[0],
-        g.origin[0] + g.shape[1] * g.resolution,
-        g.origin[1],
-        g.origin[1] + g.shape[0] * g.resolution,
-    ]
     n = max(1, len(results))
     fig, axes = plt.subplots(1, n, figsize=(7 * n, 5), squeeze=False)
     for ax, result in zip(axes[0], results, strict=False):
-        ax.imshow(map_image(occupancy), origin="lower", extent=extent)
+        show_map(ax, world)
         ax.plot(result.true_path[:, 0], result.true_path[:, 1], "-", color="tab:green", lw=1.5, label="true path")
         if np.isfinite(result.final_drift_m):
             ax.plot(result.odom_path[:, 0], result.odom_path[:, 1], "--", color="tab:red", lw=1.0, label="odometry")

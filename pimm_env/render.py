@@ -23,6 +23,18 @@ def map_image(occupancy: OccupancyGrid) -> np.ndarray:
     return image
 
 
+def show_map(ax, world: str) -> None:
+    """Draw ``world``'s occupancy map on a matplotlib axis, in map coordinates (metres)."""
+    from pimm_env.derived_maps import load_derived_maps
+    from pimm_env.world import load_world
+
+    occupancy = load_derived_maps(load_world(world)).occupancy
+    g = occupancy.grid
+    x0, y0 = g.origin
+    extent = [x0, x0 + g.shape[1] * g.resolution, y0, y0 + g.shape[0] * g.resolution]
+    ax.imshow(map_image(occupancy), origin="lower", extent=extent)
+
+
 def plot_points(image: np.ndarray, occupancy: OccupancyGrid, xy: np.ndarray, color, size: int = 0) -> None:
     """Paint map-frame points ``xy`` (N, 2) into a map image (in the grid's row order) in place."""
     rows, cols, valid = occupancy.grid.cells_of(np.asarray(xy, dtype=float).reshape(-1, 2))

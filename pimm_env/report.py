@@ -118,22 +118,12 @@ def plot_trial(world: str, trial: _Trial, path: Path, label: str) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from pimm_env.derived_maps import load_derived_maps
     from pimm_env.metrics import ANGLE_THRESHOLD_DEG, POSITION_THRESHOLD_M
-    from pimm_env.render import map_image
-    from pimm_env.world import load_world
+    from pimm_env.render import show_map
 
     log = trial.log
-    occupancy = load_derived_maps(load_world(world)).occupancy
-    g = occupancy.grid
-    extent = [
-        g.origin[0],
-        g.origin[0] + g.shape[1] * g.resolution,
-        g.origin[1],
-        g.origin[1] + g.shape[0] * g.resolution,
-    ]
     fig, (ax_map, ax_err) = plt.subplots(1, 2, figsize=(14, 5), gridspec_kw={"width_ratios": [1.4, 1]})
-    ax_map.imshow(map_image(occupancy), origin="lower", extent=extent)
+    show_map(ax_map, world)
     true_xy = log.true[:, :2]
     if log.kidnap_index is not None:  # no line across the teleport
         true_xy = np.insert(true_xy, log.kidnap_index, np.nan, axis=0)
