@@ -252,6 +252,34 @@ def bench(
         typer.echo(f"{key:<24}{value:>10.3f}")
 
 
+@app.command()
+def perception(
+    world: str = typer.Option("iilab", help="world name or world file"),
+    scans: int = typer.Option(50, min=1, help="fresh scans at random free poses"),
+    seed: int = typer.Option(1, help="seed of the scan poses (keep it apart from training seeds)"),
+    json_out: bool = typer.Option(False, "--json", help="print one JSON object"),
+) -> None:
+    """Measure perception on fresh scans. So far: the corner detector on the simulator's true labels
+    (segmentation, retrieval and predicted-label corners appear once the network exists)."""
+    from dataclasses import asdict
+
+    from pimm_agents.corner_quality import collect_scans, corner_stats
+    from pimm_env.derived_maps import load_derived_maps
+    from pimm_env.world import load_world
+
+    collected = collect_scans(world, scans, seed)
+    stats = corner_stats(collected, load_derived_maps(load_world(world)).corners)
+    keys = ("precision", "recall", "median_position_error_m", "median_orientation_error_deg")
+    result = {"corners": {"true_labels": {k: asdict(stats)[k] for k in keys}}}
+    if json_out:
+        typer.echo(json.dumps(result))
+        return
+    typer.echo(f"corners on true labels, {stats.scans} scans ({stats.detected} detected, {stats.visible} visible):")
+    for key in keys:
+        value = asdict(stats)[key]
+        typer.echo(f"  {key:<32}{'-' if value is None else format(value, '.3f')}")
+
+
 #: Options that take several values after one flag (``--scenarios a b c``), as ARCHITECTURE.md writes them.
 LIST_OPTIONS = ("--scenarios", "--localizers")
 

@@ -57,7 +57,20 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     rollout_env.close()
     figures["realtime_factor"] = result.realtime_factor
     figures.update(amcl_benchmarks(repeats))
+    figures["corners_ms"] = corners_benchmark(repeats)
     return figures
+
+
+def corners_benchmark(repeats: int) -> float:
+    """Median corner-detection time per scan (true labels) over scans at random free poses."""
+    from pimm_agents.corner_detector import detect_corners
+    from pimm_agents.corner_quality import collect_scans
+
+    scans = collect_scans("iilab", max(5, repeats // 3), seed=7)
+    times = []
+    for points, labels, _, _ in scans:
+        times.append(median_ms(lambda p=points, lab=labels: detect_corners(p, lab), 1))
+    return float(np.median(times))
 
 
 def amcl_benchmarks(repeats: int) -> dict[str, float]:

@@ -77,3 +77,12 @@ def test_score_names_the_bad_line(tmp_path):
     )
     result = CliRunner().invoke(evaluate.app, ["score", str(bad)])
     assert result.exit_code != 0 and "line 3" in result.output and "est_x" in result.output
+
+
+@pytest.mark.expensive
+def test_perception_reports_corner_stats(tmp_path):
+    result = CliRunner().invoke(evaluate.app, ["perception", "--scans", "3", "--json"])
+    assert result.exit_code == 0, result.output
+    stats = json.loads(result.output.strip().splitlines()[-1])["corners"]["true_labels"]
+    assert set(stats) == {"precision", "recall", "median_position_error_m", "median_orientation_error_deg"}
+    assert 0.0 <= stats["precision"] <= 1.0 and 0.0 <= stats["recall"] <= 1.0

@@ -1,0 +1,109 @@
+"""How well the corner detector finds the map's corners: precision, recall and errors over fresh scans."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pimm_agents.corner_detector import CornerDetectorConfig, FeatureList, detect_corners
+from pimm_env.corner_map import CornerMap
+from pimm_env.robot import wrap_angle
+
+
+@dataclass(frozen=True)
+class CornerStats:
+    precision: float
+    recall: float
+    median_position_error_m: float | None
+    median_orientation_error_deg: float | None
+    scans: int
+    detected: int
+    visible: int
+
+
+def visible_corners(caster, origin: np.ndarray, corners: CornerMap, max_range: float, half_fov: float) -> np.ndarray:
+    """Indices of map corners within ``max_range`` of the sensor at ``origin``, inside its vertical field of
+    view, with a clear ray to a point 0.15 m in front of the corner (the vertex itself lies on the walls)."""
+    delta = np.column_stack([corners.xy - origin[:2], corners.z - origin[2]])
+    distance = np.linalg.norm(delta, axis=1)
+    elevation = np.arcsin(np.clip(delta[:, 2] / np.maximum(distance, 1e-9), -1, 1))
+    out = []
+    for k in np.nonzero((distance < max_range) & (np.abs(elevation) <= half_fov))[0]:
+        azimuth = np.arctan2(delta[k, 1], delta[k, 0])
+        ranges, _ = caster.cast(origin, np.array([azimuth]), np.array([elevation[k]]), max_range)
+        if ranges[0, 0] >= distance[k] - 0.15:
+            out.append(k)
+    return np.array(out, dtype=int)
+
+
+def to_map(features: FeatureList, pose: np.ndarray) -> np.ndarray:
+    """(K, 3) corner poses in the map frame from robot-frame features and the robot's pose."""
+    if not len(features):
+        return np.zeros((0, 3))
+    f = np.array([[c.x, c.y, c.theta] for c in features.features])
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    return np.column_stack(
+        [pose[0] + c * f[:, 0] - s * f[:, 1], pose[1] + s * f[:, 0] + c * f[:, 1], wrap_angle(f[:, 2] + pose[2])]
+    )
+
+
+def corner_stats(
+    scans: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+    corners: CornerMap,
+    config: CornerDetectorConfig | None = None,
+    match_distance: float = 0.5,
+) -> CornerStats:
+    """``scans``: (points, labels, robot pose, indices of visible map corners) each.
+
+    A detection is correct if a map corner lies within ``match_distance``; recall counts the visible corners
+    that some detection matched. Errors are over the correct detections.
+    """
+    detected = correct = visible = found = 0
+    position_errors, angle_errors = [], []
+    for points, labels, pose, seen in scans:
+        in_map = to_map(detect_corners(points, labels, config=config), pose)
+        detected += len(in_map)
+        visible += len(seen)
+        matched = set()
+        for x, y, theta in in_map:
+            distance = np.hypot(*(corners.xy - [x, y]).T)
+            k = int(np.argmin(distance))
+            if distance[k] <= match_distance:
+                correct += 1
+                matched.add(k)
+                position_errors.append(distance[k])
+                angle_errors.append(abs(float(wrap_angle(theta - corners.theta[k]))))
+        found += len(matched & {int(k) for k in seen})
+    return CornerStats(
+        precision=correct / detected if detected else 0.0,
+        recall=found / visible if visible else 0.0,
+        median_position_error_m=float(np.median(position_errors)) if position_errors else None,
+        median_orientation_error_deg=float(np.degrees(np.median(angle_errors))) if angle_errors else None,
+        scans=len(scans),
+        detected=detected,
+        visible=visible,
+    )
+
+
+def collect_scans(world: str, count: int, seed: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """``count`` scans at random free poses (seeded), with true labels and the visible map corners."""
+    from pimm_env.derived_maps import load_derived_maps
+    from pimm_env.iilab_env import IILabEnv
+
+    env = IILabEnv(world=world)
+    corners = load_derived_maps(env.world).corners
+    l3 = env.config.lidar3d
+    half_fov = np.radians(l3.vertical_fov_deg) / 2
+    scans = []
+    try:
+        for i in range(count):
+            obs, info = env.reset(seed=seed * 100_003 + i)
+            mask = obs["cloud_mask"].astype(bool)
+            pose = info["true_pose"]
+            origin = np.array([pose[0], pose[1], env.world.floor_z + l3.height])
+            seen = visible_corners(env.caster, origin, corners, l3.max_range, half_fov)
+            scans.append((obs["cloud"][mask], info["labels"][mask], pose, seen))
+    finally:
+        env.close()
+    return scans

@@ -1,0 +1,79 @@
+import numpy as np
+import pytest
+
+from pimm_agents.corner_detector import detect_corners
+from pimm_env.semantics import SemanticClass
+
+WALL, CEILING = int(SemanticClass.WALL), int(SemanticClass.CEILING)
+
+
+def grid_points(u: np.ndarray, v: np.ndarray, place) -> np.ndarray:
+    uu, vv = np.meshgrid(u, v)
+    return place(uu.ravel(), vv.ravel())
+
+
+def room_corner(rng: np.random.Generator, noise: float = 0.005, with_ceiling: bool = True, second_wall: bool = True):
+    """Walls x = 2 (y 0..3) and y = 3 (x -1..2) meeting under a ceiling at z = 2.5, in the sensor frame."""
+    step = np.arange(0.0, 3.0, 0.05)
+    height = np.arange(-0.5, 2.5, 0.05)
+    parts = [(grid_points(step, height, lambda a, z: np.column_stack([np.full_like(a, 2.0), a, z])), WALL)]
+    if second_wall:
+        parts.append(
+            (grid_points(step - 1.0, height, lambda a, z: np.column_stack([a, np.full_like(a, 3.0), z])), WALL)
+        )
+    if with_ceiling:
+        parts.append(
+            (grid_points(step - 1.0, step, lambda a, b: np.column_stack([a, b, np.full_like(a, 2.5)])), CEILING)
+        )
+    points = np.concatenate([p for p, _ in parts])
+    labels = np.concatenate([np.full(len(p), c) for p, c in parts])
+    return points + rng.normal(0, noise, points.shape), labels
+
+
+def test_synthetic_corner_is_found_to_a_centimetre_and_a_degree():
+    points, labels = room_corner(np.random.default_rng(0))
+    found = detect_corners(points, labels, stamp=4.2)
+    assert found.stamp == 4.2 and len(found) == 1
+    corner = found.features[0]
+    assert np.hypot(corner.x - 2.0, corner.y - 3.0) < 0.01
+    assert abs(np.degrees(corner.theta) - (-135.0)) < 1.0  # bisector towards both walls' centroids
+    assert np.all(np.linalg.eigvalsh(corner.position_covariance) > 0) and corner.orientation_variance > 0
+    assert 0.8 < corner.confidence <= 1.0  # the vertex itself is in view
+
+
+def test_one_wall_or_no_ceiling_gives_no_corner():
+    rng = np.random.default_rng(1)
+    assert len(detect_corners(*room_corner(rng, second_wall=False))) == 0
+    assert len(detect_corners(*room_corner(rng, with_ceiling=False))) == 0
+
+
+def test_a_wall_seen_on_both_sides_of_a_doorway_gives_no_phantom_corner():
+    # one wall y = 3 with a 1 m doorway between x = 0 and 1, each side fitted on its own, under a ceiling
+    rng = np.random.default_rng(2)
+    height = np.arange(-0.5, 2.5, 0.05)
+    left = grid_points(np.arange(-2.0, 0.0, 0.05), height, lambda a, z: np.column_stack([a, np.full_like(a, 3.0), z]))
+    right = grid_points(np.arange(1.0, 3.0, 0.05), height, lambda a, z: np.column_stack([a, np.full_like(a, 3.05), z]))
+    ceiling = grid_points(
+        np.arange(-2.0, 3.0, 0.05),
+        np.arange(0.0, 3.0, 0.05),
+        lambda a, b: np.column_stack([a, b, np.full_like(a, 2.5)]),
+    )
+    points = np.concatenate([left, right, ceiling]) + rng.normal(0, 0.005, (len(left) + len(right) + len(ceiling), 3))
+    labels = np.concatenate([np.full(len(left) + len(right), WALL), np.full(len(ceiling), CEILING)])
+    assert len(detect_corners(points, labels)) == 0
+
+
+def test_nan_points_are_ignored_and_empty_input_gives_an_empty_list():
+    points, labels = room_corner(np.random.default_rng(3))
+    points[::7] = np.nan
+    found = detect_corners(points, labels)
+    assert len(found) == 1 and np.hypot(found.features[0].x - 2.0, found.features[0].y - 3.0) < 0.02
+    assert len(detect_corners(np.zeros((0, 3)), np.zeros(0, dtype=int))) == 0
+    with pytest.raises(ValueError, match="labels"):
+        detect_corners(np.zeros((5, 3)), np.zeros(4, dtype=int))
+
+
+def test_detection_is_reproducible():
+    points, labels = room_corner(np.random.default_rng(4), noise=0.03)
+    a, b = detect_corners(points, labels, seed=5), detect_corners(points, labels, seed=5)
+    assert [(f.x, f.y, f.theta) for f in a.features] == [(f.x, f.y, f.theta) for f in b.features]
