@@ -20,7 +20,7 @@ from pimm_agents.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.resampling import multinomial_resample
 from pimm_env.lidar import Lidar2DConfig, beam_angles_2d
 from pimm_env.occupancy import OccupancyGrid
-from pimm_env.robot import wrap_angle
+from pimm_env.robot import compose, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -228,7 +228,7 @@ class Amcl:
         if self._odom_at_update is None:
             pose = mean
         else:
-            pose = compose(mean, relative_motion(self._odom_at_update, odom))
+            pose = compose(mean, relative_motion(self._odom_at_update, odom))[0]
         return PoseEstimate(float(pose[0]), float(pose[1]), float(pose[2]), cov.copy(), stamp, timings)
 
     @property
@@ -241,15 +241,3 @@ def relative_motion(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
     c, s = np.cos(previous[2]), np.sin(previous[2])
     dx, dy = current[0] - previous[0], current[1] - previous[1]
     return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(current[2] - previous[2])])
-
-
-def compose(pose: np.ndarray, motion: np.ndarray) -> np.ndarray:
-    """``pose`` moved by ``motion`` given in its own frame."""
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    return np.array(
-        [
-            pose[0] + c * motion[0] - s * motion[1],
-            pose[1] + s * motion[0] + c * motion[1],
-            wrap_angle(pose[2] + motion[2]),
-        ]
-    )

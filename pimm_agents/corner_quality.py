@@ -8,7 +8,7 @@ import numpy as np
 
 from pimm_agents.corner_detector import CornerDetectorConfig, FeatureList, detect_corners
 from pimm_env.corner_map import CornerMap
-from pimm_env.robot import wrap_angle
+from pimm_env.robot import compose, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -41,11 +41,7 @@ def to_map(features: FeatureList, pose: np.ndarray) -> np.ndarray:
     """(K, 3) corner poses in the map frame from robot-frame features and the robot's pose."""
     if not len(features):
         return np.zeros((0, 3))
-    f = np.array([[c.x, c.y, c.theta] for c in features.features])
-    c, s = np.cos(pose[2]), np.sin(pose[2])
-    return np.column_stack(
-        [pose[0] + c * f[:, 0] - s * f[:, 1], pose[1] + s * f[:, 0] + c * f[:, 1], wrap_angle(f[:, 2] + pose[2])]
-    )
+    return compose(pose, np.array([[c.x, c.y, c.theta] for c in features.features]))
 
 
 def corner_stats(

@@ -24,12 +24,18 @@ def kld_limit(k: np.ndarray | int, epsilon: float, z: float, min_particles: int,
     return np.where(np.isinf(bound), max_particles, np.clip(bound, min_particles, max_particles)).astype(int)
 
 
-def bin_keys(poses: np.ndarray, xy_size: float, theta_size: float) -> np.ndarray:
-    """One int64 key per pose (N, 3) naming its (x, y, theta) bin; theta bins wrap around the circle."""
+def bin_indices(poses: np.ndarray, xy_size: float, theta_size: float) -> tuple[np.ndarray, ...]:
+    """Integer (x, y, theta) bin of each pose (N, 3), and the number of theta bins; theta wraps around."""
+    n_theta = int(np.ceil(2 * np.pi / theta_size))
     ix = np.floor(poses[:, 0] / xy_size).astype(np.int64)
     iy = np.floor(poses[:, 1] / xy_size).astype(np.int64)
-    n_theta = int(np.ceil(2 * np.pi / theta_size))
     it = np.floor(np.mod(poses[:, 2], 2 * np.pi) / theta_size).astype(np.int64) % n_theta
+    return ix, iy, it, n_theta
+
+
+def bin_keys(poses: np.ndarray, xy_size: float, theta_size: float) -> np.ndarray:
+    """One int64 key per pose (N, 3) naming its (x, y, theta) bin."""
+    ix, iy, it, _ = bin_indices(poses, xy_size, theta_size)
     return ((ix + (1 << 20)) << 32) | ((iy + (1 << 20)) << 8) | it
 
 

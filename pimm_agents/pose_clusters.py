@@ -9,6 +9,8 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from pimm_agents.kld import bin_indices
+
 
 @dataclass(frozen=True)
 class PoseCluster:
@@ -19,10 +21,7 @@ class PoseCluster:
 
 def cluster_labels(poses: np.ndarray, xy_size: float, theta_size: float) -> np.ndarray:
     """A cluster label per pose: particles in bins that touch (26-neighbourhood, theta wraps) share one."""
-    n_theta = int(np.ceil(2 * np.pi / theta_size))
-    ix = np.floor(poses[:, 0] / xy_size).astype(np.int64)
-    iy = np.floor(poses[:, 1] / xy_size).astype(np.int64)
-    it = np.floor(np.mod(poses[:, 2], 2 * np.pi) / theta_size).astype(np.int64) % n_theta
+    ix, iy, it, n_theta = bin_indices(poses, xy_size, theta_size)
     ix -= ix.min()
     iy -= iy.min()
     occupied = np.zeros((ix.max() + 1, iy.max() + 1, n_theta + 1), dtype=bool)

@@ -43,6 +43,15 @@ def integrate_odometry(
     )
 
 
+def compose(origin: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """Poses (N, 3) given in the frame of ``origin`` (x, y, theta), expressed in the frame ``origin`` is in."""
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    c, s = np.cos(origin[2]), np.sin(origin[2])
+    x = origin[0] + c * poses[:, 0] - s * poses[:, 1]
+    y = origin[1] + s * poses[:, 0] + c * poses[:, 1]
+    return np.stack([x, y, wrap_angle(poses[:, 2] + origin[2])], axis=1)
+
+
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Angle in [-pi, pi)."""
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi

@@ -11,7 +11,7 @@ import numpy as np
 
 from pimm_env.base_env import LidarRobotEnv, SimConfig
 from pimm_env.controller import PurePursuit, PursuitConfig
-from pimm_env.robot import wrap_angle
+from pimm_env.robot import compose
 from pimm_env.scenarios import Scenario
 
 StepCallback = Callable[[dict[str, np.ndarray], dict[str, Any]], None]
@@ -37,10 +37,7 @@ class RolloutResult:
 
 def odom_to_map(odom: np.ndarray, start: np.ndarray) -> np.ndarray:
     """Express odometry poses (N, 3) in the map frame, given the true pose where odometry started."""
-    c, s = np.cos(start[2]), np.sin(start[2])
-    x = start[0] + c * odom[:, 0] - s * odom[:, 1]
-    y = start[1] + s * odom[:, 0] + c * odom[:, 1]
-    return np.stack([x, y, wrap_angle(odom[:, 2] + start[2])], axis=1)
+    return compose(start, odom)
 
 
 def drive(
