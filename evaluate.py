@@ -259,25 +259,25 @@ def perception(
     seed: int = typer.Option(1, help="seed of the scan poses (keep it apart from training seeds)"),
     json_out: bool = typer.Option(False, "--json", help="print one JSON object"),
 ) -> None:
-    """Measure perception on fresh scans. So far: the corner detector on the simulator's true labels
-    (segmentation, retrieval and predicted-label corners appear once the network exists)."""
-    from dataclasses import asdict
-
-    from pimm_agents.corner_quality import collect_scans, corner_stats
+    """Measure perception on fresh scans no training or map used: segmentation IoU, fingerprint retrieval,
+    and the corner detector on true and on predicted labels (parts whose trained files are missing are left out)."""
+    from pimm_agents.corner_quality import collect_scans
+    from pimm_agents.perception_maps import checkpoint_path, load_perception
+    from pimm_agents.perception_quality import format_perception, perception_report
     from pimm_env.derived_maps import load_derived_maps
     from pimm_env.world import load_world
 
+    loaded = load_world(world)
+    segmenter = fingerprints = None
+    if checkpoint_path(loaded).exists():
+        segmenter, fingerprints = load_perception(loaded)
+    else:
+        typer.echo(
+            f"{checkpoint_path(loaded)} is missing: only the corner detector on true labels is measured", err=True
+        )
     collected = collect_scans(world, scans, seed)
-    stats = corner_stats(collected, load_derived_maps(load_world(world)).corners)
-    keys = ("precision", "recall", "median_position_error_m", "median_orientation_error_deg")
-    result = {"corners": {"true_labels": {k: asdict(stats)[k] for k in keys}}}
-    if json_out:
-        typer.echo(json.dumps(result))
-        return
-    typer.echo(f"corners on true labels, {stats.scans} scans ({stats.detected} detected, {stats.visible} visible):")
-    for key in keys:
-        value = asdict(stats)[key]
-        typer.echo(f"  {key:<32}{'-' if value is None else format(value, '.3f')}")
+    result = perception_report(collected, load_derived_maps(loaded).corners, segmenter, fingerprints)
+    typer.echo(json.dumps(result) if json_out else format_perception(result))
 
 
 #: Options that take several values after one flag (``--scenarios a b c``), as ARCHITECTURE.md writes them.

@@ -82,7 +82,24 @@ def corner_stats(
     )
 
 
-def collect_scans(world: str, count: int, seed: int) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+@dataclass(frozen=True)
+class FreshScan:
+    """One scan as the env gave it (full cloud, mask, true labels), the true pose, its area, visible corners."""
+
+    cloud: np.ndarray
+    mask: np.ndarray
+    labels: np.ndarray
+    pose: np.ndarray
+    area: str
+    seen: np.ndarray
+
+    def corner_input(self, labels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What :func:`corner_stats` takes, with the true labels or the given (predicted) ones."""
+        chosen = self.labels if labels is None else labels
+        return self.cloud[self.mask], chosen[self.mask], self.pose, self.seen
+
+
+def collect_scans(world: str, count: int, seed: int) -> list[FreshScan]:
     """``count`` scans at random free poses (seeded), with true labels and the visible map corners."""
     from pimm_env.derived_maps import load_derived_maps
     from pimm_env.iilab_env import IILabEnv
@@ -95,11 +112,11 @@ def collect_scans(world: str, count: int, seed: int) -> list[tuple[np.ndarray, n
     try:
         for i in range(count):
             obs, info = env.reset(seed=seed * 100_003 + i)
-            mask = obs["cloud_mask"].astype(bool)
             pose = info["true_pose"]
             origin = np.array([pose[0], pose[1], env.world.floor_z + l3.height])
             seen = visible_corners(env.caster, origin, corners, l3.max_range, half_fov)
-            scans.append((obs["cloud"][mask], info["labels"][mask], pose, seen))
+            mask = obs["cloud_mask"].astype(bool)
+            scans.append(FreshScan(obs["cloud"], mask, info["labels"], pose, info["area"] or "", seen))
     finally:
         env.close()
     return scans

@@ -128,6 +128,19 @@ class LidarRobotEnv(gym.Env):
             return 0.0
         return float(self._collision_clearance[rows[0], cols[0]])
 
+    def start_positions(self, spacing: float) -> np.ndarray:
+        """(x, y) of a square grid with ``spacing`` (m) over the cells where a random start may be."""
+        if spacing <= 0:
+            raise ValueError(f"grid spacing must be positive, got {spacing}")
+        grid = self.maps.occupancy.grid
+        allowed = grid.empty_mask()
+        allowed[tuple(self._start_cells.T)] = True
+        step = max(1, round(spacing / grid.resolution))
+        rows, cols = np.nonzero(allowed[::step, ::step])
+        x = grid.origin[0] + (cols * step + 0.5) * grid.resolution
+        y = grid.origin[1] + (rows * step + 0.5) * grid.resolution
+        return np.column_stack([x, y])
+
     def _blocked(self, x: float, y: float) -> bool:
         return self.clearance_at(x, y) < self.config.robot.footprint_radius
 

@@ -58,7 +58,25 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     figures["realtime_factor"] = result.realtime_factor
     figures.update(amcl_benchmarks(repeats))
     figures["corners_ms"] = corners_benchmark(repeats)
+    figures.update(perception_benchmarks(repeats))
     return figures
+
+
+def perception_benchmarks(repeats: int) -> dict[str, float]:
+    """Segmentation + descriptor of one scan, and one fingerprint-map query, with the shipped iilab files."""
+    from pimm_agents.perception_maps import load_perception
+    from pimm_env.iilab_env import IILabEnv
+
+    segmenter, fingerprints = load_perception("iilab")
+    env = IILabEnv()
+    obs, _ = env.reset(seed=3)
+    env.close()
+    cloud, mask = obs["cloud"], obs["cloud_mask"]
+    descriptor = segmenter.segment(cloud, mask).descriptor
+    return {
+        "segmentation_ms": median_ms(lambda: segmenter.segment(cloud, mask), repeats),
+        "fingerprint_query_ms": median_ms(lambda: fingerprints.query(descriptor), repeats),
+    }
 
 
 def corners_benchmark(repeats: int) -> float:
@@ -68,7 +86,8 @@ def corners_benchmark(repeats: int) -> float:
 
     scans = collect_scans("iilab", max(5, repeats // 3), seed=7)
     times = []
-    for points, labels, _, _ in scans:
+    for scan in scans:
+        points, labels, _, _ = scan.corner_input()
         times.append(median_ms(lambda p=points, lab=labels: detect_corners(p, lab), 1))
     return float(np.median(times))
 

@@ -1,0 +1,130 @@
+"""How good perception is on fresh scans: segmentation IoU (thesis table 3.2), retrieval errors (table 3.4)
+and the corner detector on true and on predicted labels. ``evaluate.py perception`` prints this."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+import numpy as np
+
+from pimm_agents.corner_quality import FreshScan, corner_stats
+from pimm_agents.fingerprint_map import FingerprintMap, Retrieval
+from pimm_agents.segmenter import Segmenter
+from pimm_env.corner_map import CornerMap
+from pimm_env.semantics import CLASS_NAMES
+
+#: Thesis table 3.2 (segmentation) and table 3.4 (retrieval, on its own training scans, k = 5).
+THESIS_IOU = {"floor": 0.930, "ceiling": 0.648, "wall": 0.619, "clutter": 0.483, "mean": 0.69}
+THESIS_RETRIEVAL = {
+    "A": (1.69, 0.28, 3.54),
+    "B": (1.06, 0.10, 2.49),
+    "C": (2.88, 0.42, 6.14),
+    "total": (1.87, 0.27, 4.01),
+}
+CORNER_KEYS = ("precision", "recall", "median_position_error_m", "median_orientation_error_deg")
+
+
+def iou_per_class(predicted: np.ndarray, truth: np.ndarray, num_classes: int = len(CLASS_NAMES)) -> np.ndarray:
+    """Intersection over union of each class over the points with a true label (NaN for a class never seen)."""
+    keep = truth >= 0
+    p, t = predicted[keep].astype(np.int64), truth[keep].astype(np.int64)
+    if np.any((p < 0) | (p >= num_classes)):
+        raise ValueError(f"predicted labels outside 0..{num_classes - 1} on points that have a true label")
+    confusion = np.bincount(t * num_classes + p, minlength=num_classes**2).reshape(num_classes, num_classes)
+    inter = np.diag(confusion).astype(float)
+    union = confusion.sum(0) + confusion.sum(1) - inter
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(union > 0, inter / union, np.nan)
+
+
+def retrieval_errors(retrievals: list[Retrieval], truths: np.ndarray) -> dict[str, float]:
+    """Table 3.4's metrics: mean, mean-min and mean-max distance (m) from the true position to the k retrieved
+    ones; recall@k within 2 m (share of queries with a retrieved position within 2 m); the share of queries
+    whose suggestions pass the spread check."""
+    if len(retrievals) == 0:
+        raise ValueError("no retrievals to score")
+    dists = np.array([np.linalg.norm(r.positions - t[:2], axis=1) for r, t in zip(retrievals, truths, strict=True)])
+    return {
+        "recall_at_3_2m": float(np.mean(dists.min(axis=1) <= 2.0)),
+        "mean_error_m": float(dists.mean()),
+        "mean_min_error_m": float(dists.min(axis=1).mean()),
+        "mean_max_error_m": float(dists.max(axis=1).mean()),
+        "consistent_share": float(np.mean([r.consistent for r in retrievals])),
+        "queries": len(retrievals),
+    }
+
+
+def _corner_dict(stats) -> dict[str, float | None]:
+    return {k: asdict(stats)[k] for k in CORNER_KEYS}
+
+
+def perception_report(
+    scans: list[FreshScan],
+    corners: CornerMap,
+    segmenter: Segmenter | None = None,
+    fingerprints: FingerprintMap | None = None,
+) -> dict[str, Any]:
+    """The ``evaluate.py perception`` JSON; parts whose component is missing are left out."""
+    report: dict[str, Any] = {
+        "corners": {"true_labels": _corner_dict(corner_stats([s.corner_input() for s in scans], corners))}
+    }
+    if segmenter is None:
+        return report
+    segmented = [segmenter.segment(s.cloud, s.mask) for s in scans]
+    iou = iou_per_class(
+        np.concatenate([g.labels[s.mask] for g, s in zip(segmented, scans, strict=True)]),
+        np.concatenate([s.labels[s.mask] for s in scans]),
+    )
+    report["segmentation"] = {
+        "miou": float(np.nanmean(iou)),
+        "iou": {name: float(v) for name, v in zip(CLASS_NAMES, iou, strict=True)},
+        "scans": len(scans),
+    }
+    predicted = [s.corner_input(g.labels) for g, s in zip(segmented, scans, strict=True)]
+    report["corners"]["predicted_labels"] = _corner_dict(corner_stats(predicted, corners))
+    if fingerprints is not None:
+        retrievals = [fingerprints.query(g.descriptor) for g in segmented]
+        truths = np.array([s.pose for s in scans])
+        areas = np.array([s.area for s in scans])
+        report["retrieval"] = retrieval_errors(retrievals, truths)
+        report["retrieval"]["per_area"] = {
+            area: retrieval_errors(
+                [r for r, a in zip(retrievals, areas, strict=True) if a == area], truths[areas == area]
+            )
+            for area in sorted(set(areas) - {""})
+        }
+    return report
+
+
+def _num(value: float | None, fmt: str = ".3f") -> str:
+    return "-" if value is None else format(value, fmt)
+
+
+def format_perception(report: dict[str, Any]) -> str:
+    """Readable tables of a :func:`perception_report`, with the thesis's figures beside ours."""
+    lines = []
+    if "segmentation" in report:
+        seg = report["segmentation"]
+        lines += [f"segmentation IoU, {seg['scans']} fresh scans     ours   thesis (table 3.2)"]
+        for name in ("floor", "ceiling", "wall", "clutter"):
+            lines.append(f"  {name:<38}{_num(seg['iou'][name])}   {THESIS_IOU[name]:.3f}")
+        lines += [f"  {'mean':<38}{_num(seg['miou'])}   {THESIS_IOU['mean']:.3f}", ""]
+    if "retrieval" in report:
+        ret = report["retrieval"]
+        lines.append(
+            "retrieval (k = 3)      queries  recall@3<2m  mean  mean-min  mean-max   thesis (k = 5, seen scans)"
+        )
+        rows = [*ret["per_area"].items(), ("total", ret)]
+        for area, r in rows:
+            thesis = THESIS_RETRIEVAL.get(area)
+            ref = " / ".join(f"{v:.2f}" for v in thesis) if thesis else "-"
+            lines.append(
+                f"  {area:<20}{r['queries']:>7}  {r['recall_at_3_2m']:>11.3f}  {r['mean_error_m']:>4.2f}  "
+                f"{r['mean_min_error_m']:>8.2f}  {r['mean_max_error_m']:>8.2f}   {ref}"
+            )
+        lines += [f"  suggestions passing the 10 m spread check: {ret['consistent_share']:.3f}", ""]
+    lines.append("corners                    " + "  ".join(f"{k:>12.12}" for k in CORNER_KEYS))
+    for which, stats in report["corners"].items():
+        lines.append(f"  {which:<24} " + "  ".join(f"{_num(stats[k]):>12}" for k in CORNER_KEYS))
+    return "\n".join(lines)

@@ -1,0 +1,74 @@
+import numpy as np
+import pytest
+
+from pimm_agents.fingerprint_map import FingerprintConfig, FingerprintMap
+from pimm_agents.perception_quality import retrieval_errors
+
+
+def line_map(n: int = 20, dim: int = 8) -> FingerprintMap:
+    """Positions 1 m apart along x; descriptor i is a unit vector that turns slowly with i."""
+    angle = np.linspace(0, np.pi / 2, n)
+    descriptors = np.zeros((n, dim), dtype=np.float32)
+    descriptors[:, 0], descriptors[:, 1] = np.cos(angle), np.sin(angle)
+    positions = np.column_stack([np.arange(n, dtype=float), np.zeros(n)])
+    return FingerprintMap(descriptors, positions)
+
+
+def test_query_returns_the_nearest_positions_and_passes_the_spread_check():
+    fmap = line_map()
+    result = fmap.query(fmap.descriptors[7])
+    assert result.positions[0].tolist() == [7.0, 0.0]
+    assert sorted(result.positions[:, 0].tolist()) == [6.0, 7.0, 8.0]
+    assert result.consistent and len(result.suggestions) == 3
+    assert result.distances[0] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_spread_check_drops_contradictory_suggestions():
+    fmap = line_map()
+    positions = fmap.positions.copy()
+    positions[8] = [30.0, 0.0]  # a look-alike place far away
+    far = FingerprintMap(fmap.descriptors, positions, config=FingerprintConfig(k=3, max_spread=10.0))
+    result = far.query(fmap.descriptors[7])
+    assert result.spread > 10.0 and not result.consistent
+    assert result.suggestions.shape == (0, 2)
+
+
+def test_save_and_load_round_trip(tmp_path):
+    fmap = line_map()
+    path = tmp_path / "fingerprints.npz"
+    fmap.save(path, {"spacing_m": "1.0"})
+    again = FingerprintMap.load(path)
+    assert np.array_equal(again.descriptors, fmap.descriptors) and np.array_equal(again.positions, fmap.positions)
+    assert again.query(fmap.descriptors[3]).positions[0].tolist() == [3.0, 0.0]
+
+
+def test_bad_maps_and_queries_are_named(tmp_path):
+    fmap = line_map()
+    with pytest.raises(ValueError, match="8 dimensions|query descriptor has 5 dimensions"):
+        fmap.query(np.ones(5))
+    with pytest.raises(ValueError, match="NaN"):
+        fmap.query(np.full(8, np.nan))
+    with pytest.raises(FileNotFoundError, match="missing.npz"):
+        FingerprintMap.load(tmp_path / "missing.npz")
+    broken = tmp_path / "broken.npz"
+    broken.write_bytes(b"not a zip file")
+    with pytest.raises(ValueError, match="broken.npz"):
+        FingerprintMap.load(broken)
+    np.savez(tmp_path / "partial.npz", format="pimm-fingerprints/1", descriptors=np.ones((3, 2)))
+    with pytest.raises(ValueError, match=r"lacks field\(s\) \['positions', 'headings'\]"):
+        FingerprintMap.load(tmp_path / "partial.npz")
+    with pytest.raises(ValueError, match="positions"):
+        FingerprintMap(np.ones((4, 2)), np.ones((3, 2)))
+    with pytest.raises(ValueError, match="k = 3"):
+        FingerprintMap(np.ones((2, 2)), np.ones((2, 2)))
+
+
+def test_retrieval_errors_by_hand():
+    fmap = line_map()
+    results = [fmap.query(fmap.descriptors[5]), fmap.query(fmap.descriptors[15])]
+    truths = np.array([[5.0, 0.0, 0.0], [11.5, 0.0, 0.0]])  # the second: 2.5 m from its best match
+    errors = retrieval_errors(results, truths)
+    assert errors["recall_at_3_2m"] == 0.5
+    assert errors["mean_min_error_m"] == pytest.approx((0 + 2.5) / 2)
+    assert errors["mean_max_error_m"] == pytest.approx((1 + 4.5) / 2)
+    assert errors["mean_error_m"] == pytest.approx(((0 + 1 + 1) / 3 + (2.5 + 3.5 + 4.5) / 3) / 2)

@@ -1,0 +1,72 @@
+import numpy as np
+import pytest
+import torch
+
+from pimm_agents.perception_quality import iou_per_class
+from pimm_agents.pointnet import PointNetConfig, save_checkpoint
+from pimm_agents.segmenter import Segmenter
+from training.dataset import generate, load, save, split
+from training.fingerprints import build_fingerprint_map
+from training.train import TrainConfig, class_weights, contrastive_loss, pair_batches, train
+
+TINY = PointNetConfig(points=128, local_widths=(8, 16), global_widths=(16, 32), head_widths=(16, 8), descriptor_dim=8)
+
+
+def test_class_weights_follow_thesis_eq_3_6():
+    labels = np.array([0] * 8 + [1] * 1 + [2] * 8 + [3] * 27 + [-1] * 5)
+    weights = class_weights(labels)
+    assert weights == pytest.approx([(27 / 8) ** (1 / 3), 3.0, (27 / 8) ** (1 / 3), 1.0])
+    with pytest.raises(ValueError, match="clutter"):
+        class_weights(np.array([0, 1, 2]))
+
+
+def test_iou_by_hand():
+    truth = np.array([0, 0, 1, 1, 2, 3, -1])
+    predicted = np.array([0, 1, 1, 1, 2, 2, 3])
+    iou = iou_per_class(predicted, truth)
+    assert iou == pytest.approx([1 / 2, 2 / 3, 1 / 2, 0.0])
+
+
+def test_contrastive_loss_prefers_descriptors_that_agree_with_places():
+    positions = torch.tensor([[0.0, 0.0], [0.5, 0.0], [10.0, 0.0], [10.5, 0.0]])
+    good = torch.nn.functional.normalize(torch.tensor([[1.0, 0.1], [1.0, 0.0], [0.0, 1.0], [0.1, 1.0]]), dim=1)
+    bad = good[[0, 2, 1, 3]]
+    assert contrastive_loss(good, positions, 2.0, 0.1) < contrastive_loss(bad, positions, 2.0, 0.1)
+
+
+def test_pair_batches_pair_each_anchor_with_a_near_scan():
+    rng = np.random.default_rng(0)
+    positions = rng.uniform(0, 20, (200, 2))
+    for batch in pair_batches(positions, 8, 2.0, rng):
+        anchors, partners = batch[:8], batch[8:]
+        assert np.all(np.linalg.norm(positions[anchors] - positions[partners], axis=1) < 2.0)
+
+
+def test_tiny_end_to_end_training_run(tmp_path):
+    """A handful of scans, one epoch: dataset -> weights -> segmenter -> fingerprint map, all on disk."""
+    scans = generate("iilab", 12, seed=5, progress=False)
+    assert scans.ranges.shape == (12, 40, 360) and scans.ranges.dtype == np.float16
+    assert set(np.unique(scans.labels)) <= {-1, 0, 1, 2, 3}
+    save(scans, tmp_path / "scans.npz")
+    again = load(tmp_path / "scans.npz")
+    assert np.array_equal(again.labels, scans.labels) and np.allclose(again.poses, scans.poses)
+    train_set, test_set = split(again, 0.8, np.random.default_rng(0))
+    assert len(train_set) + len(test_set) == 12 and len(test_set) == 2
+    config = TrainConfig(epochs=1, batch_pairs=2)
+    model, history = train(train_set, test_set, config, TINY, progress=False)
+    assert len(history) == 1 and np.isfinite(history[0]["loss"])
+    assert set(history[0]["test_iou"]) == {"wall", "ceiling", "floor", "clutter"}
+    save_checkpoint(model, tmp_path / "pointnet.pt", {"history": history})
+    segmenter = Segmenter(tmp_path / "pointnet.pt")
+    fmap = build_fingerprint_map("iilab", segmenter, spacing=4.0, seed=0, progress=False)
+    assert len(fmap) > 10 and fmap.dim == 8
+
+
+def test_dataset_errors_name_the_file(tmp_path):
+    with pytest.raises(FileNotFoundError, match="absent.npz"):
+        load(tmp_path / "absent.npz")
+    np.savez(tmp_path / "partial.npz", format="pimm-scans/1", ranges=np.zeros((1, 2, 2)))
+    with pytest.raises(ValueError, match=r"partial.npz: dataset lacks field\(s\)"):
+        load(tmp_path / "partial.npz")
+    with pytest.raises(ValueError, match="train_fraction"):
+        split(generate("iilab", 2, seed=0, progress=False), 1.0, np.random.default_rng(0))

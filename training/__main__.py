@@ -1,0 +1,119 @@
+"""Perception training for a world: ``python -m training rebuild --world iilab`` makes everything.
+
+python -m training dataset --world iilab --scans 2300 --seed 0      # build/datasets/iilab/*.npz
+python -m training train --world iilab --epochs 16                  # maps/iilab/pointnet.pt (+ .json)
+python -m training fingerprints --world iilab                       # maps/iilab/fingerprints.npz
+python -m training rebuild --world iilab                            # all three, in order
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+from pathlib import Path
+
+import typer
+
+app = typer.Typer(add_completion=False, help=__doc__)
+DATA_DIR = Path("build/datasets")
+
+
+def _dataset_paths(world: str) -> tuple[Path, Path]:
+    folder = DATA_DIR / Path(world).stem
+    return folder / "scans.npz", folder / "validation.npz"
+
+
+@app.command()
+def dataset(
+    world: str = typer.Option("iilab", help="world name or world file"),
+    scans: int = typer.Option(2300, min=10, help="scans for training + test (the thesis's 2300)"),
+    validation: int = typer.Option(400, min=1, help="scans of the separate validation set (another seed)"),
+    seed: int = typer.Option(0, help="seed of the poses and noise"),
+) -> None:
+    """Labelled scans at random free poses, and a validation set from poses drawn with another seed."""
+    from training.dataset import VALIDATION_SEED_OFFSET, generate, save
+
+    main_path, val_path = _dataset_paths(world)
+    save(generate(world, scans, seed), main_path)
+    save(generate(world, validation, seed + VALIDATION_SEED_OFFSET), val_path)
+    typer.echo(f"wrote {main_path} ({scans} scans) and {val_path} ({validation} scans)")
+
+
+@app.command()
+def train(
+    world: str = typer.Option("iilab", help="world name or world file"),
+    epochs: int = typer.Option(16, min=1),
+    points: int = typer.Option(2048, min=64, help="points per scan the network looks at"),
+    seed: int = typer.Option(0),
+    out: Path | None = typer.Option(None, help="checkpoint path (default maps/<world>/pointnet.pt)"),
+) -> None:
+    """Train the segmenter and descriptor on the world's dataset (80/20 split), report per-epoch metrics."""
+    import numpy as np
+
+    from pimm_agents.perception_maps import checkpoint_path
+    from pimm_agents.pointnet import PointNetConfig, save_checkpoint
+    from training.dataset import load, split
+    from training.train import TrainConfig, describe
+    from training.train import train as fit
+
+    main_path, val_path = _dataset_paths(world)
+    scans = load(main_path)
+    train_set, test_set = split(scans, 0.8, np.random.default_rng(seed))
+    config, network = TrainConfig(epochs=epochs, seed=seed), PointNetConfig(points=points)
+
+    def report(record: dict) -> None:
+        ious = " ".join(f"{k} {v:.3f}" for k, v in record["val_iou"].items())
+        typer.echo(
+            f"epoch {record['epoch']:>3}  {record['seconds']:5.0f} s  loss {record['loss']:.3f} "
+            f"(ce {record['cross_entropy']:.3f}, descriptor {record['descriptor_loss']:.3f})  "
+            f"train acc {record['train_accuracy']:.3f}  test mIoU {record['test_miou']:.3f} ({ious})"
+        )
+
+    model, history = fit(train_set, test_set, config, network, on_epoch=report)
+    target = out or checkpoint_path(world)
+    record = {
+        "command": "python -m training " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "python -m training",
+        "dataset": {"path": str(main_path), "scans": len(scans), "train": len(train_set), "test": len(test_set)},
+        **describe(config, network, model),
+        "history": history,
+    }
+    save_checkpoint(model, target, record)
+    target.with_suffix(".json").write_text(json.dumps(record, indent=1) + "\n")
+    size = target.stat().st_size / 1e6
+    typer.echo(f"wrote {target} ({size:.2f} MB, {record['parameters']} parameters)")
+    del val_path
+
+
+@app.command()
+def fingerprints(
+    world: str = typer.Option("iilab", help="world name or world file"),
+    spacing: float = typer.Option(0.5, min=0.05, help="grid spacing of the map positions (m)"),
+    seed: int = typer.Option(0, help="seed of the headings and noise"),
+) -> None:
+    """Descriptors of scans on a grid of free positions, saved as the world's fingerprint map."""
+    from pimm_agents.perception_maps import checkpoint_path, fingerprint_path
+    from pimm_agents.segmenter import Segmenter
+    from training.fingerprints import build_fingerprint_map
+
+    fmap = build_fingerprint_map(world, Segmenter(checkpoint_path(world)), spacing, seed)
+    target = fingerprint_path(world)
+    fmap.save(target, {"spacing_m": str(spacing), "seed": str(seed)})
+    typer.echo(f"wrote {target} ({len(fmap)} positions, {fmap.dim}-d descriptors)")
+
+
+@app.command()
+def rebuild(
+    world: str = typer.Option("iilab", help="world name or world file"),
+    scans: int = typer.Option(2300, min=10),
+    epochs: int = typer.Option(16, min=1),
+    seed: int = typer.Option(0),
+) -> None:
+    """Dataset, then weights, then fingerprint map: everything perception needs for a world."""
+    dataset(world=world, scans=scans, validation=400, seed=seed)
+    train(world=world, epochs=epochs, points=2048, seed=seed, out=None)
+    fingerprints(world=world, spacing=0.5, seed=seed)
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,114 @@
+"""Labelled 3D scans from the simulator (thesis 3.2.1): random free poses, per-point classes, the pose.
+
+A dataset is one compressed ``.npz``: the organized ranges as float16 (the cloud is the ray directions times
+the range, so nothing else is needed), the labels as int8 (-1 for no return), the true poses and the areas.
+The thesis labelled its Webots scans with a Kd-tree over class meshes; the simulator here knows the class of
+every surface a ray hits, so the labels are exact.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+#: Seed offsets that keep the training, validation and evaluation poses apart for one base seed.
+VALIDATION_SEED_OFFSET = 1_000_003
+FORMAT = "pimm-scans/1"
+
+
+@dataclass(frozen=True)
+class ScanSet:
+    """Scans in scan order: ``ranges`` (n, layers, points) with NaN for no return, ``labels`` likewise -1."""
+
+    ranges: np.ndarray
+    labels: np.ndarray
+    poses: np.ndarray
+    areas: np.ndarray
+    world: str
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def subset(self, index: np.ndarray) -> ScanSet:
+        return ScanSet(self.ranges[index], self.labels[index], self.poses[index], self.areas[index], self.world)
+
+    def cloud(self, i: int, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Scan ``i`` as the env gives it: the (N, 3) sensor-frame cloud (0 where no return) and its mask."""
+        ranges = self.ranges[i].reshape(-1).astype(np.float32)
+        mask = np.isfinite(ranges)
+        return np.where(mask[:, None], directions * np.where(mask, ranges, 0)[:, None], 0).astype(np.float32), mask
+
+
+def generate(world: str, count: int, seed: int, progress: bool = True) -> ScanSet:
+    """``count`` scans at random free poses of ``world`` (uniform over free space, random heading), seeded."""
+    from tqdm import tqdm
+
+    from pimm_env.iilab_env import IILabEnv
+
+    if count < 1:
+        raise ValueError(f"scan count must be at least 1, got {count}")
+    env = IILabEnv(world=world)
+    l3 = env.config.lidar3d
+    ranges = np.full((count, l3.layers, l3.points_per_layer), np.nan, dtype=np.float16)
+    labels = np.full((count, l3.layers, l3.points_per_layer), -1, dtype=np.int8)
+    poses = np.zeros((count, 3))
+    areas = np.empty(count, dtype="<U8")
+    seeds = np.random.SeedSequence(seed).generate_state(count)
+    try:
+        for i in tqdm(range(count), desc=f"scans of {env.world.name}", disable=not progress, unit="scan"):
+            obs, info = env.reset(seed=int(seeds[i]))
+            mask = obs["cloud_mask"].astype(bool)
+            r = np.linalg.norm(obs["cloud"], axis=1)
+            ranges[i] = np.where(mask, r, np.nan).reshape(l3.layers, l3.points_per_layer)
+            labels[i] = info["labels"].reshape(l3.layers, l3.points_per_layer)
+            poses[i] = info["true_pose"]
+            areas[i] = info["area"] or ""
+    finally:
+        env.close()
+    return ScanSet(ranges, labels, poses, areas, env.world.name)
+
+
+def save(scans: ScanSet, path: Path) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(
+        path,
+        format=FORMAT,
+        world=scans.world,
+        ranges=scans.ranges,
+        labels=scans.labels,
+        poses=scans.poses,
+        areas=scans.areas,
+    )
+
+
+def load(path: Path) -> ScanSet:
+    """Read a dataset written by :func:`save`; a missing file or field is named in the error."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such dataset; make one with `python -m training dataset`")
+    try:
+        data = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: not a readable .npz dataset ({err})") from None
+    with data:
+        missing = [k for k in ("format", "world", "ranges", "labels", "poses", "areas") if k not in data.files]
+        if missing:
+            raise ValueError(f"{path}: dataset lacks field(s) {missing}")
+        if str(data["format"]) != FORMAT:
+            raise ValueError(f"{path}: format {str(data['format'])!r}, expected {FORMAT!r}")
+        scans = ScanSet(data["ranges"], data["labels"], data["poses"], data["areas"], str(data["world"]))
+    if scans.ranges.shape != scans.labels.shape or len(scans.poses) != len(scans.ranges):
+        raise ValueError(f"{path}: ranges {scans.ranges.shape}, labels {scans.labels.shape} and poses disagree")
+    return scans
+
+
+def split(scans: ScanSet, train_fraction: float, rng: np.random.Generator) -> tuple[ScanSet, ScanSet]:
+    """A random split (the thesis's 80/20 with ``train_fraction`` 0.8)."""
+    if not 0 < train_fraction < 1:
+        raise ValueError(f"train_fraction must be in (0, 1), got {train_fraction}")
+    order = rng.permutation(len(scans))
+    cut = round(train_fraction * len(scans))
+    return scans.subset(np.sort(order[:cut])), scans.subset(np.sort(order[cut:]))
