@@ -20,7 +20,7 @@ from pimm_agents.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.resampling import multinomial_resample
 from pimm_env.lidar import Lidar2DConfig, beam_angles_2d
 from pimm_env.occupancy import OccupancyGrid
-from pimm_env.robot import compose, wrap_angle
+from pimm_env.robot import compose, relative_motion, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -234,10 +234,3 @@ class Amcl:
     @property
     def particle_count(self) -> int:
         return len(self.particles)
-
-
-def relative_motion(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
-    """``current`` expressed in the frame of ``previous`` (both (x, y, theta) in one frame)."""
-    c, s = np.cos(previous[2]), np.sin(previous[2])
-    dx, dy = current[0] - previous[0], current[1] - previous[1]
-    return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(current[2] - previous[2])])

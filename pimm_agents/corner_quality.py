@@ -22,18 +22,47 @@ class CornerStats:
     visible: int
 
 
-def visible_corners(caster, origin: np.ndarray, corners: CornerMap, max_range: float, half_fov: float) -> np.ndarray:
-    """Indices of map corners within ``max_range`` of the sensor at ``origin``, inside its vertical field of
-    view, with a clear ray to a point 0.15 m in front of the corner (the vertex itself lies on the walls)."""
-    delta = np.column_stack([corners.xy - origin[:2], corners.z - origin[2]])
-    distance = np.linalg.norm(delta, axis=1)
-    elevation = np.arcsin(np.clip(delta[:, 2] / np.maximum(distance, 1e-9), -1, 1))
+#: Points on each wall face, in metres from the vertex, and below the ceiling, that a sensor must see for the
+#: corner to count as visible: a vertex in sight whose second wall is hidden cannot be found by any detector.
+FACE_PROBES_M = (0.5, 1.2)
+FACE_PROBE_DROP_M = 1.0
+
+
+def _in_sight(caster, origin: np.ndarray, target: np.ndarray, max_range: float, half_fov: float, slack: float) -> bool:
+    delta = target - origin
+    distance = float(np.linalg.norm(delta))
+    if distance >= max_range or distance < 1e-6:
+        return False
+    elevation = float(np.arcsin(np.clip(delta[2] / distance, -1, 1)))
+    if abs(elevation) > half_fov:
+        return False
+    azimuth = float(np.arctan2(delta[1], delta[0]))
+    ranges, _ = caster.cast(origin, np.array([azimuth]), np.array([elevation]), max_range)
+    return bool(ranges[0, 0] >= distance - slack)
+
+
+def visible_corners(
+    caster, origin: np.ndarray, corners: CornerMap, max_range: float, half_fov: float, faces: bool = True
+) -> np.ndarray:
+    """Indices of map corners within ``max_range`` of the sensor at ``origin`` and in its field of view, with
+    a clear ray to the vertex (to within 0.15 m: the vertex itself lies on the walls) and, with ``faces``, to
+    a point of each of its two wall faces (the faces run at theta +- 45 deg from the vertex; probes at
+    FACE_PROBES_M along them, FACE_PROBE_DROP_M under the ceiling)."""
     out = []
-    for k in np.nonzero((distance < max_range) & (np.abs(elevation) <= half_fov))[0]:
-        azimuth = np.arctan2(delta[k, 1], delta[k, 0])
-        ranges, _ = caster.cast(origin, np.array([azimuth]), np.array([elevation[k]]), max_range)
-        if ranges[0, 0] >= distance[k] - 0.15:
-            out.append(k)
+    for k in range(len(corners)):
+        vertex = np.array([*corners.xy[k], corners.z[k]])
+        if not _in_sight(caster, origin, vertex, max_range, half_fov, 0.15):
+            continue
+        if faces:
+            seen_faces = 0
+            for side in (1, -1):
+                heading = corners.theta[k] + side * np.pi / 4
+                direction = np.array([np.cos(heading), np.sin(heading), 0.0])
+                probes = [vertex + a * direction - [0, 0, FACE_PROBE_DROP_M] for a in FACE_PROBES_M]
+                seen_faces += any(_in_sight(caster, origin, q, max_range, half_fov, 0.1) for q in probes)
+            if seen_faces < 2:
+                continue
+        out.append(k)
     return np.array(out, dtype=int)
 
 

@@ -28,6 +28,26 @@ def _configured(config: Any, overrides: dict[str, Any], name: str) -> Any:
     return replace(config, **{k: v for k, v in overrides.items() if k in known})
 
 
+def _pimm(world: World, overrides: dict[str, Any]) -> Localizer:
+    """Settings may name a field of PimmConfig or of its FeatureFilterConfig (``num_particles=2000``)."""
+    from pimm_agents.feature_filter import FeatureFilterConfig
+    from pimm_agents.perception_maps import load_perception
+    from pimm_agents.pimm import PimmConfig, PimmLocalizer
+    from pimm_env.derived_maps import load_derived_maps
+
+    filter_keys = {f.name for f in fields(FeatureFilterConfig)}
+    top_keys = {f.name for f in fields(PimmConfig)} - {"filter", "corners"}
+    unknown = sorted(set(overrides) - filter_keys - top_keys)
+    if unknown:
+        valid = ", ".join(sorted(filter_keys | top_keys))
+        raise ValueError(f"localizer 'pimm' has no setting(s) {unknown}; valid: {valid}")
+    filter_config = replace(FeatureFilterConfig(), **{k: v for k, v in overrides.items() if k in filter_keys})
+    config = replace(PimmConfig(filter=filter_config), **{k: v for k, v in overrides.items() if k in top_keys})
+    maps = load_derived_maps(world)
+    segmenter, fingerprints = load_perception(world)
+    return PimmLocalizer(maps.occupancy, maps.corners, segmenter, fingerprints, config)
+
+
 def _amcl_recovery_preset() -> dict[str, Any]:
     from pimm_agents.amcl import AMCL_RECOVERY
 
@@ -35,6 +55,7 @@ def _amcl_recovery_preset() -> dict[str, Any]:
 
 
 LOCALIZERS: dict[str, Callable[[World, dict[str, Any]], Localizer]] = {
+    "pimm": _pimm,
     "amcl": lambda world, overrides: _amcl(world, overrides, "amcl", {}),
     "amcl-recovery": lambda world, overrides: _amcl(world, overrides, "amcl-recovery", _amcl_recovery_preset()),
 }

@@ -59,6 +59,43 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     figures.update(amcl_benchmarks(repeats))
     figures["corners_ms"] = corners_benchmark(repeats)
     figures.update(perception_benchmarks(repeats))
+    figures.update(pimm_benchmarks(repeats))
+    return figures
+
+
+def pimm_benchmarks(repeats: int) -> dict[str, float]:
+    """The feature filter's measurement update (10 000 particles, 5 features) and PIMM's whole update per
+    fresh scan while driving (segmentation, corners, retrieval, and the filter whenever odometry allows)."""
+    from pimm_agents.factory import make_localizer
+    from pimm_agents.pimm import PimmLocalizer
+    from pimm_env.iilab_env import IILabEnv
+
+    pimm = make_localizer("pimm")
+    assert isinstance(pimm, PimmLocalizer)
+    pimm.reset(seed=0)
+    rng = np.random.default_rng(0)
+    features = np.column_stack(
+        [rng.uniform(-6, 6, (5, 2)), rng.uniform(-np.pi, np.pi, 5), np.full(5, 0.3), np.full(5, 0.2)]
+    )
+    weights = pimm.filter.weights.copy()
+
+    def measurement() -> None:
+        pimm.filter.weights = weights.copy()
+        pimm.filter.measurement_update(features)
+
+    figures = {"pf_update_ms": median_ms(measurement, repeats)}
+    env = IILabEnv(terminate_on_collision=False)
+    obs, _ = env.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
+    pimm.reset(seed=0)
+    totals = []
+    action = np.array([0.3, 0.0], dtype=np.float32)
+    while len(totals) < repeats:
+        estimate = pimm.update(obs)
+        if "segmentation" in estimate.timings:
+            totals.append(estimate.timings["total"])
+        obs, *_ = env.step(action)
+    env.close()
+    figures["pimm_pipeline_ms"] = float(np.median(totals))
     return figures
 
 

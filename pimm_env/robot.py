@@ -52,6 +52,13 @@ def compose(origin: np.ndarray, poses: np.ndarray) -> np.ndarray:
     return np.stack([x, y, wrap_angle(poses[:, 2] + origin[2])], axis=1)
 
 
+def relative_motion(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
+    """``current`` expressed in the frame of ``previous`` (both (x, y, theta) in one frame)."""
+    c, s = np.cos(previous[2]), np.sin(previous[2])
+    dx, dy = current[0] - previous[0], current[1] - previous[1]
+    return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(current[2] - previous[2])])
+
+
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Angle in [-pi, pi)."""
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi

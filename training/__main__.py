@@ -57,13 +57,13 @@ def train(
     from training.train import TrainConfig, describe
     from training.train import train as fit
 
-    main_path, val_path = _dataset_paths(world)
+    main_path, _ = _dataset_paths(world)
     scans = load(main_path)
     train_set, test_set = split(scans, 0.8, np.random.default_rng(seed))
     config, network = TrainConfig(epochs=epochs, seed=seed), PointNetConfig(points=points)
 
     def report(record: dict) -> None:
-        ious = " ".join(f"{k} {v:.3f}" for k, v in record["val_iou"].items())
+        ious = " ".join(f"{k} {v:.3f}" for k, v in record["test_iou"].items())
         typer.echo(
             f"epoch {record['epoch']:>3}  {record['seconds']:5.0f} s  loss {record['loss']:.3f} "
             f"(ce {record['cross_entropy']:.3f}, descriptor {record['descriptor_loss']:.3f})  "
@@ -82,7 +82,6 @@ def train(
     target.with_suffix(".json").write_text(json.dumps(record, indent=1) + "\n")
     size = target.stat().st_size / 1e6
     typer.echo(f"wrote {target} ({size:.2f} MB, {record['parameters']} parameters)")
-    del val_path
 
 
 @app.command()

@@ -1,0 +1,137 @@
+import numpy as np
+import pytest
+
+from pimm_agents.corner_lookup import NearestCornerGrid
+from pimm_agents.feature_filter import FeatureFilter, FeatureFilterConfig, carry
+from pimm_agents.pimm import OdometryHistory, compensate
+from pimm_env.corner_map import CornerMap
+from pimm_env.grid import GridSpec
+from pimm_env.occupancy import OccupancyGrid
+from pimm_env.robot import compose, relative_motion
+
+# An L-shaped room: 10 m x 6 m without its 4 m x 3 m north-east block. Corners as (x, y, bisector heading).
+CORNERS = np.array(
+    [
+        [0.0, 0.0, np.pi / 4],
+        [10.0, 0.0, 3 * np.pi / 4],
+        [10.0, 3.0, -3 * np.pi / 4],
+        [6.0, 3.0, np.pi / 4 + np.pi],  # the outside corner faces away from the block
+        [6.0, 6.0, -3 * np.pi / 4],
+        [0.0, 6.0, -np.pi / 4],
+    ]
+)
+
+
+def l_room() -> tuple[OccupancyGrid, NearestCornerGrid]:
+    grid = GridSpec.covering(np.array([0.0, 0.0]), np.array([10.0, 6.0]), 0.1, margin=0.5)
+    gx, gy = grid.cell_centers()
+    inside = (gx > 0) & (gx < 10) & (gy > 0) & (gy < 6) & ~((gx > 6) & (gy > 3))
+    ring = (gx > -0.3) & (gx < 10.3) & (gy > -0.3) & (gy < 6.3) & ~inside & ~((gx > 6.3) & (gy > 3.3))
+    occupancy = OccupancyGrid(grid, occupied=ring, free=inside)
+    corners = CornerMap(xy=CORNERS[:, :2].copy(), z=np.full(len(CORNERS), 3.0), theta=CORNERS[:, 2].copy())
+    return occupancy, NearestCornerGrid(corners)
+
+
+def features_from(pose: np.ndarray, sigma_pos: float = 0.3, sigma_theta: float = 0.2, reach: float = 8.0):
+    """The corners within ``reach``, in the robot frame at ``pose``, as the filter takes them."""
+    near = CORNERS[np.hypot(*(CORNERS[:, :2] - pose[:2]).T) < reach]
+    local = np.array([relative_motion(pose, c) for c in near])
+    return np.column_stack([local, np.full(len(local), sigma_pos), np.full(len(local), sigma_theta)])
+
+
+def path() -> np.ndarray:
+    """A drive east along y = 1.5, then north at x = 3: true poses every 0.15 m."""
+    east = [[x, 1.5, 0.0] for x in np.arange(1.0, 8.0, 0.15)]
+    north = [[3.0, y, np.pi / 2] for y in np.arange(1.5, 5.0, 0.15)]
+    return np.array(east + north)
+
+
+def run(filt: FeatureFilter, poses: np.ndarray, with_features: bool = True) -> np.ndarray | None:
+    """Drive the filter along ``poses``; the final estimate (the last converged one carried by odometry)."""
+    estimate = None
+    for pose in poses:
+        if filt.motion_update(pose):  # odometry = the true path (the odometry frame is the map frame here)
+            found = filt.correct(features_from(pose) if with_features else np.zeros((0, 5)), np.zeros((0, 2)))
+            if found is not None:
+                estimate, at = found, pose
+    return None if estimate is None else carry(estimate, at, poses[-1])
+
+
+def make_filter(n: int = 3000, **overrides) -> FeatureFilter:
+    occupancy, corners = l_room()
+    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=n, **overrides))
+    filt.reset(np.random.default_rng(0))
+    return filt
+
+
+def test_converges_from_uniform_and_tracks():
+    filt = make_filter()
+    poses = path()
+    run(filt, poses)
+    estimate = filt.best_mean()
+    assert np.hypot(*(estimate[:2] - poses[-1, :2])) < 0.3
+    assert abs(np.degrees(estimate[2] - poses[-1, 2])) < 10
+    near = np.hypot(*(filt.particles[:, :2] - poses[-1, :2]).T) < 0.5
+    assert np.sum(filt.weights[near]) > 0.8
+
+
+def test_no_features_keeps_weights_normalized_and_finite():
+    filt = make_filter(n=500)
+    run(filt, path()[:20], with_features=False)
+    assert np.isfinite(filt.particles).all() and np.isfinite(filt.weights).all()
+    assert filt.weights.sum() == pytest.approx(1.0)
+    assert np.isfinite(filt.best_mean()).all()
+
+
+def test_occupied_cells_lose_weight():
+    filt = make_filter(n=1000)
+    filt.particles[:500, :2] = [6.1, 4.5]  # inside the missing block: not free
+    filt.measurement_update(np.zeros((0, 5)))
+    assert filt.weights[:500].sum() == pytest.approx(0.1 / 1.1)
+
+
+def test_injection_puts_particles_around_the_suggestions():
+    filt = make_filter(n=2000)
+    suggestion = np.array([[2.0, 4.0]])
+    replaced = filt.inject(suggestion)
+    assert len(replaced) == 100
+    near = np.hypot(*(filt.particles[replaced, :2] - suggestion[0]).T) < 1.5  # 3 sigma
+    assert near.sum() >= 50  # half go to the suggestion (a few of the uniform ones may land near it too)
+    assert filt.weights.sum() == pytest.approx(1.0)
+
+
+def test_latency_compensation_removes_the_lag_of_a_delayed_feature():
+    filt = make_filter(n=2)
+    at_scan = np.array([2.0, 1.5, 0.0])
+    now = np.array([2.6, 1.5, 0.2])  # the robot drove on while the scan was processed
+    filt.particles = np.array([now, at_scan])
+    features = features_from(at_scan, reach=20.0)
+    # odometry frame rotated and shifted from the map frame: only relative odometry may matter
+    odom_frame = np.array([5.0, -3.0, 1.0])
+    odom_scan, odom_now = compose(odom_frame, at_scan)[0], compose(odom_frame, now)[0]
+    compensated = filt.likelihoods(compensate(features, odom_scan, odom_now))
+    raw = filt.likelihoods(features)
+    assert compensated[0] > compensated[1]  # the particle at the true current pose wins
+    assert raw[1] > raw[0]  # without compensation the lagging pose wins
+    expected = features_from(now, reach=20.0)[:, :3]
+    assert np.allclose(compensate(features, odom_scan, odom_now)[:, :3], expected, atol=1e-9)
+
+
+def test_odometry_history_interpolates():
+    history = OdometryHistory(span_s=1.0)
+    history.add(0.0, np.array([0.0, 0.0, 0.0]))
+    history.add(0.2, np.array([1.0, 0.0, 0.0]))
+    assert history.at(0.1) == pytest.approx([0.5, 0.0, 0.0])
+    assert history.at(5.0) == pytest.approx([1.0, 0.0, 0.0])
+    history.add(1.5, np.array([2.0, 0.0, 0.0]))  # older than the span: forgotten
+    assert history.at(0.0) == pytest.approx([2.0, 0.0, 0.0])
+
+
+def test_bad_settings_and_features_are_named():
+    with pytest.raises(ValueError, match="alpha"):
+        FeatureFilterConfig(alpha=0.0)
+    filt = make_filter(n=10)
+    with pytest.raises(ValueError, match="sigma"):
+        filt.measurement_update(np.array([[1.0, 1.0, 0.0, 0.0, 0.1]]))
+    with pytest.raises(ValueError, match="finite"):
+        filt.measurement_update(np.array([[np.nan, 1.0, 0.0, 0.1, 0.1]]))
