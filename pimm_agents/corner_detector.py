@@ -22,15 +22,17 @@ from pimm_env.semantics import SemanticClass
 
 @dataclass(frozen=True)
 class CornerDetectorConfig:
-    """Thesis section 3.3.4 values as defaults."""
+    """Thesis section 3.3.4 values as defaults, except the subsample: each class is cut to 1000 random points
+    (measured: 4x faster than 4000, same precision, higher recall), and the thesis's 150-inlier minimum, set
+    for its whole 10 000-point clouds, is scaled to 40 for that density."""
 
-    planes: PlaneParams = field(default_factory=PlaneParams)
+    planes: PlaneParams = field(default_factory=lambda: PlaneParams(min_inliers=40))
     vertical_max_nz: float = 0.1  # walls: |n_z| below this
     horizontal_min_nz: float = 0.9  # ceilings: |n_z| above this
     min_plane_angle: float = np.pi / 4  # every pair of the three normals at least this far from parallel
     max_corner_distance: float = 2.0  # from the corner to the nearest inlier of each plane
     merge_distance: float = 0.5
-    max_points_per_class: int = 4000  # random subsample for speed; 0 keeps all
+    max_points_per_class: int = 1000  # random subsample for speed; 0 keeps all
     min_position_std: float = 0.02  # m: a floor on the derived position uncertainty
     min_orientation_std: float = np.radians(1.0)
 

@@ -19,12 +19,17 @@ FEATURES: tuple[str, ...] = (
     "column_depth",  # horizontal range / the largest horizontal range in the same azimuth column
     "scan_height",  # height / the highest point of the scan: how far up towards the ceiling
     "roughness",  # distance of the point from the plane of its neighbours (m), capped
+    "below_column_top",  # how far (m) under the highest return of its azimuth column: beams hang under ceilings
+    "before_column_end",  # how far (m) short of the farthest return of its column: posts stand before walls
 )
 NUM_FEATURES = len(FEATURES)
 ROUGHNESS_CAP = 0.2
 #: Grid neighbours (layer step, column step) whose features are appended to each point's own: a fixed
 #: receptive field on the organized scan, so the network sees whether a surface goes on or stops nearby.
-CONTEXT_OFFSETS: tuple[tuple[int, int], ...] = ((0, 3), (0, -3), (0, 10), (0, -10), (2, 0), (-2, 0), (6, 0), (-6, 0))
+CONTEXT_OFFSETS: tuple[tuple[int, int], ...] = (
+    (0, 3), (0, -3), (0, 10), (0, -10), (0, 25), (0, -25),
+    (2, 0), (-2, 0), (6, 0), (-6, 0), (12, 0), (-12, 0),
+)  # fmt: skip
 
 
 def organized(values: np.ndarray, layers: int, points_per_layer: int) -> np.ndarray:
@@ -78,6 +83,8 @@ def point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_
     horizontal = np.hypot(pts[..., 0], pts[..., 1])
     radial = np.where(horizontal[..., None] > 1e-6, pts[..., :2] / np.maximum(horizontal, 1e-6)[..., None], 0.0)
     column_max = np.where(ok, horizontal, 0.0).max(axis=0, keepdims=True)
+    column_top = np.where(ok, pts[..., 2], -np.inf).max(axis=0, keepdims=True)
+    column_top = np.where(np.isfinite(column_top), column_top, 0.0)
     top = float(pts[..., 2][ok].max()) if ok.any() else 1.0
 
     # roughness: how far the point is from the mean of its four grid neighbours, along its normal
@@ -98,6 +105,8 @@ def point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_
             horizontal / np.maximum(column_max, 1e-6),
             pts[..., 2] / max(top, 1e-3),
             np.minimum(rough, ROUGHNESS_CAP),
+            column_top - pts[..., 2],
+            column_max - horizontal,
         ],
         axis=-1,
     ).reshape(-1, NUM_FEATURES)

@@ -30,6 +30,8 @@ FEATURE_SCALE = {
     "column_depth": 1.0,
     "scan_height": 1.0,
     "roughness": 0.05,
+    "below_column_top": 4.0,
+    "before_column_end": 5.0,
 }
 
 
@@ -38,7 +40,7 @@ class PointNetConfig:
     """Widths of the network and the number of points it looks at per scan."""
 
     points: int = 2048
-    local_widths: tuple[int, ...] = (32, 64)
+    local_widths: tuple[int, ...] = (64, 64)
     global_widths: tuple[int, ...] = (128, 256)
     head_widths: tuple[int, ...] = (128, 64)
     descriptor_dim: int = 128

@@ -1,7 +1,7 @@
 """Perception training for a world: ``python -m training rebuild --world iilab`` makes everything.
 
 python -m training dataset --world iilab --scans 2300 --seed 0      # build/datasets/iilab/*.npz
-python -m training train --world iilab --epochs 16                  # maps/iilab/pointnet.pt (+ .json)
+python -m training train --world iilab --epochs 20                  # maps/iilab/pointnet.pt (+ .json)
 python -m training fingerprints --world iilab                       # maps/iilab/fingerprints.npz
 python -m training rebuild --world iilab                            # all three, in order
 """
@@ -43,7 +43,7 @@ def dataset(
 @app.command()
 def train(
     world: str = typer.Option("iilab", help="world name or world file"),
-    epochs: int = typer.Option(16, min=1),
+    epochs: int = typer.Option(20, min=1),
     points: int = typer.Option(2048, min=64, help="points per scan the network looks at"),
     seed: int = typer.Option(0),
     out: Path | None = typer.Option(None, help="checkpoint path (default maps/<world>/pointnet.pt)"),
@@ -105,7 +105,7 @@ def fingerprints(
 def rebuild(
     world: str = typer.Option("iilab", help="world name or world file"),
     scans: int = typer.Option(2300, min=10),
-    epochs: int = typer.Option(16, min=1),
+    epochs: int = typer.Option(20, min=1),
     seed: int = typer.Option(0),
 ) -> None:
     """Dataset, then weights, then fingerprint map: everything perception needs for a world."""

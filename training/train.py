@@ -30,7 +30,7 @@ from training.dataset import ScanSet
 
 @dataclass(frozen=True)
 class TrainConfig:
-    epochs: int = 16
+    epochs: int = 20
     batch_pairs: int = 8
     learning_rate: float = 1e-3
     lr_decay: float = 0.7
@@ -75,15 +75,21 @@ class ScanSampler:
         self.network = network
         self.lidar = lidar
         self.directions = directions_3d(lidar).astype(np.float32)
+        self._cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # float16 features and returns per scan
+
+    def _features(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        if i not in self._cache:
+            cloud, mask = self.scans.cloud(i, self.directions)
+            features = point_features(cloud, mask, self.lidar.layers, self.lidar.points_per_layer)
+            self._cache[i] = features.astype(np.float16), np.flatnonzero(mask)
+        return self._cache[i]
 
     def sample(self, i: int, offset: int) -> tuple[np.ndarray, np.ndarray]:
-        cloud, mask = self.scans.cloud(i, self.directions)
-        features = point_features(cloud, mask, self.lidar.layers, self.lidar.points_per_layer)
-        valid_index = np.flatnonzero(mask)
+        features, valid_index = self._features(i)
         chosen = valid_index[strided_sample(valid_index, self.network.points, offset)]
         lidar = self.lidar
         inputs = with_context(features, chosen, lidar.layers, lidar.points_per_layer, self.network.context_offsets)
-        return inputs.T, self.scans.labels[i].reshape(-1)[chosen]
+        return inputs.T.astype(np.float32), self.scans.labels[i].reshape(-1)[chosen]
 
     def batch(self, indices: np.ndarray, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor]:
         feats, labels = zip(*(self.sample(int(i), int(rng.integers(0, 1 << 16))) for i in indices), strict=True)
