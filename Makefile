@@ -1,7 +1,7 @@
 PY ?= .venv/bin/python
 PIP ?= .venv/bin/pip
 
-.PHONY: install run test test-all lint format type maps bench
+.PHONY: install run test test-all lint format type maps perception bench
 
 install:
 	./scripts/setup.sh
@@ -26,6 +26,9 @@ type:
 
 maps:
 	$(PY) -m pimm_env.derived_maps iilab
+
+perception:
+	$(PY) -m training rebuild --world iilab
 
 bench:
 	$(PY) evaluate.py bench

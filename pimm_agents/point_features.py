@@ -123,11 +123,13 @@ def with_context(
 ) -> np.ndarray:
     """Rows ``index`` of ``features`` with the features of their grid neighbours at ``offsets`` appended
     (azimuth wraps; a neighbour beyond the top or bottom layer, or without a return, contributes zeros)."""
-    rows, cols = np.divmod(np.asarray(index), points_per_layer)
-    parts = [features[index]]
-    for d_layer, d_col in offsets:
-        r = rows + d_layer
-        inside = (r >= 0) & (r < layers)
-        neighbour = np.clip(r, 0, layers - 1) * points_per_layer + (cols + d_col) % points_per_layer
-        parts.append(np.where(inside[:, None], features[neighbour], 0.0))
-    return np.concatenate(parts, axis=1).astype(np.float32)
+    index = np.asarray(index)
+    steps = np.array([(0, 0), *offsets], dtype=np.int64).reshape(-1, 2)
+    rows, cols = np.divmod(index, points_per_layer)
+    r = rows[:, None] + steps[:, 0]
+    neighbour = np.clip(r, 0, layers - 1) * points_per_layer + (cols[:, None] + steps[:, 1]) % points_per_layer
+    outside = (r < 0) | (r >= layers)
+    # one gather for all neighbours; rows beyond the scan read a zero row appended at the end
+    padded = np.concatenate([features, np.zeros((1, features.shape[1]), dtype=features.dtype)])
+    neighbour[outside] = len(features)
+    return padded[neighbour].reshape(len(index), -1).astype(np.float32, copy=False)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -62,6 +63,13 @@ def _world_name(world: str) -> str:
     return load_world(world).name
 
 
+def _limit_threads(threads: int) -> None:
+    """Keep each worker's torch to its share of the cores: oversubscribed threads slow every worker down."""
+    import torch
+
+    torch.set_num_threads(threads)
+
+
 def run_trials(
     specs: Sequence[TrialSpec], workers: int = 1, on_done: Callable[[TrialResult], None] | None = None
 ) -> list[TrialResult]:
@@ -73,7 +81,8 @@ def run_trials(
             if on_done:
                 on_done(results[i])
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        threads = max(1, (os.cpu_count() or 1) // workers)
+        with ProcessPoolExecutor(max_workers=workers, initializer=_limit_threads, initargs=(threads,)) as pool:
             futures = {pool.submit(run_trial, spec): i for i, spec in enumerate(specs)}
             for future in as_completed(futures):
                 results[futures[future]] = future.result()

@@ -1,0 +1,63 @@
+import numpy as np
+import pytest
+
+from pimm_agents import make_localizer
+from pimm_agents.pimm import PimmLocalizer
+from pimm_env.iilab_env import IILabEnv
+
+
+@pytest.fixture(scope="module")
+def pimm() -> PimmLocalizer:
+    localizer = make_localizer("pimm", num_particles=2000)
+    assert isinstance(localizer, PimmLocalizer)
+    return localizer
+
+
+def test_pimm_reports_finite_estimates_with_stage_timings(pimm):
+    env = IILabEnv()
+    obs, _ = env.reset(seed=0, options={"pose": [-18.5, 14.0, 1.57]})
+    pimm.reset(seed=0)
+    stages = set()
+    for _ in range(40):
+        estimate = pimm.update(obs)
+        assert np.isfinite(estimate.pose).all() and np.isfinite(estimate.covariance).all()
+        stages |= set(estimate.timings)
+        obs, *_ = env.step(np.array([0.3, 0.0], dtype=np.float32))
+    env.close()
+    assert {"segmentation", "corners", "pose_inference", "measurement_update", "total"} <= stages
+
+
+def test_pimm_survives_scans_with_no_returns(pimm):
+    env = IILabEnv()
+    obs, _ = env.reset(seed=1)
+    env.close()
+    pimm.reset(seed=1)
+    empty = dict(obs, cloud_mask=np.zeros_like(obs["cloud_mask"]))
+    for k in range(5):
+        moved = dict(empty, odom=obs["odom"] + np.array([0.2 * k, 0.0, 0.0], dtype=np.float32))
+        moved["time"] = moved["cloud_time"] = np.array([0.1 * k])
+        estimate = pimm.update(moved)
+        assert np.isfinite(estimate.pose).all()
+    assert pimm.filter.weights.sum() == pytest.approx(1.0)
+
+
+def test_unknown_pimm_setting_lists_the_valid_ones():
+    with pytest.raises(ValueError, match="num_particles"):
+        make_localizer("pimm", particles=10)
+
+
+def test_reset_returns_to_a_uniform_cloud(pimm):
+    pimm.reset(seed=3)
+    first = pimm.filter.particles.copy()
+    pimm.reset(seed=3)
+    assert np.array_equal(first, pimm.filter.particles)
+    assert np.allclose(pimm.filter.weights, 1.0 / len(first))
+    assert np.ptp(first[:, 0]) > 20 and np.ptp(first[:, 1]) > 15  # spread over the whole building
+
+
+@pytest.mark.expensive
+def test_pimm_converges_in_area_b():
+    from pimm_agents.trials import TrialSpec, run_trial
+
+    result = run_trial(TrialSpec(scenario="area_b", localizer="pimm", trial=0, seed=0))
+    assert result.metrics.converged, result.metrics
