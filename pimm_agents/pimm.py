@@ -21,6 +21,7 @@ from pimm_agents.feature_filter import FeatureFilter, FeatureFilterConfig, carry
 from pimm_agents.fingerprint_map import FingerprintMap
 from pimm_agents.segmenter import Segmenter
 from pimm_env.corner_map import CornerMap
+from pimm_env.lidar import Lidar3DConfig, directions_3d
 from pimm_env.occupancy import OccupancyGrid
 from pimm_env.robot import compose, relative_motion
 from pimm_env.semantics import SemanticClass
@@ -118,7 +119,15 @@ class PimmLocalizer:
             occupancy, NearestCornerGrid(corners, config.filter.lookup_resolution_m), config.filter
         )
         self.history = OdometryHistory(config.odometry_history_s)
+        self._warm_up()
         self.reset()
+
+    def _warm_up(self) -> None:
+        """Run perception once on a synthetic scan (a 5 m sphere) so that the one-off costs of torch's first
+        call and of importing Open3D do not land in the first real update's timings."""
+        layers, per_layer = self.segmenter.layers, self.segmenter.points_per_layer
+        directions = directions_3d(Lidar3DConfig(layers=layers, points_per_layer=per_layer)).astype(np.float32)
+        self.perceive(5.0 * directions, np.ones(len(directions), dtype=bool), 0.0, {})
 
     def reset(self, seed: int | None = None) -> None:
         self.rng = np.random.default_rng(seed)

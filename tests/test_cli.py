@@ -80,9 +80,17 @@ def test_score_names_the_bad_line(tmp_path):
 
 
 @pytest.mark.expensive
-def test_perception_reports_corner_stats(tmp_path):
+def test_perception_reports_segmentation_retrieval_and_corners(tmp_path):
     result = CliRunner().invoke(evaluate.app, ["perception", "--scans", "3", "--json"])
     assert result.exit_code == 0, result.output
-    stats = json.loads(result.output.strip().splitlines()[-1])["corners"]["true_labels"]
-    assert set(stats) == {"precision", "recall", "median_position_error_m", "median_orientation_error_deg"}
-    assert 0.0 <= stats["precision"] <= 1.0 and 0.0 <= stats["recall"] <= 1.0
+    report = json.loads(result.output.strip().splitlines()[-1])
+    corner_keys = {"precision", "recall", "median_position_error_m", "median_orientation_error_deg"}
+    for which in ("true_labels", "predicted_labels"):
+        stats = report["corners"][which]
+        assert set(stats) == corner_keys
+        assert 0.0 <= stats["precision"] <= 1.0 and 0.0 <= stats["recall"] <= 1.0
+    assert set(report["segmentation"]["iou"]) == {"floor", "ceiling", "wall", "clutter"}
+    assert 0.0 <= report["segmentation"]["miou"] <= 1.0
+    retrieval = report["retrieval"]
+    assert {"recall_at_3_2m", "mean_error_m", "mean_min_error_m", "mean_max_error_m"} <= set(retrieval)
+    assert retrieval["mean_min_error_m"] <= retrieval["mean_error_m"] <= retrieval["mean_max_error_m"]

@@ -70,3 +70,22 @@ def test_dataset_errors_name_the_file(tmp_path):
         load(tmp_path / "partial.npz")
     with pytest.raises(ValueError, match="train_fraction"):
         split(generate("iilab", 2, seed=0, progress=False), 1.0, np.random.default_rng(0))
+
+
+def test_rebuild_command_makes_every_perception_file_for_a_world(room_file, tmp_path, monkeypatch):
+    """`python -m training rebuild` on a small room: dataset, weights (with their record) and fingerprint map."""
+    from typer.testing import CliRunner
+
+    from training.__main__ import app
+
+    monkeypatch.chdir(tmp_path)
+    args = ["rebuild", "--world", str(room_file), "--scans", "10", "--validation", "2", "--epochs", "1"]
+    result = CliRunner().invoke(app, [*args, "--spacing", "1.0"])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "build/datasets/room/scans.npz").is_file()
+    folder = room_file.parent
+    assert {"pointnet.pt", "pointnet.json", "fingerprints.npz"} <= {p.name for p in folder.iterdir()}
+    from pimm_agents.perception_maps import load_perception
+
+    segmenter, fmap = load_perception(str(room_file))
+    assert len(fmap) >= 3 and fmap.dim == segmenter.descriptor_dim

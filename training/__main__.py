@@ -20,7 +20,9 @@ DATA_DIR = Path("build/datasets")
 
 
 def _dataset_paths(world: str) -> tuple[Path, Path]:
-    folder = DATA_DIR / Path(world).stem
+    from pimm_env.world import load_world
+
+    folder = DATA_DIR / load_world(world).name
     return folder / "scans.npz", folder / "validation.npz"
 
 
@@ -105,13 +107,15 @@ def fingerprints(
 def rebuild(
     world: str = typer.Option("iilab", help="world name or world file"),
     scans: int = typer.Option(2300, min=10),
+    validation: int = typer.Option(400, min=1),
     epochs: int = typer.Option(20, min=1),
+    spacing: float = typer.Option(0.5, min=0.05, help="fingerprint grid spacing (m)"),
     seed: int = typer.Option(0),
 ) -> None:
     """Dataset, then weights, then fingerprint map: everything perception needs for a world."""
-    dataset(world=world, scans=scans, validation=400, seed=seed)
+    dataset(world=world, scans=scans, validation=validation, seed=seed)
     train(world=world, epochs=epochs, points=2048, seed=seed, out=None)
-    fingerprints(world=world, spacing=0.5, seed=seed)
+    fingerprints(world=world, spacing=spacing, seed=seed)
 
 
 if __name__ == "__main__":
