@@ -44,11 +44,11 @@ class NearestCornerGrid:
         ``margin`` from every corner) only ever scores low, as it should.
         """
         inv = np.float32(1.0 / self.resolution)
-        row = ((y - np.float32(self.origin[1])) * inv).astype(np.int32)
-        row *= self.shape[1]
-        row += ((x - np.float32(self.origin[0])) * inv).astype(np.int32)
-        np.clip(row, 0, self.table.size - 1, out=row)
-        return row
+        flat = np.floor((y - np.float32(self.origin[1])) * inv)
+        flat *= np.float32(self.shape[1])
+        flat += (x - np.float32(self.origin[0])) * inv
+        np.clip(flat, 0, self.table.size - 1, out=flat)
+        return flat.astype(np.int32)
 
     def nearest(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Index of the nearest corner for points ``x``, ``y`` of any (equal) shape, inside the grid."""

@@ -34,7 +34,7 @@ class FeatureFilterConfig:
     smart_share: float = 0.5  # ours: of the replaced particles, the share placed around suggestions
     estimate_num_particles: int = 100
     occupied_penalty: float = 0.1  # ours: weight factor for a particle in an occupied or unknown cell
-    lookup_resolution_m: float = 0.1  # ours: cell size of the nearest-corner grid
+    lookup_resolution_m: float = 0.25  # ours: cell size of the nearest-corner grid
 
     def __post_init__(self) -> None:
         if self.num_particles < 1:
@@ -133,6 +133,7 @@ class FeatureFilter:
         da *= da
         da *= -1.5 / f[:, 4:5] ** 2
         mx += da
+        np.maximum(mx, np.float32(-60.0), out=mx)  # exp(-60) ~ 1e-26 is nothing; lower, float32 goes subnormal (slow)
         np.exp(mx, out=mx)
         return mx.sum(axis=0, dtype=np.float64)
 

@@ -103,6 +103,57 @@ class PointNetSegmenter(nn.Module):
         return self.head(per_point), descriptor
 
 
+def _fold(conv_weight: torch.Tensor, bn: nn.BatchNorm1d) -> tuple[torch.Tensor, torch.Tensor]:
+    """A bias-free layer followed by eval-mode batch norm, as one affine map (W, b)."""
+    scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
+    return conv_weight * scale[:, None], bn.bias - bn.running_mean * scale
+
+
+def _folded_mlp(mlp: nn.Sequential) -> list[tuple[torch.Tensor, torch.Tensor]]:
+    convs = [m for m in mlp if isinstance(m, nn.Conv1d)]
+    norms = [m for m in mlp if isinstance(m, nn.BatchNorm1d)]
+    return [_fold(c.weight[:, :, 0], n) for c, n in zip(convs, norms, strict=True)]
+
+
+class FusedPointNet:
+    """The trained network for inference on one scan: batch norms and the input scaling folded into the
+    layers, points as rows so that every layer is one matrix product. Same outputs as the module."""
+
+    def __init__(self, model: PointNetSegmenter) -> None:
+        model = model.eval()
+        with torch.no_grad():
+            self.local = _folded_mlp(model.local)
+            w0, b0 = self.local[0]
+            self.local[0] = (w0 * model.feature_scale.view(1, -1), b0)
+            self.globe = _folded_mlp(model.globe)
+            head_norm = model.head[0]
+            scale = head_norm.weight / torch.sqrt(head_norm.running_var + head_norm.eps)
+            self.head_local = model.head_local.weight[:, :, 0] * scale[:, None]
+            self.head_global = model.head_global.weight * scale[:, None]
+            self.head_bias = head_norm.bias - head_norm.running_mean * scale
+            self.head = _folded_mlp(model.head[2])
+            self.classify = (model.head[3].weight[:, :, 0], model.head[3].bias)
+            self.descriptor = (model.descriptor.weight, model.descriptor.bias)
+            for name in ("local", "globe", "head"):
+                setattr(self, name, [(w.T.contiguous(), b) for w, b in getattr(self, name)])
+
+    def __call__(self, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``points`` (N, input_channels) -> logits (N, classes), unit descriptor (descriptor_dim,)."""
+        x = points
+        for w, b in self.local:
+            x = torch.relu_(torch.addmm(b, x, w))
+        g = x
+        for w, b in self.globe:
+            g = torch.relu_(torch.addmm(b, g, w))
+        glob = g.amax(dim=0)
+        h = torch.relu_(torch.addmm(self.head_global @ glob + self.head_bias, x, self.head_local.T))
+        for w, b in self.head:
+            h = torch.relu_(torch.addmm(b, h, w))
+        logits = torch.addmm(self.classify[1], h, self.classify[0].T)
+        descriptor = nn.functional.normalize(self.descriptor[0] @ glob + self.descriptor[1], dim=0)
+        return logits, descriptor
+
+
 def parameter_count(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters())
 

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from pimm_agents.point_features import point_features, with_context
-from pimm_agents.pointnet import PointNetSegmenter, load_checkpoint
+from pimm_agents.pointnet import FusedPointNet, PointNetSegmenter, load_checkpoint
 
 
 def strided_sample(valid_index: np.ndarray, count: int, offset: int = 0) -> np.ndarray:
@@ -60,6 +60,7 @@ class Segmenter:
     def __init__(self, checkpoint: Path, layers: int = 40, points_per_layer: int = 360) -> None:
         self.model: PointNetSegmenter
         self.model, self.training = load_checkpoint(checkpoint)
+        self.network = FusedPointNet(self.model)
         self.checkpoint = Path(checkpoint)
         self.layers = layers
         self.points_per_layer = points_per_layer
@@ -78,18 +79,18 @@ class Segmenter:
         sampled = strided_sample(valid_index, self.model.config.points)
         offsets = self.model.config.context_offsets
         chosen = with_context(features, valid_index[sampled], self.layers, self.points_per_layer, offsets)
-        inputs = torch.from_numpy(np.ascontiguousarray(chosen.T[None]))
+        inputs = torch.from_numpy(chosen)
         prepared = time.perf_counter()
         with torch.inference_mode():
-            logits, descriptor = self.model(inputs)
+            logits, descriptor = self.network(inputs)
         inferred = time.perf_counter()
-        classes = logits[0].argmax(dim=0).numpy().astype(np.int8)
+        classes = logits.argmax(dim=1).numpy().astype(np.int8)
         labels = np.full(len(valid), -1, dtype=np.int8)
         labels[valid_index] = classes[nearest_sampled(len(valid_index), sampled)]
         done = time.perf_counter()
         return Segmentation(
             labels=labels,
-            descriptor=descriptor[0].numpy().astype(np.float32),
+            descriptor=descriptor.numpy().astype(np.float32),
             timings_ms={
                 "features": 1000 * (prepared - start),
                 "network": 1000 * (inferred - prepared),
