@@ -76,3 +76,21 @@ def test_checkpoint_round_trip_and_errors(tmp_path, checkpoint):
     torch.save(data, tmp_path / "mismatch.pt")
     with pytest.raises(ValueError, match="do not fit"):
         load_checkpoint(tmp_path / "mismatch.pt")
+
+
+def test_fused_inference_matches_the_trained_module():
+    from pimm_agents.pointnet import FusedPointNet
+
+    torch.manual_seed(1)
+    model = PointNetSegmenter(SMALL)
+    # give the batch norms non-trivial statistics, as training would
+    model.train()
+    with torch.no_grad():
+        model(torch.rand(4, SMALL.input_channels, 256) * 3)
+    model.eval()
+    x = torch.rand(1, SMALL.input_channels, 256) * 3
+    with torch.inference_mode():
+        logits, descriptor = model(x)
+        fused_logits, fused_descriptor = FusedPointNet(model)(x[0].T.contiguous())
+    assert torch.allclose(logits[0].T, fused_logits, atol=1e-4)
+    assert torch.allclose(descriptor[0], fused_descriptor, atol=1e-5)
