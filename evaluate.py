@@ -258,6 +258,7 @@ def perception(
     scans: int = typer.Option(50, min=1, help="fresh scans at random free poses"),
     seed: int = typer.Option(1, help="seed of the scan poses (keep it apart from training seeds)"),
     json_out: bool = typer.Option(False, "--json", help="print one JSON object"),
+    figure: Path | None = typer.Option(None, help="also draw retrievals and the confusion matrix to this PNG"),
 ) -> None:
     """Measure perception on fresh scans no training or map used: segmentation IoU, fingerprint retrieval,
     and the corner detector on true and on predicted labels (parts whose trained files are missing are left out)."""
@@ -276,7 +277,9 @@ def perception(
             f"{checkpoint_path(loaded)} is missing: only the corner detector on true labels is measured", err=True
         )
     collected = collect_scans(world, scans, seed)
-    result = perception_report(collected, load_derived_maps(loaded).corners, segmenter, fingerprints)
+    result = perception_report(
+        collected, load_derived_maps(loaded).corners, segmenter, fingerprints, figure=figure, world=world
+    )
     typer.echo(json.dumps(result) if json_out else format_perception(result))
 
 

@@ -4,6 +4,7 @@ and the corner detector on true and on predicted labels. ``evaluate.py perceptio
 from __future__ import annotations
 
 from dataclasses import asdict
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,17 +26,26 @@ THESIS_RETRIEVAL = {
 CORNER_KEYS = ("precision", "recall", "median_position_error_m", "median_orientation_error_deg")
 
 
-def iou_per_class(predicted: np.ndarray, truth: np.ndarray, num_classes: int = len(CLASS_NAMES)) -> np.ndarray:
-    """Intersection over union of each class over the points with a true label (NaN for a class never seen)."""
+def confusion_matrix(predicted: np.ndarray, truth: np.ndarray, num_classes: int = len(CLASS_NAMES)) -> np.ndarray:
+    """Counts (true class, predicted class) over the points with a true label."""
     keep = truth >= 0
     p, t = predicted[keep].astype(np.int64), truth[keep].astype(np.int64)
     if np.any((p < 0) | (p >= num_classes)):
         raise ValueError(f"predicted labels outside 0..{num_classes - 1} on points that have a true label")
-    confusion = np.bincount(t * num_classes + p, minlength=num_classes**2).reshape(num_classes, num_classes)
+    return np.bincount(t * num_classes + p, minlength=num_classes**2).reshape(num_classes, num_classes)
+
+
+def iou_from_confusion(confusion: np.ndarray) -> np.ndarray:
+    """Intersection over union of each class (NaN for a class neither present nor predicted)."""
     inter = np.diag(confusion).astype(float)
     union = confusion.sum(0) + confusion.sum(1) - inter
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(union > 0, inter / union, np.nan)
+
+
+def iou_per_class(predicted: np.ndarray, truth: np.ndarray, num_classes: int = len(CLASS_NAMES)) -> np.ndarray:
+    """Intersection over union of each class over the points with a true label (NaN for a class never seen)."""
+    return iou_from_confusion(confusion_matrix(predicted, truth, num_classes))
 
 
 def retrieval_errors(retrievals: list[Retrieval], truths: np.ndarray) -> dict[str, float]:
@@ -64,18 +74,22 @@ def perception_report(
     corners: CornerMap,
     segmenter: Segmenter | None = None,
     fingerprints: FingerprintMap | None = None,
+    figure: Path | None = None,
+    world: str = "iilab",
 ) -> dict[str, Any]:
-    """The ``evaluate.py perception`` JSON; parts whose component is missing are left out."""
+    """The ``evaluate.py perception`` JSON; parts whose component is missing are left out. With ``figure``,
+    also a picture of the retrievals on the map and of the segmentation's confusion matrix."""
     report: dict[str, Any] = {
         "corners": {"true_labels": _corner_dict(corner_stats([s.corner_input() for s in scans], corners))}
     }
     if segmenter is None:
         return report
     segmented = [segmenter.segment(s.cloud, s.mask) for s in scans]
-    iou = iou_per_class(
+    confusion = confusion_matrix(
         np.concatenate([g.labels[s.mask] for g, s in zip(segmented, scans, strict=True)]),
         np.concatenate([s.labels[s.mask] for s in scans]),
     )
+    iou = iou_from_confusion(confusion)
     report["segmentation"] = {
         "miou": float(np.nanmean(iou)),
         "iou": {name: float(v) for name, v in zip(CLASS_NAMES, iou, strict=True)},
@@ -83,9 +97,10 @@ def perception_report(
     }
     predicted = [s.corner_input(g.labels) for g, s in zip(segmented, scans, strict=True)]
     report["corners"]["predicted_labels"] = _corner_dict(corner_stats(predicted, corners))
+    retrievals: list[Retrieval] = []
+    truths = np.array([s.pose for s in scans])
     if fingerprints is not None:
         retrievals = [fingerprints.query(g.descriptor) for g in segmented]
-        truths = np.array([s.pose for s in scans])
         areas = np.array([s.area for s in scans])
         report["retrieval"] = retrieval_errors(retrievals, truths)
         report["retrieval"]["per_area"] = {
@@ -94,7 +109,48 @@ def perception_report(
             )
             for area in sorted(set(areas) - {""})
         }
+    if figure is not None:
+        plot_perception(world, confusion, retrievals, truths, figure)
     return report
+
+
+def plot_perception(
+    world: str, confusion: np.ndarray, retrievals: list[Retrieval], truths: np.ndarray, path: Path
+) -> Path:
+    """Left: each query's true position joined to its nearest retrieved one (green within 2 m, red beyond).
+    Right: the confusion matrix, each row normalized to the true class's returns."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pimm_env.render import show_map
+
+    fig, (ax_map, ax_conf) = plt.subplots(1, 2, figsize=(15, 5.5), gridspec_kw={"width_ratios": [1.6, 1]})
+    show_map(ax_map, world)
+    for retrieval, truth in zip(retrievals, truths, strict=True):
+        errors = np.linalg.norm(retrieval.positions - truth[:2], axis=1)
+        best = retrieval.positions[int(np.argmin(errors))]
+        color = "tab:green" if errors.min() <= 2.0 else "tab:red"
+        ax_map.plot([truth[0], best[0]], [truth[1], best[1]], "-", color=color, lw=1.2)
+        ax_map.plot(*truth[:2], "o", color=color, ms=3)
+    ax_map.set_title(f"fingerprint retrieval: {len(retrievals)} fresh scans, true position to nearest of k")
+    ax_map.set_xlabel("x (m)")
+    ax_map.set_ylabel("y (m)")
+    shares = confusion / np.maximum(confusion.sum(axis=1, keepdims=True), 1)
+    ax_conf.imshow(shares, cmap="Blues", vmin=0, vmax=1)
+    for (i, j), v in np.ndenumerate(shares):
+        ax_conf.text(j, i, f"{v:.2f}", ha="center", va="center", color="white" if v > 0.5 else "black")
+    ax_conf.set_xticks(range(len(CLASS_NAMES)), CLASS_NAMES)
+    ax_conf.set_yticks(range(len(CLASS_NAMES)), CLASS_NAMES)
+    ax_conf.set_xlabel("predicted")
+    ax_conf.set_ylabel("true")
+    ax_conf.set_title("segmentation: share of each true class's returns")
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
 
 
 def _num(value: float | None, fmt: str = ".3f") -> str:

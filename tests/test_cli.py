@@ -81,8 +81,10 @@ def test_score_names_the_bad_line(tmp_path):
 
 @pytest.mark.expensive
 def test_perception_reports_segmentation_retrieval_and_corners(tmp_path):
-    result = CliRunner().invoke(evaluate.app, ["perception", "--scans", "3", "--json"])
+    figure = tmp_path / "perception.png"
+    result = CliRunner().invoke(evaluate.app, ["perception", "--scans", "3", "--json", "--figure", str(figure)])
     assert result.exit_code == 0, result.output
+    assert figure.stat().st_size > 10_000
     report = json.loads(result.output.strip().splitlines()[-1])
     corner_keys = {"precision", "recall", "median_position_error_m", "median_orientation_error_deg"}
     for which in ("true_labels", "predicted_labels"):
