@@ -22,9 +22,13 @@ from pimm_env.semantics import SemanticClass
 
 @dataclass(frozen=True)
 class CornerDetectorConfig:
-    """Thesis section 3.3.4 values as defaults, except the subsample: each class is cut to 1000 random points
-    (measured: 4x faster than 4000, same precision, higher recall), and the thesis's 150-inlier minimum, set
-    for its whole 10 000-point clouds, is scaled to 40 for that density."""
+    """Thesis section 3.3.4 values as defaults, with three measured changes (50 fresh scans, two seeds):
+
+    - each class is cut to 1750 random points (4000: 2-3x slower and no better);
+    - the thesis's 150-inlier minimum, set for whole 10 000-point clouds, is scaled to 40 for that density;
+    - a wall must run on at least ``min_face`` from the corner (the corner map's own rule), which drops the
+      phantom corners that infinite planes make with slivers of wall: precision 0.88 -> 0.92 at equal recall.
+    """
 
     planes: PlaneParams = field(default_factory=lambda: PlaneParams(min_inliers=40))
     vertical_max_nz: float = 0.1  # walls: |n_z| below this
@@ -32,7 +36,9 @@ class CornerDetectorConfig:
     min_plane_angle: float = np.pi / 4  # every pair of the three normals at least this far from parallel
     max_corner_distance: float = 2.0  # from the corner to the nearest inlier of each plane
     merge_distance: float = 0.5
-    max_points_per_class: int = 1000  # random subsample for speed; 0 keeps all
+    min_face: float = 0.3  # ours, the corner map's rule: each wall runs on at least this far from the corner
+    min_face_points: int = 5  # inliers that must lie on that stretch
+    max_points_per_class: int = 1750  # random subsample for speed; 0 keeps all
     min_position_std: float = 0.02  # m: a floor on the derived position uncertainty
     min_orientation_std: float = np.radians(1.0)
 
@@ -105,6 +111,8 @@ def _corner(a: Plane, b: Plane, ceiling: Plane, config: CornerDetectorConfig) ->
     gaps = [float(np.min(np.linalg.norm(p.inliers - corner, axis=1))) for p in (a, b, ceiling)]
     if max(gaps) > config.max_corner_distance:
         return None
+    if config.min_face > 0 and not all(_has_face(p, corner, config) for p in (a, b)):
+        return None
     towards = [(p.centroid - corner)[:2] for p in (a, b)]
     bisector = sum(v / max(np.linalg.norm(v), 1e-9) for v in towards)
     if np.linalg.norm(bisector) < 1e-6:
@@ -118,6 +126,17 @@ def _corner(a: Plane, b: Plane, ceiling: Plane, config: CornerDetectorConfig) ->
         orientation_var,
         float(max(0.0, 1.0 - max(gaps) / config.max_corner_distance)),
     )
+
+
+def _has_face(wall: Plane, corner: np.ndarray, config: CornerDetectorConfig) -> bool:
+    """Whether the wall runs on from the corner: some inliers lie between ``min_face`` and
+    ``max_corner_distance`` from it along the wall, on one side. The corner map keeps a corner only if both
+    faces run straight for ``min_face``; a sliver of wall (a pier, a door jamb) meeting another is no corner."""
+    along = np.array([-wall.normal[1], wall.normal[0]])
+    along /= max(np.linalg.norm(along), 1e-9)
+    t = (wall.inliers[:, :2] - corner[:2]) @ along
+    on_face = (np.abs(t) >= config.min_face) & (np.abs(t) <= config.max_corner_distance)
+    return bool(max(np.sum(on_face & (t > 0)), np.sum(on_face & (t < 0))) >= config.min_face_points)
 
 
 def _uncertainty(
