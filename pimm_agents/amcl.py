@@ -20,7 +20,7 @@ from pimm_agents.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.resampling import multinomial_resample
 from pimm_env.lidar import Lidar2DConfig, beam_angles_2d
 from pimm_env.occupancy import OccupancyGrid
-from pimm_env.robot import compose, relative_motion, wrap_angle
+from pimm_env.robot import carry, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -228,7 +228,7 @@ class Amcl:
         if self._odom_at_update is None:
             pose = mean
         else:
-            pose = compose(mean, relative_motion(self._odom_at_update, odom))[0]
+            pose = carry(mean, self._odom_at_update, odom)
         return PoseEstimate(float(pose[0]), float(pose[1]), float(pose[2]), cov.copy(), stamp, timings)
 
     @property

@@ -14,7 +14,7 @@ from pimm_agents.corner_lookup import NearestCornerGrid
 from pimm_agents.free_space import FreeSpace
 from pimm_agents.resampling import residual_resample
 from pimm_env.occupancy import OccupancyGrid
-from pimm_env.robot import compose, relative_motion, wrap_angle
+from pimm_env.robot import relative_motion, wrap_angle
 
 
 @dataclass(frozen=True)
@@ -225,8 +225,3 @@ class FeatureFilter:
         d = self.particles - around
         d[:, 2] = wrap_angle(d[:, 2])
         return (d * self.weights[:, None]).T @ d
-
-
-def carry(estimate: np.ndarray, odom_then: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
-    """An estimate made at ``odom_then`` moved on by the odometry since: the thesis's second estimate mode."""
-    return compose(estimate, relative_motion(odom_then, odom_now))[0]

@@ -104,19 +104,8 @@ class FingerprintMap:
     @classmethod
     def load(cls, path: Path, config: FingerprintConfig = FingerprintConfig()) -> FingerprintMap:
         """Read a map written by :meth:`save`; a missing or damaged file and missing fields are named."""
-        path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(
-                f"{path}: no fingerprint map; build one with `python -m training fingerprints --world <world>`"
-            )
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as err:
-            raise ValueError(f"{path}: not a readable fingerprint map ({err})") from None
-        with data:
-            missing = [k for k in ("format", "descriptors", "positions", "headings") if k not in data.files]
-            if missing:
-                raise ValueError(f"{path}: fingerprint map lacks field(s) {missing}")
-            if str(data["format"]) != FORMAT:
-                raise ValueError(f"{path}: format {str(data['format'])!r}, expected {FORMAT!r}")
-            return cls(data["descriptors"], data["positions"], data["headings"], config, source=str(path))
+        from pimm_env.npz_file import read_npz
+
+        hint = "build one with `python -m training fingerprints --world <world>`"
+        data = read_npz(path, "fingerprint map", ("descriptors", "positions", "headings"), FORMAT, hint)
+        return cls(data["descriptors"], data["positions"], data["headings"], config, source=str(path))

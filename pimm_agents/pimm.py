@@ -17,13 +17,13 @@ import numpy as np
 from pimm_agents.corner_detector import CornerDetectorConfig, FeatureList, detect_corners
 from pimm_agents.corner_lookup import NearestCornerGrid
 from pimm_agents.estimate import Observation, PoseEstimate, require
-from pimm_agents.feature_filter import FeatureFilter, FeatureFilterConfig, carry
+from pimm_agents.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.fingerprint_map import FingerprintMap
 from pimm_agents.segmenter import Segmenter
 from pimm_env.corner_map import CornerMap
 from pimm_env.lidar import Lidar3DConfig, directions_3d
 from pimm_env.occupancy import OccupancyGrid
-from pimm_env.robot import compose, relative_motion
+from pimm_env.robot import carry, compose, relative_motion
 from pimm_env.semantics import SemanticClass
 
 

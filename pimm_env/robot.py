@@ -59,6 +59,11 @@ def relative_motion(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
     return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(current[2] - previous[2])])
 
 
+def carry(pose: np.ndarray, odom_then: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
+    """A map-frame pose known when the odometry read ``odom_then``, moved on by the odometry since."""
+    return compose(pose, relative_motion(odom_then, odom_now))[0]
+
+
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Angle in [-pi, pi)."""
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi

@@ -113,8 +113,10 @@ def rebuild(
     seed: int = typer.Option(0),
 ) -> None:
     """Dataset, then weights, then fingerprint map: everything perception needs for a world."""
+    from pimm_agents.pointnet import PointNetConfig
+
     dataset(world=world, scans=scans, validation=validation, seed=seed)
-    train(world=world, epochs=epochs, points=2048, seed=seed, out=None)
+    train(world=world, epochs=epochs, points=PointNetConfig().points, seed=seed, out=None)
     fingerprints(world=world, spacing=spacing, seed=seed)
 
 

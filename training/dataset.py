@@ -86,20 +86,11 @@ def save(scans: ScanSet, path: Path) -> None:
 
 def load(path: Path) -> ScanSet:
     """Read a dataset written by :func:`save`; a missing file or field is named in the error."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such dataset; make one with `python -m training dataset`")
-    try:
-        data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as err:
-        raise ValueError(f"{path}: not a readable .npz dataset ({err})") from None
-    with data:
-        missing = [k for k in ("format", "world", "ranges", "labels", "poses", "areas") if k not in data.files]
-        if missing:
-            raise ValueError(f"{path}: dataset lacks field(s) {missing}")
-        if str(data["format"]) != FORMAT:
-            raise ValueError(f"{path}: format {str(data['format'])!r}, expected {FORMAT!r}")
-        scans = ScanSet(data["ranges"], data["labels"], data["poses"], data["areas"], str(data["world"]))
+    from pimm_env.npz_file import read_npz
+
+    fields = ("world", "ranges", "labels", "poses", "areas")
+    data = read_npz(path, "dataset", fields, FORMAT, "make one with `python -m training dataset`")
+    scans = ScanSet(data["ranges"], data["labels"], data["poses"], data["areas"], str(data["world"]))
     if scans.ranges.shape != scans.labels.shape or len(scans.poses) != len(scans.ranges):
         raise ValueError(f"{path}: ranges {scans.ranges.shape}, labels {scans.labels.shape} and poses disagree")
     return scans

@@ -118,11 +118,10 @@ def evaluate_segmentation(model: PointNetSegmenter, sampler: ScanSampler, batch:
     with torch.inference_mode():
         for start in range(0, len(sampler.scans), batch):
             idx = np.arange(start, min(start + batch, len(sampler.scans)))
-            feats = torch.from_numpy(np.stack([sampler.sample(int(i), 0)[0] for i in idx]))
-            labels = np.stack([sampler.sample(int(i), 0)[1] for i in idx])
-            logits, _ = model(feats)
+            inputs, labels = zip(*(sampler.sample(int(i), 0) for i in idx), strict=True)
+            logits, _ = model(torch.from_numpy(np.stack(inputs)))
             predicted.append(logits.argmax(1).numpy())
-            truth.append(labels)
+            truth.append(np.stack(labels))
     return iou_per_class(np.concatenate(predicted).ravel(), np.concatenate(truth).ravel())
 
 

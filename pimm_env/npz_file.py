@@ -1,0 +1,28 @@
+"""Reading PIMM's ``.npz`` files (datasets, fingerprint maps) with errors that name the file and the field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def read_npz(path: Path, what: str, fields: tuple[str, ...], file_format: str, make_hint: str) -> dict[str, np.ndarray]:
+    """The arrays ``fields`` of the ``.npz`` at ``path``, which must carry ``format == file_format``.
+
+    ``what`` names the kind of file in errors; ``make_hint`` says how to make one when it is missing.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no {what}; {make_hint}")
+    try:
+        data = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: not a readable {what} ({err})") from None
+    with data:
+        missing = [k for k in ("format", *fields) if k not in data.files]
+        if missing:
+            raise ValueError(f"{path}: {what} lacks field(s) {missing}")
+        if str(data["format"]) != file_format:
+            raise ValueError(f"{path}: format {str(data['format'])!r}, expected {file_format!r}")
+        return {k: data[k] for k in fields}
