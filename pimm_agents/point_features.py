@@ -40,21 +40,24 @@ def organized(values: np.ndarray, layers: int, points_per_layer: int) -> np.ndar
     return values.reshape(layers, points_per_layer, *values.shape[1:])
 
 
-def _neighbour(grid: np.ndarray, valid: np.ndarray, axis: int, step: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each point's neighbour ``step`` cells along ``axis`` (azimuth wraps around, layers do not)."""
-    shifted = np.roll(grid, -step, axis=axis)
-    ok = np.roll(valid, -step, axis=axis)
+def _shift(grid: np.ndarray, axis: int, step: int) -> np.ndarray:
+    """Each cell's neighbour ``step`` cells along ``axis`` (azimuth wraps; layers wrap too, see _shift_ok)."""
+    return np.roll(grid, -step, axis=axis)
+
+
+def _shift_ok(ok: np.ndarray, axis: int, step: int) -> np.ndarray:
+    """Whether that neighbour is a return; beyond the top or bottom layer there is none."""
+    shifted = np.roll(ok, -step, axis=axis)
     if axis == 0:
-        edge = slice(-1, None) if step > 0 else slice(0, 1)
-        ok = ok.copy()
-        ok[edge] = False
-    return shifted, ok
+        shifted[-1 if step > 0 else 0] = False
+    return shifted
 
 
 def point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_layer: int) -> np.ndarray:
     """Features (layers * points_per_layer, NUM_FEATURES) float32 of every point; rows of masked points are 0.
 
     ``cloud`` is the sensor-frame cloud in scan order, ``mask`` marks real returns; NaN points count as masked.
+    Coordinates are handled as three (layers, points) planes, so every operation runs on plain 2-D arrays.
     """
     cloud = np.asarray(cloud, dtype=np.float32)
     if cloud.ndim != 2 or cloud.shape[1] != 3:
@@ -62,50 +65,56 @@ def point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_
     valid = np.asarray(mask, dtype=bool).reshape(-1) & np.isfinite(cloud).all(axis=1)
     if valid.shape[0] != cloud.shape[0]:
         raise ValueError(f"cloud_mask has {valid.shape[0]} entries for {cloud.shape[0]} points")
-    pts = organized(np.where(valid[:, None], cloud, 0.0), layers, points_per_layer)
     ok = organized(valid, layers, points_per_layer)
+    p = [np.where(ok, organized(cloud[:, k], layers, points_per_layer), np.float32(0.0)) for k in range(3)]
 
-    tangents = []
+    tangents, sums = [], [np.zeros_like(p[0]) for _ in range(3)]
+    count = np.zeros(ok.shape, dtype=np.float32)
+    has_tangent = []
     for axis in (1, 0):
-        ahead, ok_ahead = _neighbour(pts, ok, axis, 1)
-        behind, ok_behind = _neighbour(pts, ok, axis, -1)
-        # central difference where both neighbours exist, one-sided otherwise
-        both = ok_ahead & ok_behind
-        diff = np.where(both[..., None], ahead - behind, 0.0)
-        diff = np.where((ok_ahead & ~ok_behind)[..., None], ahead - pts, diff)
-        diff = np.where((~ok_ahead & ok_behind)[..., None], pts - behind, diff)
-        tangents.append((diff, ok_ahead | ok_behind, ahead, behind, both))
-    normal = np.cross(tangents[0][0], tangents[1][0])
-    norm = np.linalg.norm(normal, axis=-1, keepdims=True)
-    has_normal = (norm[..., 0] > 1e-9) & tangents[0][1] & tangents[1][1]
-    normal = np.where(has_normal[..., None], normal / np.maximum(norm, 1e-9), 0.0)
+        ok_a, ok_b = _shift_ok(ok, axis, 1), _shift_ok(ok, axis, -1)
+        both, only_a, only_b = ok_a & ok_b, ok_a & ~ok_b, ~ok_a & ok_b
+        tangent = []
+        for k in range(3):
+            ahead, behind = _shift(p[k], axis, 1), _shift(p[k], axis, -1)
+            # central difference where both neighbours exist, one-sided otherwise
+            d = np.where(both, ahead - behind, np.float32(0.0))
+            d = np.where(only_a, ahead - p[k], d)
+            tangent.append(np.where(only_b, p[k] - behind, d))
+            sums[k] += np.where(both, ahead + behind, np.float32(0.0))
+        tangents.append(tangent)
+        has_tangent.append(ok_a | ok_b)
+        count += 2 * both
+    (ax, ay, az), (bx, by, bz) = tangents
+    n = [ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx]
+    norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    has_normal = (norm > 1e-9) & has_tangent[0] & has_tangent[1]
+    scale = np.where(has_normal, 1.0 / np.maximum(norm, 1e-9), np.float32(0.0))
+    n = [c * scale for c in n]
 
-    horizontal = np.hypot(pts[..., 0], pts[..., 1])
-    radial = np.where(horizontal[..., None] > 1e-6, pts[..., :2] / np.maximum(horizontal, 1e-6)[..., None], 0.0)
-    column_max = np.where(ok, horizontal, 0.0).max(axis=0, keepdims=True)
-    column_top = np.where(ok, pts[..., 2], -np.inf).max(axis=0, keepdims=True)
+    horizontal = np.hypot(p[0], p[1])
+    inv_h = np.where(horizontal > 1e-6, 1.0 / np.maximum(horizontal, 1e-6), np.float32(0.0))
+    radial = np.abs(n[0] * p[0] * inv_h + n[1] * p[1] * inv_h)
+    column_max = np.where(ok, horizontal, np.float32(0.0)).max(axis=0, keepdims=True)
+    column_top = np.where(ok, p[2], -np.inf).max(axis=0, keepdims=True)
     column_top = np.where(np.isfinite(column_top), column_top, 0.0)
-    top = float(pts[..., 2][ok].max()) if ok.any() else 1.0
+    top = float(p[2][ok].max()) if ok.any() else 1.0
 
     # roughness: how far the point is from the mean of its four grid neighbours, along its normal
-    neighbour_sum = np.zeros_like(pts)
-    neighbour_count = np.zeros(pts.shape[:2], dtype=np.float32)
-    for _, _, ahead, behind, both in tangents:
-        neighbour_sum += np.where(both[..., None], ahead + behind, 0.0)
-        neighbour_count += 2 * both
-    mean = neighbour_sum / np.maximum(neighbour_count, 1)[..., None]
-    rough = np.where(neighbour_count > 0, np.abs(np.sum((pts - mean) * normal, axis=-1)), ROUGHNESS_CAP)
+    divisor = np.maximum(count, 1)
+    offset = sum((p[k] - sums[k] / divisor) * n[k] for k in range(3))
+    rough = np.where(count > 0, np.abs(offset), ROUGHNESS_CAP)
 
     features = np.stack(
         [
-            pts[..., 2],
+            p[2],
             horizontal,
-            np.abs(normal[..., 2]),
-            np.abs(np.sum(normal[..., :2] * radial, axis=-1)),
+            np.abs(n[2]),
+            radial,
             horizontal / np.maximum(column_max, 1e-6),
-            pts[..., 2] / max(top, 1e-3),
+            p[2] / max(top, 1e-3),
             np.minimum(rough, ROUGHNESS_CAP),
-            column_top - pts[..., 2],
+            column_top - p[2],
             column_max - horizontal,
         ],
         axis=-1,
