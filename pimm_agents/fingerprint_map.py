@@ -89,17 +89,10 @@ class FingerprintMap:
         return Retrieval(positions, np.sqrt(np.maximum(distances[0], 0)), spread, spread <= self.config.max_spread)
 
     def save(self, path: Path, provenance: dict[str, str] | None = None) -> None:
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        from pimm_env.npz_file import write_npz
+
         extra = {f"provenance_{k}": np.str_(v) for k, v in (provenance or {}).items()}
-        np.savez_compressed(
-            path,
-            format=FORMAT,
-            descriptors=self.descriptors,
-            positions=self.positions,
-            headings=self.headings,
-            **extra,
-        )
+        write_npz(path, FORMAT, descriptors=self.descriptors, positions=self.positions, headings=self.headings, **extra)
 
     @classmethod
     def load(cls, path: Path, config: FingerprintConfig = FingerprintConfig()) -> FingerprintMap:

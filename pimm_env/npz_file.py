@@ -7,6 +7,13 @@ from pathlib import Path
 import numpy as np
 
 
+def write_npz(path: Path, file_format: str, **arrays: np.ndarray) -> None:
+    """Write ``arrays`` compressed to ``path`` (making its folder), tagged ``format = file_format``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, format=file_format, **arrays)
+
+
 def read_npz(path: Path, what: str, fields: tuple[str, ...], file_format: str, make_hint: str) -> dict[str, np.ndarray]:
     """The arrays ``fields`` of the ``.npz`` at ``path``, which must carry ``format == file_format``.
 

@@ -71,17 +71,10 @@ def generate(world: str, count: int, seed: int, progress: bool = True) -> ScanSe
 
 
 def save(scans: ScanSet, path: Path) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(
-        path,
-        format=FORMAT,
-        world=scans.world,
-        ranges=scans.ranges,
-        labels=scans.labels,
-        poses=scans.poses,
-        areas=scans.areas,
-    )
+    from pimm_env.npz_file import write_npz
+
+    arrays = {"ranges": scans.ranges, "labels": scans.labels, "poses": scans.poses, "areas": scans.areas}
+    write_npz(path, FORMAT, world=np.str_(scans.world), **arrays)
 
 
 def load(path: Path) -> ScanSet:
