@@ -137,21 +137,34 @@ class FusedPointNet:
             for name in ("local", "globe", "head"):
                 setattr(self, name, [(w.T.contiguous(), b) for w, b in getattr(self, name)])
 
+    @staticmethod
+    def _run(layers: list[tuple[torch.Tensor, torch.Tensor]], x: torch.Tensor) -> torch.Tensor:
+        for w, b in layers:
+            x = torch.relu_(torch.addmm(b, x, w))
+        return x
+
+    def local_features(self, points: torch.Tensor) -> torch.Tensor:
+        """``points`` (N, input_channels) -> each point's local feature (N, local width)."""
+        return self._run(self.local, points)
+
+    def global_feature(self, local: torch.Tensor) -> torch.Tensor:
+        """The scan's global feature: the max over points of the global MLP of their local features."""
+        return self._run(self.globe, local).amax(dim=0)
+
+    def logits(self, local: torch.Tensor, glob: torch.Tensor) -> torch.Tensor:
+        """Class logits (N, classes) of points with local features ``local`` in a scan with feature ``glob``;
+        the points need not be those the global feature was pooled from."""
+        h = torch.relu_(torch.addmm(self.head_global @ glob + self.head_bias, local, self.head_local.T))
+        return torch.addmm(self.classify[1], self._run(self.head, h), self.classify[0].T)
+
+    def descriptor_of(self, glob: torch.Tensor) -> torch.Tensor:
+        return nn.functional.normalize(self.descriptor[0] @ glob + self.descriptor[1], dim=0)
+
     def __call__(self, points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``points`` (N, input_channels) -> logits (N, classes), unit descriptor (descriptor_dim,)."""
-        x = points
-        for w, b in self.local:
-            x = torch.relu_(torch.addmm(b, x, w))
-        g = x
-        for w, b in self.globe:
-            g = torch.relu_(torch.addmm(b, g, w))
-        glob = g.amax(dim=0)
-        h = torch.relu_(torch.addmm(self.head_global @ glob + self.head_bias, x, self.head_local.T))
-        for w, b in self.head:
-            h = torch.relu_(torch.addmm(b, h, w))
-        logits = torch.addmm(self.classify[1], h, self.classify[0].T)
-        descriptor = nn.functional.normalize(self.descriptor[0] @ glob + self.descriptor[1], dim=0)
-        return logits, descriptor
+        local = self.local_features(points)
+        glob = self.global_feature(local)
+        return self.logits(local, glob), self.descriptor_of(glob)
 
 
 def parameter_count(model: nn.Module) -> int:

@@ -33,16 +33,33 @@ def strided_sample(valid_index: np.ndarray, count: int, offset: int = 0) -> np.n
     return np.minimum((offset % max(1, int(stride)) + stride * np.arange(count)).astype(np.int64), n - 1)
 
 
+def _bracketing_samples(n_valid: int, sampled: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sampled positions in scan order, and for each return the slots of the samples before and after it."""
+    order = sampled[: min(n_valid, len(sampled))]
+    after = np.searchsorted(order, np.arange(n_valid))
+    return order, np.maximum(after - 1, 0), np.minimum(after, len(order) - 1)
+
+
 def nearest_sampled(n_valid: int, sampled: np.ndarray) -> np.ndarray:
     """For each of ``n_valid`` returns in scan order, the slot in ``sampled`` of the nearest sampled return.
 
     ``sampled`` is what :func:`strided_sample` gives: increasing, then (for short scans) repeats of itself.
     """
-    order = sampled[: min(n_valid, len(sampled))]
+    order, left, right = _bracketing_samples(n_valid, sampled)
     pos = np.arange(n_valid)
-    right = np.clip(np.searchsorted(order, pos), 0, len(order) - 1)
-    left = np.clip(right - 1, 0, len(order) - 1)
     return np.where(np.abs(order[left] - pos) <= np.abs(order[right] - pos), left, right)
+
+
+def disputed_returns(n_valid: int, sampled: np.ndarray, classes: np.ndarray) -> np.ndarray:
+    """Positions (in scan order) of the returns that were not sampled and lie between two sampled returns of
+    different classes: where a class boundary falls, which the nearest sample's class may get wrong.
+
+    ``classes`` holds the class of each slot of ``sampled``.
+    """
+    order, left, right = _bracketing_samples(n_valid, sampled)
+    unsure = classes[left] != classes[right]
+    unsure[order] = False
+    return np.flatnonzero(unsure)
 
 
 @dataclass(frozen=True)
@@ -79,14 +96,24 @@ class Segmenter:
         sampled = strided_sample(valid_index, self.model.config.points)
         offsets = self.model.config.context_offsets
         chosen = with_context(features, valid_index[sampled], self.layers, self.points_per_layer, offsets)
-        inputs = torch.from_numpy(chosen)
+        net = self.network
         prepared = time.perf_counter()
         with torch.inference_mode():
-            logits, descriptor = self.network(inputs)
-        inferred = time.perf_counter()
-        classes = logits.argmax(dim=1).numpy().astype(np.int8)
+            local = net.local_features(torch.from_numpy(chosen))
+            glob = net.global_feature(local)
+            classes = net.logits(local, glob).argmax(dim=1).numpy().astype(np.int8)
+            descriptor = net.descriptor_of(glob)
+            inferred = time.perf_counter()
+            # every return takes its nearest sample's class, except near class boundaries: there the network
+            # classifies the return itself, against the same global feature
+            in_order = classes[nearest_sampled(len(valid_index), sampled)]
+            todo = disputed_returns(len(valid_index), sampled, classes)
+            if len(todo):
+                extra = with_context(features, valid_index[todo], self.layers, self.points_per_layer, offsets)
+                logits = net.logits(net.local_features(torch.from_numpy(extra)), glob)
+                in_order[todo] = logits.argmax(dim=1).numpy()
         labels = np.full(len(valid), -1, dtype=np.int8)
-        labels[valid_index] = classes[nearest_sampled(len(valid_index), sampled)]
+        labels[valid_index] = in_order
         done = time.perf_counter()
         return Segmentation(
             labels=labels,
@@ -94,6 +121,6 @@ class Segmenter:
             timings_ms={
                 "features": 1000 * (prepared - start),
                 "network": 1000 * (inferred - prepared),
-                "labels": 1000 * (done - inferred),
+                "boundaries": 1000 * (done - inferred),
             },
         )

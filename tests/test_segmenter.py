@@ -3,7 +3,7 @@ import pytest
 import torch
 
 from pimm_agents.pointnet import PointNetConfig, PointNetSegmenter, load_checkpoint, save_checkpoint
-from pimm_agents.segmenter import Segmenter, nearest_sampled, strided_sample
+from pimm_agents.segmenter import Segmenter, disputed_returns, nearest_sampled, strided_sample
 
 SMALL = PointNetConfig(points=256, local_widths=(8, 16), global_widths=(16, 32), head_widths=(16, 8), descriptor_dim=6)
 
@@ -37,6 +37,14 @@ def test_nearest_sampled_gives_each_return_its_closest_sampled_neighbour():
     assert nearest_sampled(3, np.array([0, 1, 2, 0, 1])).tolist() == [0, 1, 2]
 
 
+def test_disputed_returns_lie_between_samples_of_different_classes():
+    sampled = np.array([1, 4, 8])
+    assert disputed_returns(11, sampled, np.array([0, 0, 2])).tolist() == [5, 6, 7]
+    assert disputed_returns(11, sampled, np.array([3, 0, 0])).tolist() == [2, 3]
+    assert disputed_returns(11, sampled, np.array([1, 1, 1])).tolist() == []
+    assert disputed_returns(3, np.array([0, 1, 2, 0, 1]), np.array([0, 1, 2, 0, 1])).tolist() == []
+
+
 def test_segmenter_labels_every_return_and_gives_a_unit_descriptor(checkpoint):
     segmenter = Segmenter(checkpoint)
     cloud, mask = scan(np.random.default_rng(0))
@@ -44,7 +52,46 @@ def test_segmenter_labels_every_return_and_gives_a_unit_descriptor(checkpoint):
     assert result.labels.shape == (len(cloud),)
     assert np.all(result.labels[~mask] == -1) and np.all((result.labels[mask] >= 0) & (result.labels[mask] < 4))
     assert result.descriptor.shape == (6,) and np.linalg.norm(result.descriptor) == pytest.approx(1.0, abs=1e-5)
-    assert set(result.timings_ms) == {"features", "network", "labels"}
+    assert set(result.timings_ms) == {"features", "network", "boundaries"}
+
+
+@pytest.fixture
+def varied_checkpoint(tmp_path):
+    """An untrained network whose classes still vary over a scan: batch norms calibrated on random input and
+    no class bias (a fresh network gives every point the same class)."""
+    torch.manual_seed(1)
+    model = PointNetSegmenter(SMALL)
+    with torch.no_grad():
+        model.train()
+        model(torch.rand(4, SMALL.input_channels, 256) * 3)
+        model.head[-1].bias.zero_()
+    path = tmp_path / "varied.pt"
+    save_checkpoint(model.eval(), path, {"command": "test"})
+    return path
+
+
+def test_segmenter_classifies_returns_at_class_boundaries_itself(varied_checkpoint):
+    """Off the sampled points a return takes its nearest sample's class unless it lies between two samples of
+    different classes; there it gets the class the network gives it, against the sampled global feature."""
+    from pimm_agents.point_features import point_features, with_context
+
+    segmenter = Segmenter(varied_checkpoint)
+    cloud, mask = scan(np.random.default_rng(1))
+    labels = segmenter.segment(cloud, mask).labels
+    valid_index = np.flatnonzero(mask)
+    sampled = strided_sample(valid_index, SMALL.points)
+    net = segmenter.network
+    inputs = with_context(point_features(cloud, mask, 40, 360), valid_index, 40, 360, SMALL.context_offsets)
+    with torch.inference_mode():
+        local = net.local_features(torch.from_numpy(inputs))
+        glob = net.global_feature(local[sampled])
+        own = net.logits(local, glob).argmax(dim=1).numpy()
+    todo = disputed_returns(len(valid_index), sampled, own[sampled])
+    nearest = own[sampled][nearest_sampled(len(valid_index), sampled)]
+    assert len(todo) > 0 and np.any(nearest[todo] != own[todo])
+    expected = nearest.copy()
+    expected[todo] = own[todo]
+    assert np.array_equal(labels[valid_index], expected)
 
 
 def test_segmenter_rejects_empty_and_all_nan_clouds(checkpoint):

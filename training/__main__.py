@@ -2,8 +2,9 @@
 
 python -m training dataset --world iilab --scans 2300 --seed 0      # build/datasets/iilab/*.npz
 python -m training train --world iilab --epochs 20                  # maps/iilab/pointnet.pt (+ .json)
+python -m training validate --world iilab                           # IoU on the validation set
 python -m training fingerprints --world iilab                       # maps/iilab/fingerprints.npz
-python -m training rebuild --world iilab                            # all three, in order
+python -m training rebuild --world iilab                            # all of it, in order
 """
 
 from __future__ import annotations
@@ -87,6 +88,40 @@ def train(
 
 
 @app.command()
+def validate(
+    world: str = typer.Option("iilab", help="world name or world file"),
+    checkpoint: Path | None = typer.Option(None, help="weights to score (default maps/<world>/pointnet.pt)"),
+) -> None:
+    """Per-class IoU on the separate validation set, every return labelled as the localizer does; the result
+    is also written into the checkpoint's .json record."""
+    import numpy as np
+
+    from pimm_agents.perception_maps import checkpoint_path
+    from pimm_agents.perception_quality import THESIS_IOU, iou_from_confusion
+    from pimm_agents.segmenter import Segmenter
+    from pimm_env.semantics import CLASS_NAMES
+    from training.dataset import load
+    from training.validate import scan_set_confusion
+
+    _, val_path = _dataset_paths(world)
+    target = checkpoint or checkpoint_path(world)
+    scans = load(val_path)
+    iou = iou_from_confusion(scan_set_confusion(Segmenter(target), scans))
+    result = {"scans": len(scans), "path": str(val_path), "iou": dict(zip(CLASS_NAMES, map(float, iou), strict=True))}
+    result["mean_iou"] = float(np.nanmean(iou))
+    typer.echo(f"{'class':<8} {'ours':>6} {'thesis':>7}")
+    for name, value in result["iou"].items():
+        typer.echo(f"{name:<8} {value:6.3f} {THESIS_IOU[name]:7.3f}")
+    typer.echo(f"{'mean':<8} {result['mean_iou']:6.3f} {THESIS_IOU['mean']:7.3f}   ({len(scans)} validation scans)")
+    record_path = target.with_suffix(".json")
+    if record_path.is_file():
+        record = json.loads(record_path.read_text())
+        record["validation"] = result
+        record_path.write_text(json.dumps(record, indent=1) + "\n")
+        typer.echo(f"recorded in {record_path}")
+
+
+@app.command()
 def fingerprints(
     world: str = typer.Option("iilab", help="world name or world file"),
     spacing: float = typer.Option(0.5, min=0.05, help="grid spacing of the map positions (m)"),
@@ -117,6 +152,7 @@ def rebuild(
 
     dataset(world=world, scans=scans, validation=validation, seed=seed)
     train(world=world, epochs=epochs, points=PointNetConfig().points, seed=seed, out=None)
+    validate(world=world, checkpoint=None)
     fingerprints(world=world, spacing=spacing, seed=seed)
 
 
