@@ -22,15 +22,20 @@ from pimm_env.semantics import SemanticClass
 
 @dataclass(frozen=True)
 class CornerDetectorConfig:
-    """Thesis section 3.3.4 values as defaults, with three measured changes (50 fresh scans, two seeds):
+    """Thesis section 3.3.4 values as defaults, with four measured changes (150 fresh scans, seeds 1-3):
 
-    - each class is cut to 1750 random points (4000: 2-3x slower and no better);
-    - the thesis's 150-inlier minimum, set for whole 10 000-point clouds, is scaled to 40 for that density;
+    - each class is cut to 2500 random points;
+    - the thesis's 150-inlier minimum, set for whole 10 000-point clouds, is scaled to 50 for that density;
+    - RANSAC draws only upright wall planes and level ceiling planes, scoring each hypothesis on 600 points
+      (``planes.constrained_ransac``): 8.5 ms per scan against 13.3 ms for Open3D's (1750 points), at
+      precision 0.90 / recall 0.84 against 0.92 / 0.82 on true labels;
     - a wall must run on at least ``min_face`` from the corner (the corner map's own rule), which drops the
       phantom corners that infinite planes make with slivers of wall: precision 0.88 -> 0.92 at equal recall.
     """
 
-    planes: PlaneParams = field(default_factory=lambda: PlaneParams(min_inliers=40))
+    planes: PlaneParams = field(
+        default_factory=lambda: PlaneParams(min_inliers=50, method="constrained", score_points=600)
+    )
     vertical_max_nz: float = 0.1  # walls: |n_z| below this
     horizontal_min_nz: float = 0.9  # ceilings: |n_z| above this
     min_plane_angle: float = np.pi / 4  # every pair of the three normals at least this far from parallel
@@ -38,7 +43,7 @@ class CornerDetectorConfig:
     merge_distance: float = 0.5
     min_face: float = 0.3  # ours, the corner map's rule: each wall runs on at least this far from the corner
     min_face_points: int = 5  # inliers that must lie on that stretch
-    max_points_per_class: int = 1750  # random subsample for speed; 0 keeps all
+    max_points_per_class: int = 2500  # random subsample for speed; 0 keeps all
     min_position_std: float = 0.02  # m: a floor on the derived position uncertainty
     min_orientation_std: float = np.radians(1.0)
 
@@ -80,11 +85,11 @@ def detect_corners(
         raise ValueError(f"{len(points)} points but {len(labels)} labels")
     finite = np.all(np.isfinite(points), axis=1)
     rng = np.random.default_rng(seed)
-    walls = _planes_of(points[finite & (labels == SemanticClass.WALL)], config, rng, seed)
+    walls = _planes_of(points[finite & (labels == SemanticClass.WALL)], config, rng, seed, "vertical")
     walls = [p for p in walls if abs(p.normal[2]) < config.vertical_max_nz]
     if len(walls) < 2:
         return FeatureList(stamp, [])
-    ceilings = _planes_of(points[finite & (labels == SemanticClass.CEILING)], config, rng, seed + 1)
+    ceilings = _planes_of(points[finite & (labels == SemanticClass.CEILING)], config, rng, seed + 1, "horizontal")
     ceilings = [p for p in ceilings if abs(p.normal[2]) > config.horizontal_min_nz]
     candidates = [
         feature
@@ -95,10 +100,12 @@ def detect_corners(
     return FeatureList(stamp, _merge(candidates, config.merge_distance))
 
 
-def _planes_of(points: np.ndarray, config: CornerDetectorConfig, rng: np.random.Generator, seed: int) -> list[Plane]:
+def _planes_of(
+    points: np.ndarray, config: CornerDetectorConfig, rng: np.random.Generator, seed: int, orientation: str
+) -> list[Plane]:
     if config.max_points_per_class and len(points) > config.max_points_per_class:
         points = points[rng.choice(len(points), config.max_points_per_class, replace=False)]
-    return extract_planes(points, config.planes, seed)
+    return extract_planes(points, config.planes, seed, orientation)
 
 
 def _corner(a: Plane, b: Plane, ceiling: Plane, config: CornerDetectorConfig) -> Feature | None:
@@ -108,6 +115,8 @@ def _corner(a: Plane, b: Plane, ceiling: Plane, config: CornerDetectorConfig) ->
         if abs(normals[i] @ normals[j]) > max_cos + 1e-12:
             return None
     corner = np.linalg.solve(normals, -np.array([a.d, b.d, ceiling.d]))
+    if any(p.box_distance(corner) > config.max_corner_distance for p in (a, b, ceiling)):
+        return None  # far from some plane's inliers: rejected without measuring to each of them
     gaps = [float(np.min(np.linalg.norm(p.inliers - corner, axis=1))) for p in (a, b, ceiling)]
     if max(gaps) > config.max_corner_distance:
         return None

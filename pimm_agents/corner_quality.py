@@ -9,6 +9,7 @@ import numpy as np
 from pimm_agents.corner_detector import CornerDetectorConfig, FeatureList, detect_corners
 from pimm_env.corner_map import CornerMap
 from pimm_env.robot import compose, wrap_angle
+from pimm_env.semantics import SemanticClass
 
 
 @dataclass(frozen=True)
@@ -28,7 +29,15 @@ FACE_PROBES_M = (0.5, 1.2)
 FACE_PROBE_DROP_M = 1.0
 
 
-def _in_sight(caster, origin: np.ndarray, target: np.ndarray, max_range: float, half_fov: float, slack: float) -> bool:
+def _in_sight(
+    caster,
+    origin: np.ndarray,
+    target: np.ndarray,
+    max_range: float,
+    half_fov: float,
+    slack: float,
+    on_wall: bool = False,
+) -> bool:
     delta = target - origin
     distance = float(np.linalg.norm(delta))
     if distance >= max_range or distance < 1e-6:
@@ -37,7 +46,9 @@ def _in_sight(caster, origin: np.ndarray, target: np.ndarray, max_range: float, 
     if abs(elevation) > half_fov:
         return False
     azimuth = float(np.arctan2(delta[1], delta[0]))
-    ranges, _ = caster.cast(origin, np.array([azimuth]), np.array([elevation]), max_range)
+    ranges, labels = caster.cast(origin, np.array([azimuth]), np.array([elevation]), max_range)
+    if on_wall and labels[0, 0] != SemanticClass.WALL:
+        return False
     return bool(ranges[0, 0] >= distance - slack)
 
 
@@ -47,7 +58,9 @@ def visible_corners(
     """Indices of map corners within ``max_range`` of the sensor at ``origin`` and in its field of view, with
     a clear ray to the vertex (to within 0.15 m: the vertex itself lies on the walls) and, with ``faces``, to
     a point of each of its two wall faces (the faces run at theta +- 45 deg from the vertex; probes at
-    FACE_PROBES_M along them, FACE_PROBE_DROP_M under the ceiling)."""
+    FACE_PROBES_M along them, FACE_PROBE_DROP_M under the ceiling). The ray must end on a wall there: where
+    the map's wall line is glass, a door or a window, the scan has no wall to fit, and the corner map (drawn
+    from the occupancy grid) has a corner that no wall-and-ceiling detector can find."""
     out = []
     for k in range(len(corners)):
         vertex = np.array([*corners.xy[k], corners.z[k]])
@@ -59,7 +72,7 @@ def visible_corners(
                 heading = corners.theta[k] + side * np.pi / 4
                 direction = np.array([np.cos(heading), np.sin(heading), 0.0])
                 probes = [vertex + a * direction - [0, 0, FACE_PROBE_DROP_M] for a in FACE_PROBES_M]
-                seen_faces += any(_in_sight(caster, origin, q, max_range, half_fov, 0.1) for q in probes)
+                seen_faces += any(_in_sight(caster, origin, q, max_range, half_fov, 0.1, on_wall=True) for q in probes)
             if seen_faces < 2:
                 continue
         out.append(k)

@@ -1,11 +1,20 @@
-"""Plane extraction by repeated RANSAC (Open3D's ``segment_plane``): the dominant plane, its inliers
-removed, then the next (thesis 3.3.1)."""
+"""Plane extraction by repeated RANSAC: the dominant plane, its inliers removed, then the next (thesis 3.3.1).
+
+Two RANSACs are offered. Open3D's ``segment_plane`` (the thesis's) draws planes of any orientation. Ours draws
+only the orientation the class allows (walls: vertical planes through two points; ceilings: horizontal planes
+through one) and scores every hypothesis against every point in one array operation.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
+
+#: Plane orientations a RANSAC hypothesis may take.
+ORIENTATIONS = ("any", "vertical", "horizontal")
+RANSAC_METHODS = ("open3d", "constrained")
 
 
 @dataclass(frozen=True)
@@ -14,6 +23,12 @@ class PlaneParams:
     distance_threshold: float = 0.20
     min_inliers: int = 150
     iterations: int = 100
+    method: str = "open3d"  # or "constrained": our vectorized RANSAC, hypotheses of the class's orientation
+    score_points: int = 1 << 30  # constrained only: hypotheses are scored on at most this many points
+
+    def __post_init__(self) -> None:
+        if self.method not in RANSAC_METHODS:
+            raise ValueError(f"PlaneParams.method {self.method!r}: valid methods are {RANSAC_METHODS}")
 
 
 @dataclass(frozen=True)
@@ -25,9 +40,19 @@ class Plane:
     inliers: np.ndarray
     rms: float
 
-    @property
+    @cached_property
     def centroid(self) -> np.ndarray:
         return self.inliers.mean(axis=0)
+
+    @cached_property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Corners of the inliers' axis-aligned box."""
+        return self.inliers.min(axis=0), self.inliers.max(axis=0)
+
+    def box_distance(self, point: np.ndarray) -> float:
+        """Distance from ``point`` to the inliers' box: a cheap lower bound on the distance to any inlier."""
+        lower, upper = self.bounds
+        return float(np.linalg.norm(np.maximum(np.maximum(lower - point, point - upper), 0.0)))
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         return np.abs(points @ self.normal + self.d)
@@ -66,22 +91,73 @@ def robust_refit(points: np.ndarray, rounds: int = 3) -> tuple[np.ndarray, float
     return normal, d, rms, kept
 
 
-def extract_planes(points: np.ndarray, params: PlaneParams, seed: int = 0) -> list[Plane]:
+def constrained_ransac(
+    points: np.ndarray,
+    threshold: float,
+    iterations: int,
+    orientation: str,
+    rng: np.random.Generator,
+    score_points: int = 1 << 30,
+) -> np.ndarray:
+    """Indices of the inliers of the best of ``iterations`` random planes of the given orientation.
+
+    "vertical": the plane through two points' floor projections, standing upright; "horizontal": the level
+    plane through one point; "any": the plane through three points. Every hypothesis is scored against every
+    point at once, as a (points x hypotheses) array of distances.
+    """
+    if orientation not in ORIENTATIONS:
+        raise ValueError(f"orientation {orientation!r}: valid orientations are {ORIENTATIONS}")
+    n = len(points)
+    pts = points.astype(np.float32)
+    picks = rng.integers(0, n, size=(3, iterations))
+    if orientation == "horizontal":
+        normals = np.tile(np.array([0.0, 0.0, 1.0], np.float32), (iterations, 1))
+    else:
+        a, b = pts[picks[0]], pts[picks[1]]
+        if orientation == "vertical":
+            run = b[:, :2] - a[:, :2]
+            normals = np.stack([-run[:, 1], run[:, 0], np.zeros(iterations, np.float32)], axis=1)
+        else:
+            normals = np.cross(b - a, pts[picks[2]] - a)
+    norm = np.linalg.norm(normals, axis=1)
+    good = norm > 1e-6  # coincident picks make no plane
+    if not good.any():
+        return np.zeros(0, dtype=np.int64)
+    normals = normals[good] / norm[good, None]
+    offsets = -np.einsum("ij,ij->i", normals, pts[picks[0][good]])
+    # hypotheses are scored on the first ``score_points`` points (a random subset when the caller shuffled them)
+    distance = pts[:score_points] @ normals.T
+    distance += offsets
+    np.abs(distance, out=distance)
+    inside = distance <= threshold
+    # summing a bool array along an axis is slow; as bytes into int32 it is four times faster
+    best = int(np.argmax(inside.view(np.uint8).sum(axis=0, dtype=np.int32)))
+    return np.flatnonzero(np.abs(pts @ normals[best] + offsets[best]) <= threshold)
+
+
+def extract_planes(points: np.ndarray, params: PlaneParams, seed: int = 0, orientation: str = "any") -> list[Plane]:
     """Up to ``max_planes`` planes with at least ``min_inliers`` inliers each, largest first.
 
-    Each RANSAC model is refitted to its inliers by trimmed least squares (:func:`robust_refit`).
-    Open3D's RANSAC has its own generator, seeded here so that a scan always gives the same planes.
+    Each RANSAC model is refitted to its inliers by trimmed least squares (:func:`robust_refit`). Both RANSACs
+    are seeded, so that a scan always gives the same planes; ``orientation`` steers the constrained one only.
     """
-    import open3d as o3d
-
     points = np.asarray(points, dtype=float)
     points = points[np.all(np.isfinite(points), axis=1)]
-    o3d.utility.random.seed(seed)
+    if params.method == "open3d":
+        import open3d as o3d
+
+        o3d.utility.random.seed(seed)
+    rng = np.random.default_rng(seed)
     planes: list[Plane] = []
     remaining = points
     while len(planes) < params.max_planes and len(remaining) >= params.min_inliers:
-        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(remaining))
-        _, index = cloud.segment_plane(params.distance_threshold, 3, params.iterations)
+        if params.method == "constrained":
+            index = constrained_ransac(
+                remaining, params.distance_threshold, params.iterations, orientation, rng, params.score_points
+            )
+        else:
+            cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(remaining))
+            _, index = cloud.segment_plane(params.distance_threshold, 3, params.iterations)
         if len(index) < params.min_inliers:
             break
         normal, d, rms, inliers = robust_refit(remaining[index])

@@ -1,0 +1,27 @@
+import numpy as np
+
+from pimm_agents.corner_quality import _in_sight, visible_corners
+from pimm_env.derived_maps import load_derived_maps
+from pimm_env.iilab_env import IILabEnv
+
+
+def test_a_corner_whose_face_is_glass_is_not_counted_visible():
+    """From corridor C, the west end's south-west corner (-28.8, 8.9) is in sight, but its south face is the
+    glass pane (clutter): no wall plane to find there. The north-west corner's faces are walls."""
+    env = IILabEnv()
+    try:
+        corners = load_derived_maps(env.world).corners
+        l3 = env.config.lidar3d
+        origin = np.array([-26.5, 10.8, env.world.floor_z + l3.height])
+        half_fov = np.radians(l3.vertical_fov_deg) / 2
+        index = {tuple(np.round(xy, 2)): k for k, xy in enumerate(corners.xy)}
+        south_west, north_west = index[(-28.8, 8.9)], index[(-28.8, 11.7)]
+        in_view = visible_corners(env.caster, origin, corners, l3.max_range, half_fov, faces=False)
+        counted = visible_corners(env.caster, origin, corners, l3.max_range, half_fov, faces=True)
+        assert {south_west, north_west} <= set(in_view)
+        assert north_west in counted and south_west not in counted
+        on_glass = np.array([-27.6, 8.86, corners.z[south_west] - 1.0])
+        assert _in_sight(env.caster, origin, on_glass, l3.max_range, half_fov, 0.1)
+        assert not _in_sight(env.caster, origin, on_glass, l3.max_range, half_fov, 0.1, on_wall=True)
+    finally:
+        env.close()
