@@ -1,7 +1,8 @@
 """AMCL as nav2_amcl runs it: likelihood-field scan model, odometry motion model, KLD-sampling, recovery.
 
 The thesis's baseline. Defaults are nav2's, which is what the thesis ran; ``amcl-recovery`` differs only in
-the recovery averages that nav2's documentation recommends.
+the recovery averages that nav2's documentation recommends. ``amcl-augmented`` is not nav2: it also keeps the
+averages after injecting particles, as the textbook's Augmented MCL does, where nav2 resets them.
 """
 
 from __future__ import annotations
@@ -45,6 +46,9 @@ class AmclConfig:
     resample_interval: int = 1
     recovery_alpha_slow: float = 0.0
     recovery_alpha_fast: float = 0.0
+    #: nav2 zeroes w_slow and w_fast after every resampling that injected particles; the textbook's Augmented
+    #: MCL (Probabilistic Robotics, table 8.3) keeps them, so injection goes on while the scans fit badly.
+    reset_recovery_averages: bool = True
     #: KLD and cluster bins: nav2's 0.5 m x 0.5 m x 10 deg.
     bin_xy: float = 0.5
     bin_theta: float = np.radians(10.0)
@@ -68,6 +72,8 @@ class AmclConfig:
 
 
 AMCL_RECOVERY = {"recovery_alpha_slow": 0.001, "recovery_alpha_fast": 0.1}
+#: Not nav2: the same averages without nav2's reset after injection, as Augmented MCL is in the textbook.
+AMCL_AUGMENTED = {**AMCL_RECOVERY, "reset_recovery_averages": False}
 
 
 def subsample_beams(count: int, max_beams: int) -> np.ndarray:
@@ -214,7 +220,7 @@ class Amcl:
         n = kld_sample_count(keys, c.pf_err, c.pf_z, c.min_particles, c.max_particles)
         self.particles = drawn[:n]
         self.weights = np.full(n, 1.0 / n)
-        if w_diff > 0:  # nav2 resets the averages so as not to spiral into complete randomness
+        if w_diff > 0 and c.reset_recovery_averages:  # nav2: so as not to spiral into complete randomness
             self.w_slow = self.w_fast = 0.0
 
     def _heaviest_cluster(self) -> tuple[np.ndarray, np.ndarray]:

@@ -48,16 +48,19 @@ def _pimm(world: World, overrides: dict[str, Any]) -> Localizer:
     return PimmLocalizer(maps.occupancy, maps.corners, segmenter, fingerprints, config)
 
 
-def _amcl_recovery_preset() -> dict[str, Any]:
-    from pimm_agents.amcl import AMCL_RECOVERY
+def _amcl_preset(name: str) -> dict[str, Any]:
+    from pimm_agents.amcl import AMCL_AUGMENTED, AMCL_RECOVERY
 
-    return AMCL_RECOVERY
+    return {"amcl": {}, "amcl-recovery": AMCL_RECOVERY, "amcl-augmented": AMCL_AUGMENTED}[name]
+
+
+def _amcl_variant(name: str) -> Callable[[World, dict[str, Any]], Localizer]:
+    return lambda world, overrides: _amcl(world, overrides, name, _amcl_preset(name))
 
 
 LOCALIZERS: dict[str, Callable[[World, dict[str, Any]], Localizer]] = {
     "pimm": _pimm,
-    "amcl": lambda world, overrides: _amcl(world, overrides, "amcl", {}),
-    "amcl-recovery": lambda world, overrides: _amcl(world, overrides, "amcl-recovery", _amcl_recovery_preset()),
+    **{name: _amcl_variant(name) for name in ("amcl", "amcl-recovery", "amcl-augmented")},
 }
 
 
