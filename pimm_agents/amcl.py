@@ -1,8 +1,9 @@
 """AMCL as nav2_amcl runs it: likelihood-field scan model, odometry motion model, KLD-sampling, recovery.
 
-The thesis's baseline. Defaults are nav2's, which is what the thesis ran; ``amcl-recovery`` differs only in
-the recovery averages that nav2's documentation recommends. ``amcl-augmented`` is not nav2: it also keeps the
-averages after injecting particles, as the textbook's Augmented MCL does, where nav2 resets them.
+The thesis's baseline. Defaults are nav2's, which is what the thesis ran. ``amcl-recovery-nav2`` turns on
+nav2's recovery with the averages its documentation recommends; nav2 zeroes both averages after every
+injection, so it injects one burst and stops. ``amcl-recovery`` keeps them, as Augmented MCL is specified
+(Probabilistic Robotics, table 8.3), and injects for as long as the scans fit badly.
 """
 
 from __future__ import annotations
@@ -71,9 +72,11 @@ class AmclConfig:
         return (self.alpha1, self.alpha2, self.alpha3, self.alpha4)
 
 
-AMCL_RECOVERY = {"recovery_alpha_slow": 0.001, "recovery_alpha_fast": 0.1}
-#: Not nav2: the same averages without nav2's reset after injection, as Augmented MCL is in the textbook.
-AMCL_AUGMENTED = {**AMCL_RECOVERY, "reset_recovery_averages": False}
+#: nav2's recovery with the averages its documentation recommends, and nav2's reset after each injection.
+AMCL_RECOVERY_NAV2 = {"recovery_alpha_slow": 0.001, "recovery_alpha_fast": 0.1}
+#: The recovery as the issue specifies it and the textbook's Augmented MCL runs it: the same averages, kept
+#: after an injection, so that particles keep coming while the scans fit badly.
+AMCL_RECOVERY = {**AMCL_RECOVERY_NAV2, "reset_recovery_averages": False}
 
 
 def subsample_beams(count: int, max_beams: int) -> np.ndarray:

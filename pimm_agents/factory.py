@@ -49,9 +49,9 @@ def _pimm(world: World, overrides: dict[str, Any]) -> Localizer:
 
 
 def _amcl_preset(name: str) -> dict[str, Any]:
-    from pimm_agents.amcl import AMCL_AUGMENTED, AMCL_RECOVERY
+    from pimm_agents.amcl import AMCL_RECOVERY, AMCL_RECOVERY_NAV2
 
-    return {"amcl": {}, "amcl-recovery": AMCL_RECOVERY, "amcl-augmented": AMCL_AUGMENTED}[name]
+    return {"amcl": {}, "amcl-recovery": AMCL_RECOVERY, "amcl-recovery-nav2": AMCL_RECOVERY_NAV2}[name]
 
 
 def _amcl_variant(name: str) -> Callable[[World, dict[str, Any]], Localizer]:
@@ -60,7 +60,7 @@ def _amcl_variant(name: str) -> Callable[[World, dict[str, Any]], Localizer]:
 
 LOCALIZERS: dict[str, Callable[[World, dict[str, Any]], Localizer]] = {
     "pimm": _pimm,
-    **{name: _amcl_variant(name) for name in ("amcl", "amcl-recovery", "amcl-augmented")},
+    **{name: _amcl_variant(name) for name in ("amcl", "amcl-recovery", "amcl-recovery-nav2")},
 }
 
 

@@ -34,14 +34,14 @@ def observation(scan: np.ndarray, odom=(0.0, 0.0, 0.0), t: float = 0.0) -> dict[
 
 
 def test_registered_names_and_unknown_ones():
-    assert {"amcl", "amcl-recovery", "amcl-augmented"} <= set(available_localizers())
+    assert {"amcl", "amcl-recovery", "amcl-recovery-nav2"} <= set(available_localizers())
     with pytest.raises(ValueError, match="valid: .*amcl-recovery"):
         make_localizer("nope")
     with pytest.raises(ValueError, match="no setting"):
         make_localizer("amcl", particles=3)
 
 
-def test_defaults_are_nav2s_and_recovery_differs_only_in_the_averages():
+def test_defaults_are_nav2s_and_recovery_differs_only_in_the_averages_and_their_reset():
     a, r = make_localizer("amcl"), make_localizer("amcl-recovery")
     assert a.config == AmclConfig()
     assert (a.config.min_particles, a.config.max_particles, a.config.max_beams, a.config.sigma_hit) == (
@@ -50,10 +50,10 @@ def test_defaults_are_nav2s_and_recovery_differs_only_in_the_averages():
         60,
         0.2,
     )
-    assert r.config == replace(a.config, recovery_alpha_slow=0.001, recovery_alpha_fast=0.1)
-    assert a.config.reset_recovery_averages and r.config.reset_recovery_averages
-    augmented = make_localizer("amcl-augmented").config
-    assert augmented == replace(r.config, reset_recovery_averages=False)
+    nav2 = make_localizer("amcl-recovery-nav2").config
+    assert nav2 == replace(a.config, recovery_alpha_slow=0.001, recovery_alpha_fast=0.1)
+    assert a.config.reset_recovery_averages and nav2.reset_recovery_averages
+    assert r.config == replace(nav2, reset_recovery_averages=False)
     assert len(subsample_beams(360, 60)) == 60 and subsample_beams(360, 60)[-1] == 354
 
 
@@ -142,24 +142,24 @@ def test_plain_amcl_never_recovers_from_the_kidnap():
 
 
 @pytest.mark.expensive
-def test_augmented_mcl_recovers_from_the_kidnap():
-    # amcl-augmented recovered in 7 of 10 kidnap trials (seed 0..9), nav2's amcl-recovery in 1; seed 3 is one
-    result = run_trial(TrialSpec("a_c_b_kidnap", "amcl-augmented", 3, 3))
+def test_recovery_recovers_from_the_kidnap():
+    # amcl-recovery recovered in 7 of 10 kidnap trials (seeds 0-9), amcl-recovery-nav2 in 1; seed 3 is one
+    result = run_trial(TrialSpec("a_c_b_kidnap", "amcl-recovery", 3, 3))
     assert result.log.kidnap_index is not None and result.metrics.converged
     assert result.metrics.position_error_m < 0.5
 
 
 def test_recovery_injects_uniform_particles_once_the_scan_stops_fitting():
     # Localized in the room, then the scan fits nowhere (every beam 9.5 m, far beyond the room's walls):
-    # w_fast falls below w_slow, and amcl-recovery draws fresh uniform particles while plain amcl only
-    # resamples its old cloud. nav2 then zeroes both averages, so it injects in one burst; amcl-augmented
-    # keeps them and goes on injecting while the scans fit badly.
+    # w_fast falls below w_slow, and the recovering variants draw fresh uniform particles while plain amcl
+    # only resamples its old cloud. nav2 then zeroes both averages, so amcl-recovery-nav2 injects in one burst;
+    # amcl-recovery keeps them and goes on injecting while the scans fit badly.
     room = box_room()
     here = np.array([1.0, 1.0, 0.0])
     true_scan = _synthetic_scan(room, here)
     wrong_scan = np.full(360, 9.5)
     injections = {}
-    for name in ("amcl", "amcl-recovery", "amcl-augmented"):
+    for name in ("amcl", "amcl-recovery-nav2", "amcl-recovery"):
         amcl = Amcl(room, make_localizer(name).config)
         amcl.reset(seed=1, initial_pose=here, initial_cov=np.diag([0.01, 0.01, 0.001]))
         draws = []
@@ -174,8 +174,8 @@ def test_recovery_injects_uniform_particles_once_the_scan_stops_fitting():
                 assert not draws  # while the scan fits, nothing is injected
         injections[name] = draws
     assert injections["amcl"] == []
-    assert sum(injections["amcl-recovery"]) > 50
-    assert len(injections["amcl-augmented"]) > 3 * len(injections["amcl-recovery"])
+    assert sum(injections["amcl-recovery-nav2"]) > 50
+    assert len(injections["amcl-recovery"]) > 3 * len(injections["amcl-recovery-nav2"])
 
 
 def _synthetic_scan(room: OccupancyGrid, pose: np.ndarray) -> np.ndarray:
