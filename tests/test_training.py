@@ -1,3 +1,5 @@
+import json
+
 import numpy as np
 import pytest
 import torch
@@ -85,6 +87,10 @@ def test_rebuild_command_makes_every_perception_file_for_a_world(room_file, tmp_
     assert (tmp_path / "build/datasets/room/scans.npz").is_file()
     folder = room_file.parent
     assert {"pointnet.pt", "pointnet.json", "fingerprints.npz"} <= {p.name for p in folder.iterdir()}
+    record = json.loads((folder / "pointnet.json").read_text())
+    validation = record["validation"]  # scored on the 2 validation scans, every return
+    assert validation["scans"] == 2 and set(validation["iou"]) == {"wall", "ceiling", "floor", "clutter"}
+    assert "mean" in result.output and f"{validation['mean_iou']:.3f}" in result.output
     from pimm_agents.perception_maps import load_perception
 
     segmenter, fmap = load_perception(str(room_file))

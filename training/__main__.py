@@ -107,11 +107,13 @@ def validate(
     target = checkpoint or checkpoint_path(world)
     scans = load(val_path)
     iou = iou_from_confusion(scan_set_confusion(Segmenter(target), scans))
-    result = {"scans": len(scans), "path": str(val_path), "iou": dict(zip(CLASS_NAMES, map(float, iou), strict=True))}
-    result["mean_iou"] = float(np.nanmean(iou))
+    # a class absent from the set and never predicted has no IoU: null in the record, "-" in the table
+    per_class = {name: None if np.isnan(v) else float(v) for name, v in zip(CLASS_NAMES, iou, strict=True)}
+    result = {"scans": len(scans), "path": str(val_path), "iou": per_class, "mean_iou": float(np.nanmean(iou))}
     typer.echo(f"{'class':<8} {'ours':>6} {'thesis':>7}")
-    for name, value in result["iou"].items():
-        typer.echo(f"{name:<8} {value:6.3f} {THESIS_IOU[name]:7.3f}")
+    for name, value in per_class.items():
+        shown = "-" if value is None else f"{value:.3f}"
+        typer.echo(f"{name:<8} {shown:>6} {THESIS_IOU[name]:7.3f}")
     typer.echo(f"{'mean':<8} {result['mean_iou']:6.3f} {THESIS_IOU['mean']:7.3f}   ({len(scans)} validation scans)")
     record_path = target.with_suffix(".json")
     if record_path.is_file():
