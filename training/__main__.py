@@ -1,7 +1,7 @@
 """Perception training for a world: ``python -m training rebuild --world iilab`` makes everything.
 
 python -m training dataset --world iilab --scans 2300 --seed 0      # build/datasets/iilab/*.npz
-python -m training train --world iilab --epochs 20                  # maps/iilab/pointnet.pt (+ .json)
+python -m training train --world iilab --epochs 40                  # maps/iilab/pointnet.pt (+ .json)
 python -m training validate --world iilab                           # IoU on the validation set
 python -m training fingerprints --world iilab                       # maps/iilab/fingerprints.npz
 python -m training rebuild --world iilab                            # all of it, in order
@@ -46,7 +46,7 @@ def dataset(
 @app.command()
 def train(
     world: str = typer.Option("iilab", help="world name or world file"),
-    epochs: int = typer.Option(20, min=1),
+    epochs: int = typer.Option(40, min=1),
     points: int = typer.Option(2048, min=64, help="points per scan the network looks at"),
     seed: int = typer.Option(0),
     out: Path | None = typer.Option(None, help="checkpoint path (default maps/<world>/pointnet.pt)"),
@@ -145,7 +145,7 @@ def rebuild(
     world: str = typer.Option("iilab", help="world name or world file"),
     scans: int = typer.Option(2300, min=10),
     validation: int = typer.Option(400, min=1),
-    epochs: int = typer.Option(20, min=1),
+    epochs: int = typer.Option(40, min=1),
     spacing: float = typer.Option(0.5, min=0.05, help="fingerprint grid spacing (m)"),
     seed: int = typer.Option(0),
 ) -> None:

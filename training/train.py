@@ -30,7 +30,7 @@ from training.dataset import ScanSet
 
 @dataclass(frozen=True)
 class TrainConfig:
-    epochs: int = 20
+    epochs: int = 40
     batch_pairs: int = 8
     learning_rate: float = 1e-3
     lr_decay: float = 0.7
