@@ -108,6 +108,8 @@ def constrained_ransac(
     if orientation not in ORIENTATIONS:
         raise ValueError(f"orientation {orientation!r}: valid orientations are {ORIENTATIONS}")
     n = len(points)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
     pts = points.astype(np.float32)
     picks = rng.integers(0, n, size=(3, iterations))
     if orientation == "horizontal":

@@ -29,6 +29,7 @@ def test_level_planes_and_bad_orientation():
     tilted[:, 2] = 0.5 * tilted[:, 0]  # more points, but 27 deg off level: a "horizontal" search skips it
     points = np.concatenate([ceiling, tilted])
     assert constrained_ransac(points, 0.05, 100, "horizontal", rng).tolist() == list(range(150))
+    assert constrained_ransac(np.zeros((0, 3)), 0.05, 100, "vertical", rng).size == 0
     with pytest.raises(ValueError, match="orientation 'diagonal'"):
         constrained_ransac(points, 0.05, 100, "diagonal", rng)
 
