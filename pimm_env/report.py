@@ -46,18 +46,24 @@ def _cell(value: float | None, fmt: str) -> str:
     return "-" if value is None else format(value, fmt)
 
 
+def _name_width(names: Any, least: int) -> int:
+    """Column width that fits every name with two spaces to spare."""
+    return max([least, *(len(n) + 2 for n in names)])
+
+
 def format_tables(summary: dict[str, Any]) -> str:
     """One table per scenario, ours beside the thesis's numbers (for localizers the thesis ran)."""
     lines = []
+    w = _name_width((name for rows in summary["scenarios"].values() for name in rows), 16)
     for scenario, by_localizer in summary["scenarios"].items():
         lines.append(f"\n{scenario}")
         lines.append(
-            f"  {'localizer':<16}{'trials':>7}{'conv. rate %':>14}{'conv. time s':>14}"
+            f"  {'localizer':<{w}}{'trials':>7}{'conv. rate %':>14}{'conv. time s':>14}"
             f"{'pos. err m':>12}{'ang. err deg':>14}"
         )
         for localizer, row in by_localizer.items():
             lines.append(
-                f"  {localizer:<16}{row['trials']:>7}{100 * row['convergence_rate']:>14.0f}"
+                f"  {localizer:<{w}}{row['trials']:>7}{100 * row['convergence_rate']:>14.0f}"
                 f"{_cell(row['convergence_time_s'], '.2f'):>14}{_cell(row['position_error_m'], '.2f'):>12}"
                 f"{_cell(row['angle_error_deg'], '.2f'):>14}"
             )
@@ -65,7 +71,7 @@ def format_tables(summary: dict[str, Any]) -> str:
             if thesis is not None and localizer in ("amcl", "pimm"):
                 rate, t, pos, ang = thesis
                 lines.append(
-                    f"  {'  thesis':<16}{10:>7}{100 * rate:>14.0f}{_cell(t, '.2f'):>14}{_cell(pos, '.2f'):>12}"
+                    f"  {'  thesis':<{w}}{10:>7}{100 * rate:>14.0f}{_cell(t, '.2f'):>14}{_cell(pos, '.2f'):>12}"
                     f"{_cell(ang, '.2f'):>14}"
                 )
     return "\n".join(lines)
@@ -78,12 +84,14 @@ def format_timings(summary: dict[str, Any]) -> str:
         for localizer, row in by_localizer.items():
             for stage, t in row["timings_ms"].items():
                 stages.setdefault(localizer, {}).setdefault(stage, []).append((t["mean"], t["max"]))
-    lines = [f"\n  {'localizer':<16}{'stage':<14}{'mean ms':>10}{'peak ms':>10}"]
+    w = _name_width(stages, 16)
+    sw = _name_width((stage for by_stage in stages.values() for stage in by_stage), 14)
+    lines = [f"\n  {'localizer':<{w}}{'stage':<{sw}}{'mean ms':>10}{'peak ms':>10}"]
     for localizer, by_stage in stages.items():
         for stage, values in by_stage.items():
             mean = float(np.mean([v[0] for v in values]))
             peak = float(np.max([v[1] for v in values]))
-            lines.append(f"  {localizer:<16}{stage:<14}{mean:>10.2f}{peak:>10.2f}")
+            lines.append(f"  {localizer:<{w}}{stage:<{sw}}{mean:>10.2f}{peak:>10.2f}")
     return "\n".join(lines)
 
 
