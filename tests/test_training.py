@@ -70,8 +70,11 @@ def test_dataset_errors_name_the_file(tmp_path):
     np.savez(tmp_path / "partial.npz", format="pimm-scans/1", ranges=np.zeros((1, 2, 2)))
     with pytest.raises(ValueError, match=r"partial.npz: dataset lacks field\(s\)"):
         load(tmp_path / "partial.npz")
+    scans = generate("iilab", 2, seed=0, progress=False)
     with pytest.raises(ValueError, match="train_fraction"):
-        split(generate("iilab", 2, seed=0, progress=False), 1.0, np.random.default_rng(0))
+        split(scans, 1.0, np.random.default_rng(0))
+    with pytest.raises(ValueError, match=r"scans are \(40, 360\), the LiDAR is 16 x 360"):
+        scans.require_lidar(16, 360)
 
 
 def test_rebuild_command_makes_every_perception_file_for_a_world(room_file, tmp_path, monkeypatch):

@@ -34,6 +34,11 @@ class ScanSet:
     def subset(self, index: np.ndarray) -> ScanSet:
         return ScanSet(self.ranges[index], self.labels[index], self.poses[index], self.areas[index], self.world)
 
+    def require_lidar(self, layers: int, points_per_layer: int) -> None:
+        """Raise if the scans were not taken by a ``layers`` x ``points_per_layer`` LiDAR."""
+        if self.ranges.shape[1:] != (layers, points_per_layer):
+            raise ValueError(f"scans are {self.ranges.shape[1:]}, the LiDAR is {layers} x {points_per_layer}")
+
     def cloud(self, i: int, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Scan ``i`` as the env gives it: the (N, 3) sensor-frame cloud (0 where no return) and its mask."""
         ranges = self.ranges[i].reshape(-1).astype(np.float32)

@@ -67,10 +67,7 @@ class ScanSampler:
     """Network inputs for scans of a :class:`ScanSet`: features of ``points`` strided returns, and labels."""
 
     def __init__(self, scans: ScanSet, network: PointNetConfig, lidar: Lidar3DConfig = Lidar3DConfig()) -> None:
-        if scans.ranges.shape[1:] != (lidar.layers, lidar.points_per_layer):
-            raise ValueError(
-                f"scans are {scans.ranges.shape[1:]}, the LiDAR is {lidar.layers} x {lidar.points_per_layer}"
-            )
+        scans.require_lidar(lidar.layers, lidar.points_per_layer)
         self.scans = scans
         self.network = network
         self.lidar = lidar

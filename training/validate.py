@@ -17,8 +17,7 @@ def scan_set_confusion(
     """Confusion counts (true class, predicted class) over every labelled return of every scan."""
     from tqdm import tqdm
 
-    if scans.ranges.shape[1:] != (lidar.layers, lidar.points_per_layer):
-        raise ValueError(f"scans are {scans.ranges.shape[1:]}, the LiDAR is {lidar.layers} x {lidar.points_per_layer}")
+    scans.require_lidar(lidar.layers, lidar.points_per_layer)
     directions = directions_3d(lidar).astype(np.float32)
     total = None
     for i in tqdm(range(len(scans)), desc="validation scans", unit="scan", disable=not progress):
