@@ -48,6 +48,25 @@ def iou_per_class(predicted: np.ndarray, truth: np.ndarray, num_classes: int = l
     return iou_from_confusion(confusion_matrix(predicted, truth, num_classes))
 
 
+def segmentation_scores(confusion: np.ndarray, scans: int) -> dict[str, Any]:
+    """Per-class IoU (None for a class neither present nor predicted), their mean and the scan count."""
+    iou = iou_from_confusion(confusion)
+    return {
+        "miou": float(np.nanmean(iou)),
+        "iou": {name: None if np.isnan(v) else float(v) for name, v in zip(CLASS_NAMES, iou, strict=True)},
+        "scans": scans,
+    }
+
+
+def format_segmentation(scores: dict[str, Any], what: str) -> list[str]:
+    """The IoU table of :func:`segmentation_scores`, with thesis table 3.2 beside it."""
+    lines = [f"{'segmentation IoU, ' + what:<40}ours   thesis (table 3.2)"]
+    for name in ("floor", "ceiling", "wall", "clutter"):
+        lines.append(f"  {name:<38}{_num(scores['iou'][name])}   {THESIS_IOU[name]:.3f}")
+    lines.append(f"  {'mean':<38}{_num(scores['miou'])}   {THESIS_IOU['mean']:.3f}")
+    return lines
+
+
 def retrieval_errors(retrievals: list[Retrieval], truths: np.ndarray) -> dict[str, float]:
     """Table 3.4's metrics: mean, mean-min and mean-max distance (m) from the true position to the k retrieved
     ones; recall@k within 2 m (share of queries with a retrieved position within 2 m); the share of queries
@@ -89,12 +108,7 @@ def perception_report(
         np.concatenate([g.labels[s.mask] for g, s in zip(segmented, scans, strict=True)]),
         np.concatenate([s.labels[s.mask] for s in scans]),
     )
-    iou = iou_from_confusion(confusion)
-    report["segmentation"] = {
-        "miou": float(np.nanmean(iou)),
-        "iou": {name: float(v) for name, v in zip(CLASS_NAMES, iou, strict=True)},
-        "scans": len(scans),
-    }
+    report["segmentation"] = segmentation_scores(confusion, len(scans))
     predicted = [s.corner_input(g.labels) for g, s in zip(segmented, scans, strict=True)]
     report["corners"]["predicted_labels"] = _corner_dict(corner_stats(predicted, corners))
     retrievals: list[Retrieval] = []
@@ -162,10 +176,7 @@ def format_perception(report: dict[str, Any]) -> str:
     lines = []
     if "segmentation" in report:
         seg = report["segmentation"]
-        lines += [f"segmentation IoU, {seg['scans']} fresh scans     ours   thesis (table 3.2)"]
-        for name in ("floor", "ceiling", "wall", "clutter"):
-            lines.append(f"  {name:<38}{_num(seg['iou'][name])}   {THESIS_IOU[name]:.3f}")
-        lines += [f"  {'mean':<38}{_num(seg['miou'])}   {THESIS_IOU['mean']:.3f}", ""]
+        lines += [*format_segmentation(seg, f"{seg['scans']} fresh scans"), ""]
     if "retrieval" in report:
         ret = report["retrieval"]
         lines.append(

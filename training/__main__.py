@@ -94,27 +94,18 @@ def validate(
 ) -> None:
     """Per-class IoU on the separate validation set, every return labelled as the localizer does; the result
     is also written into the checkpoint's .json record."""
-    import numpy as np
-
     from pimm_agents.perception_maps import checkpoint_path
-    from pimm_agents.perception_quality import THESIS_IOU, iou_from_confusion
+    from pimm_agents.perception_quality import format_segmentation, segmentation_scores
     from pimm_agents.segmenter import Segmenter
-    from pimm_env.semantics import CLASS_NAMES
     from training.dataset import load
     from training.validate import scan_set_confusion
 
     _, val_path = _dataset_paths(world)
     target = checkpoint or checkpoint_path(world)
     scans = load(val_path)
-    iou = iou_from_confusion(scan_set_confusion(Segmenter(target), scans))
-    # a class absent from the set and never predicted has no IoU: null in the record, "-" in the table
-    per_class = {name: None if np.isnan(v) else float(v) for name, v in zip(CLASS_NAMES, iou, strict=True)}
-    result = {"scans": len(scans), "path": str(val_path), "iou": per_class, "mean_iou": float(np.nanmean(iou))}
-    typer.echo(f"{'class':<8} {'ours':>6} {'thesis':>7}")
-    for name, value in per_class.items():
-        shown = "-" if value is None else f"{value:.3f}"
-        typer.echo(f"{name:<8} {shown:>6} {THESIS_IOU[name]:7.3f}")
-    typer.echo(f"{'mean':<8} {result['mean_iou']:6.3f} {THESIS_IOU['mean']:7.3f}   ({len(scans)} validation scans)")
+    scores = segmentation_scores(scan_set_confusion(Segmenter(target), scans), len(scans))
+    typer.echo("\n".join(format_segmentation(scores, f"{len(scans)} validation scans")))
+    result = {"scans": len(scans), "path": str(val_path), "iou": scores["iou"], "mean_iou": scores["miou"]}
     record_path = target.with_suffix(".json")
     if record_path.is_file():
         record = json.loads(record_path.read_text())
