@@ -49,6 +49,16 @@ class Plane:
         """Corners of the inliers' axis-aligned box."""
         return self.inliers.min(axis=0), self.inliers.max(axis=0)
 
+    @cached_property
+    def spread(self) -> float:
+        """RMS distance of the inliers from their centroid (1 for a degenerate plane)."""
+        return float(np.sqrt(np.mean(np.sum((self.inliers - self.centroid) ** 2, axis=1)))) or 1.0
+
+    def nearest_distance(self, point: np.ndarray) -> float:
+        """Distance from ``point`` to the nearest inlier."""
+        offset = self.inliers - point
+        return float(np.sqrt(np.min(np.einsum("ij,ij->i", offset, offset))))
+
     def box_distance(self, point: np.ndarray) -> float:
         """Distance from ``point`` to the inliers' box: a cheap lower bound on the distance to any inlier."""
         lower, upper = self.bounds
@@ -82,13 +92,22 @@ def robust_refit(points: np.ndarray, rounds: int = 3) -> tuple[np.ndarray, float
     normal, d, rms = refit(kept)
     for _ in range(rounds):
         residual = np.abs(points @ normal + d)
-        sigma = 1.4826 * float(np.median(residual))
+        sigma = 1.4826 * _median(residual)
         inside = residual <= max(3.0 * sigma, 0.01)
         if inside.sum() < 3 or inside.sum() == len(kept):
             break
         kept = points[inside]
         normal, d, rms = refit(kept)
     return normal, d, rms, kept
+
+
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a 1-D array by one partition, without its general-purpose overhead."""
+    half = len(values) // 2
+    if len(values) % 2:
+        return float(np.partition(values, half)[half])
+    low, high = np.partition(values, (half - 1, half))[half - 1 : half + 1]
+    return float((low + high) / 2)
 
 
 def constrained_ransac(

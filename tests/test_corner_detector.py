@@ -63,6 +63,50 @@ def test_a_wall_seen_on_both_sides_of_a_doorway_gives_no_phantom_corner():
     assert len(detect_corners(points, labels)) == 0
 
 
+def wall_x(x: float, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    return grid_points(y, z, lambda a, h: np.column_stack([np.full_like(a, x), a, h]))
+
+
+def wall_y(y: float, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    return grid_points(x, z, lambda a, h: np.column_stack([a, np.full_like(a, y), h]))
+
+
+def scene(walls: list[np.ndarray], rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """The given wall patches under a ceiling at z = 2.5 over x -1..4, y -2..5."""
+    ceiling = grid_points(
+        np.arange(-1.0, 4.0, 0.1), np.arange(-2.0, 5.0, 0.1), lambda a, b: np.column_stack([a, b, np.full_like(a, 2.5)])
+    )
+    points = np.concatenate([*walls, ceiling])
+    labels = np.concatenate([np.full(sum(map(len, walls)), WALL), np.full(len(ceiling), CEILING)])
+    return points + rng.normal(0, 0.005, points.shape), labels
+
+
+def test_a_wall_that_runs_past_the_intersection_makes_no_corner_there():
+    # wall x = 2 runs from y = -1.5 to 4.5; wall y = 3 stops 0.4 m short of it (as a wall in the next room,
+    # seen through a doorway, does): the planes meet at (2, 3), but no wall ends there
+    rng = np.random.default_rng(6)
+    height = np.arange(-0.5, 2.5, 0.05)
+    stops_short = wall_y(3.0, np.arange(-1.0, 1.6, 0.05), height)
+    assert len(detect_corners(*scene([wall_x(2.0, np.arange(-1.5, 4.5, 0.05), height), stops_short], rng))) == 0
+    # the same wall ending at y = 3 makes the corner
+    found = detect_corners(*scene([wall_x(2.0, np.arange(-1.5, 3.0, 0.05), height), stops_short], rng))
+    assert len(found) == 1 and np.hypot(found.features[0].x - 2.0, found.features[0].y - 3.0) < 0.02
+
+
+def test_a_wall_that_runs_on_only_under_a_step_in_the_ceiling_keeps_its_corner():
+    # a wall y = 3 runs past x = 2 only below z = 0.4, under a lower room's ceiling, more than
+    # through_band below this corner's ceiling at 2.5: the corner where it meets wall x = 2 stands
+    rng = np.random.default_rng(7)
+    height = np.arange(-0.5, 2.5, 0.05)
+    walls = [
+        wall_x(2.0, np.arange(-1.5, 3.0, 0.05), np.arange(0.6, 2.5, 0.05)),
+        wall_y(3.0, np.arange(-1.0, 2.0, 0.05), height),
+        wall_y(3.0, np.arange(2.0, 4.0, 0.05), np.arange(-0.5, 0.4, 0.05)),
+    ]
+    found = detect_corners(*scene(walls, rng))
+    assert len(found) == 1 and np.hypot(found.features[0].x - 2.0, found.features[0].y - 3.0) < 0.02
+
+
 def test_nan_points_are_ignored_and_empty_input_gives_an_empty_list():
     points, labels = room_corner(np.random.default_rng(3))
     points[::7] = np.nan

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.planes import PlaneParams, constrained_ransac, extract_planes
+from pimm_agents.planes import PlaneParams, _median, constrained_ransac, extract_planes
 
 
 def wall_and_clutter(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -45,3 +45,9 @@ def test_extract_planes_by_either_ransac_takes_planes_largest_first():
         assert abs(abs(planes[0].normal[0]) - 1) < 1e-3 and abs(abs(planes[1].normal[1]) - 1) < 1e-3
     with pytest.raises(ValueError, match="method 'magic'"):
         PlaneParams(method="magic")
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 6, 2501])
+def test_the_partition_median_equals_numpys(n: int) -> None:
+    values = np.random.default_rng(n).normal(size=n)
+    assert _median(values) == float(np.median(values))
