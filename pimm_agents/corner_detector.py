@@ -31,10 +31,11 @@ class CornerDetectorConfig:
       precision 0.90 / recall 0.84 against 0.92 / 0.82 on true labels;
     - a wall must run on at least ``min_face`` from the corner (the corner map's own rule), which drops the
       phantom corners that infinite planes make with slivers of wall: precision 0.88 -> 0.92 at equal recall;
-    - a wall must not run on past the corner as well (``through_points``, ``through_band``), which drops the
-      phantoms that a wall makes with one in the next room or with a parallel face merged into it: on
-      predicted labels precision 0.88 -> 0.95 at equal recall, which paid for the lower inlier minimum
-      (predicted labels: 0.94 / 0.82; true labels: 0.94 / 0.86).
+    - a wall must end at the corner: not run on past it as well (``through_points``, ``through_band``), and
+      have its face within ``face_band`` of the corner's height. This drops the phantoms that a wall makes
+      with one in the next room, with a parallel face merged into it, or with a ceiling it does not reach:
+      on predicted labels precision 0.88 -> 0.95, which paid for the lower inlier minimum (predicted labels:
+      0.95 / 0.81; true labels: 0.95 / 0.86).
     """
 
     planes: PlaneParams = field(
@@ -47,7 +48,8 @@ class CornerDetectorConfig:
     merge_distance: float = 0.5
     min_face: float = 0.3  # ours, the corner map's rule: each wall runs on at least this far from the corner
     min_face_points: int = 5  # inliers that must lie on that stretch
-    through_points: int = 10  # ours: a wall with this many inliers past the corner as well runs through it
+    face_band: float = 3.0  # ours, m: and within this height of the corner
+    through_points: int = 7  # ours: a wall with this many inliers past the corner as well runs through it
     through_band: float = 2.0  # m: only inliers within this height of the corner count as running through
     max_points_per_class: int = 2500  # random subsample for speed; 0 keeps all
     min_position_std: float = 0.02  # m: a floor on the derived position uncertainty
@@ -144,25 +146,28 @@ def _corner(a: Plane, b: Plane, ceiling: Plane, config: CornerDetectorConfig) ->
 
 
 def _ends_at(wall: Plane, corner: np.ndarray, config: CornerDetectorConfig) -> bool:
-    """Whether the wall ends at the corner: it runs on from it, on one side only.
+    """Whether the wall ends at the corner: its face runs on from it, on one side only.
 
     Along the wall, inliers between ``min_face`` and ``max_corner_distance`` from the corner are counted on
     each side. The corner map keeps a corner only if both faces run straight for ``min_face``, so a sliver of
-    wall (a pier, a door jamb) meeting another is no corner: one side needs ``min_face_points``. A wall with
-    ``through_points`` on both sides, within ``through_band`` of the corner's height, passes the corner by:
-    its intersection with a wall that stops short of it (in another room, behind a doorway) or with two
-    parallel faces that RANSAC's band merged into one plane is a phantom. The height band keeps real corners
-    where a wall runs on past the corner only lower down, under a step in the ceiling.
+    wall (a pier, a door jamb) meeting another is no corner: one side needs ``min_face_points`` within
+    ``face_band`` of the corner's height (a partition far below a high ceiling is no face of that ceiling's
+    corner). A wall with ``through_points`` on both sides, within ``through_band`` of the corner's height,
+    passes the corner by: its intersection with a wall that stops short of it (in another room, behind a
+    doorway) or with two parallel faces that RANSAC's band merged into one plane is a phantom. The height
+    band keeps real corners where a wall runs on past the corner only lower down, under a step in the ceiling.
     """
     along = np.array([-wall.normal[1], wall.normal[0]])
     along /= max(np.linalg.norm(along), 1e-9)
     t = (wall.inliers[:, :2] - corner[:2]) @ along
+    height = np.abs(wall.inliers[:, 2] - corner[2])
     on_face = (np.abs(t) >= config.min_face) & (np.abs(t) <= config.max_corner_distance)
-    if config.min_face > 0 and max(np.sum(on_face & (t > 0)), np.sum(on_face & (t < 0))) < config.min_face_points:
+    face = on_face & (height <= config.face_band)
+    if config.min_face > 0 and max(np.sum(face & (t > 0)), np.sum(face & (t < 0))) < config.min_face_points:
         return False
     if config.through_points <= 0:
         return True
-    near = on_face & (np.abs(wall.inliers[:, 2] - corner[2]) <= config.through_band)
+    near = on_face & (height <= config.through_band)
     return bool(min(np.sum(near & (t > 0)), np.sum(near & (t < 0))) < config.through_points)
 
 

@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from pimm_agents.corner_detector import detect_corners
+from pimm_agents.corner_detector import CornerDetectorConfig, _ends_at, detect_corners
+from pimm_agents.planes import Plane
 from pimm_env.semantics import SemanticClass
 
 WALL, CEILING = int(SemanticClass.WALL), int(SemanticClass.CEILING)
@@ -71,10 +72,12 @@ def wall_y(y: float, x: np.ndarray, z: np.ndarray) -> np.ndarray:
     return grid_points(x, z, lambda a, h: np.column_stack([a, np.full_like(a, y), h]))
 
 
-def scene(walls: list[np.ndarray], rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """The given wall patches under a ceiling at z = 2.5 over x -1..4, y -2..5."""
+def scene(walls: list[np.ndarray], rng: np.random.Generator, ceiling_z: float = 2.5) -> tuple[np.ndarray, np.ndarray]:
+    """The given wall patches under a ceiling at ``ceiling_z`` over x -1..4, y -2..5."""
     ceiling = grid_points(
-        np.arange(-1.0, 4.0, 0.1), np.arange(-2.0, 5.0, 0.1), lambda a, b: np.column_stack([a, b, np.full_like(a, 2.5)])
+        np.arange(-1.0, 4.0, 0.1),
+        np.arange(-2.0, 5.0, 0.1),
+        lambda a, b: np.column_stack([a, b, np.full_like(a, ceiling_z)]),
     )
     points = np.concatenate([*walls, ceiling])
     labels = np.concatenate([np.full(sum(map(len, walls)), WALL), np.full(len(ceiling), CEILING)])
@@ -105,6 +108,20 @@ def test_a_wall_that_runs_on_only_under_a_step_in_the_ceiling_keeps_its_corner()
     ]
     found = detect_corners(*scene(walls, rng))
     assert len(found) == 1 and np.hypot(found.features[0].x - 2.0, found.features[0].y - 3.0) < 0.02
+
+
+def test_a_wall_whose_face_stays_far_below_the_corner_does_not_end_there():
+    # the plane y = 3 holds a full-height pier for the last 0.25 m before the corner (2, 3) at the 4.5 m
+    # ceiling, shorter than min_face, and beyond it a 1.5 m partition: the face lies more than face_band below
+    # the ceiling, so this is not the wall of that ceiling's corner (B's inner wall and the low rooms beyond it)
+    corner = np.array([2.0, 3.0, 4.5])
+    pier = wall_y(3.0, np.arange(1.75, 2.0, 0.05), np.arange(-0.5, 4.5, 0.05))
+    low = wall_y(3.0, np.arange(-1.0, 1.75, 0.05), np.arange(-0.5, 1.0, 0.05))
+    full = wall_y(3.0, np.arange(-1.0, 1.75, 0.05), np.arange(-0.5, 4.5, 0.05))
+    normal = np.array([0.0, 1.0, 0.0])
+    assert not _ends_at(Plane(normal, -3.0, np.concatenate([pier, low]), 0.0), corner, CornerDetectorConfig())
+    assert _ends_at(Plane(normal, -3.0, np.concatenate([pier, low]), 0.0), corner, CornerDetectorConfig(face_band=99))
+    assert _ends_at(Plane(normal, -3.0, np.concatenate([pier, full]), 0.0), corner, CornerDetectorConfig())
 
 
 def test_nan_points_are_ignored_and_empty_input_gives_an_empty_list():
