@@ -55,6 +55,22 @@ class CornerDetectorConfig:
     min_position_std: float = 0.02  # m: a floor on the derived position uncertainty
     min_orientation_std: float = np.radians(1.0)
 
+    def __post_init__(self) -> None:
+        for name in (
+            "max_corner_distance",
+            "merge_distance",
+            "min_face",
+            "min_face_points",
+            "face_band",
+            "through_points",
+            "through_band",
+            "max_points_per_class",
+            "min_position_std",
+            "min_orientation_std",
+        ):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"CornerDetectorConfig.{name} must be at least 0, got {getattr(self, name)}")
+
 
 @dataclass(frozen=True)
 class Feature:

@@ -138,3 +138,9 @@ def test_detection_is_reproducible():
     points, labels = room_corner(np.random.default_rng(4), noise=0.03)
     a, b = detect_corners(points, labels, seed=5), detect_corners(points, labels, seed=5)
     assert [(f.x, f.y, f.theta) for f in a.features] == [(f.x, f.y, f.theta) for f in b.features]
+
+
+@pytest.mark.parametrize("field", ["face_band", "through_points", "max_corner_distance"])
+def test_a_negative_setting_is_refused_by_name(field: str) -> None:
+    with pytest.raises(ValueError, match=f"CornerDetectorConfig.{field} must be at least 0, got -1"):
+        CornerDetectorConfig(**{field: -1})
