@@ -12,6 +12,7 @@ import numpy as np
 
 from pimm_agents.corner_lookup import NearestCornerGrid
 from pimm_agents.free_space import FreeSpace
+from pimm_agents.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.resampling import residual_resample
 from pimm_env.occupancy import OccupancyGrid
 from pimm_env.robot import relative_motion, wrap_angle
@@ -33,6 +34,10 @@ class FeatureFilterConfig:
     smart_sigma_m: float = 0.5
     smart_share: float = 0.5  # ours: of the replaced particles, the share placed around suggestions
     estimate_num_particles: int = 100
+    # ours: the estimate averages only the heaviest cluster of those particles (nav2's bins, as our AMCL);
+    # the thesis averaged all of them, which between two modes gives a pose in neither. 0 m: the thesis's way
+    estimate_bin_xy: float = 0.5
+    estimate_bin_theta: float = float(np.radians(10.0))
     occupied_penalty: float = 0.1  # ours: weight factor for a particle in an occupied or unknown cell
     lookup_resolution_m: float = 0.25  # ours: cell size of the nearest-corner grid
 
@@ -41,6 +46,11 @@ class FeatureFilterConfig:
             raise ValueError(f"num_particles must be at least 1, got {self.num_particles}")
         if not 0 < self.alpha <= 1:
             raise ValueError(f"alpha must be in (0, 1], got {self.alpha}")
+        if self.estimate_bin_xy < 0 or self.estimate_bin_theta <= 0:
+            raise ValueError(
+                f"estimate_bin_xy must be at least 0 and estimate_bin_theta above 0, got {self.estimate_bin_xy}"
+                f" and {self.estimate_bin_theta}"
+            )
         for name in ("resample_ess_threshold", "replace_worst_fraction", "smart_share", "occupied_penalty"):
             if not 0 <= getattr(self, name) <= 1:
                 raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
@@ -211,12 +221,17 @@ class FeatureFilter:
         return self.ess <= self.config.resample_ess_threshold * len(self.particles)
 
     def best_mean(self) -> np.ndarray:
-        """Weighted mean pose of the ``estimate_num_particles`` heaviest particles (circular mean for theta)."""
+        """Weighted mean pose of the ``estimate_num_particles`` heaviest particles (circular mean for theta),
+        over the cluster of them with the most weight (bins of ``estimate_bin_xy`` x ``estimate_bin_theta``
+        that touch), or over all of them with ``estimate_bin_xy`` = 0 (the thesis's estimate)."""
         m = min(self.config.estimate_num_particles, len(self.particles))
         best = np.argpartition(-self.weights, m - 1)[:m]
         w = self.weights[best]
         w = w / w.sum() if w.sum() > 0 else np.full(m, 1.0 / m)
         p = self.particles[best]
+        if self.config.estimate_bin_xy > 0:
+            labels = cluster_labels(p, self.config.estimate_bin_xy, self.config.estimate_bin_theta)
+            return heaviest_cluster(p, w, labels).mean
         theta = np.arctan2(np.sum(w * np.sin(p[:, 2])), np.sum(w * np.cos(p[:, 2])))
         return np.array([np.sum(w * p[:, 0]), np.sum(w * p[:, 1]), theta])
 

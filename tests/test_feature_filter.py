@@ -75,6 +75,23 @@ def test_converges_from_uniform_and_tracks():
     assert np.sum(filt.weights[near]) > 0.8
 
 
+def test_the_estimate_is_the_heavier_mode_not_the_point_between_modes():
+    # the best 100 particles split 60 / 40 between two poses 4 m apart: the thesis's plain mean lies between
+    # them, in neither; ours is the heavier mode's mean
+    filt = make_filter(n=1000)
+    filt.particles[:] = [8.0, 1.0, 0.0]
+    filt.particles[:60] = [2.0, 1.5, 0.3]
+    filt.particles[60:100] = [2.0, 5.5, 0.3]
+    filt.weights[:] = 1e-6
+    filt.weights[:100] = 1.0
+    filt.weights /= filt.weights.sum()
+    assert np.allclose(filt.best_mean(), [2.0, 1.5, 0.3])
+    filt.config = FeatureFilterConfig(num_particles=1000, estimate_bin_xy=0.0)
+    assert np.allclose(filt.best_mean(), [2.0, 3.1, 0.3])
+    with pytest.raises(ValueError, match="estimate_bin_xy"):
+        FeatureFilterConfig(estimate_bin_xy=-1.0)
+
+
 def test_no_features_keeps_weights_normalized_and_finite():
     filt = make_filter(n=500)
     run(filt, path()[:20], with_features=False)
