@@ -17,6 +17,7 @@ from itertools import combinations
 import numpy as np
 
 from pimm_agents.planes import Plane, PlaneParams, extract_planes
+from pimm_agents.point_arrays import finite_rows
 from pimm_env.semantics import SemanticClass
 
 
@@ -107,7 +108,7 @@ def detect_corners(
     labels = np.asarray(labels).reshape(-1)
     if len(points) != len(labels):
         raise ValueError(f"{len(points)} points but {len(labels)} labels")
-    finite = np.all(np.isfinite(points), axis=1)
+    finite = finite_rows(points)
     rng = np.random.default_rng(seed)
     walls = _planes_of(points[finite & (labels == SemanticClass.WALL)], config, rng, seed, "vertical")
     walls = [p for p in walls if abs(p.normal[2]) < config.vertical_max_nz]

@@ -12,6 +12,8 @@ from functools import cached_property
 
 import numpy as np
 
+from pimm_agents.point_arrays import column_bounds, column_mean, finite_rows
+
 #: Plane orientations a RANSAC hypothesis may take.
 ORIENTATIONS = ("any", "vertical", "horizontal")
 RANSAC_METHODS = ("open3d", "constrained")
@@ -42,12 +44,12 @@ class Plane:
 
     @cached_property
     def centroid(self) -> np.ndarray:
-        return self.inliers.mean(axis=0)
+        return column_mean(self.inliers)
 
     @cached_property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Corners of the inliers' axis-aligned box."""
-        return self.inliers.min(axis=0), self.inliers.max(axis=0)
+        return column_bounds(self.inliers)
 
     @cached_property
     def spread(self) -> float:
@@ -74,7 +76,7 @@ def refit(points: np.ndarray) -> tuple[np.ndarray, float, float]:
     The normal is the eigenvector of the 3 x 3 scatter matrix with the smallest eigenvalue, which is the RMS
     residual squared (the same plane as an SVD of the centred points, at a fraction of the cost).
     """
-    centroid = points.mean(axis=0)
+    centroid = column_mean(points)
     centred = points - centroid
     values, vectors = np.linalg.eigh(centred.T @ centred / len(points))
     normal = vectors[:, 0]
@@ -163,7 +165,7 @@ def extract_planes(points: np.ndarray, params: PlaneParams, seed: int = 0, orien
     are seeded, so that a scan always gives the same planes; ``orientation`` steers the constrained one only.
     """
     points = np.asarray(points, dtype=float)
-    points = points[np.all(np.isfinite(points), axis=1)]
+    points = points[finite_rows(points)]
     if params.method == "open3d":
         import open3d as o3d
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pimm_agents.point_arrays import finite_rows
+
 #: Names of the feature channels, in order.
 FEATURES: tuple[str, ...] = (
     "height",  # z in the sensor frame (m)
@@ -62,7 +64,7 @@ def point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_
     cloud = np.asarray(cloud, dtype=np.float32)
     if cloud.ndim != 2 or cloud.shape[1] != 3:
         raise ValueError(f"cloud must be (N, 3), got shape {cloud.shape}")
-    valid = np.asarray(mask, dtype=bool).reshape(-1) & np.isfinite(cloud).all(axis=1)
+    valid = np.asarray(mask, dtype=bool).reshape(-1) & finite_rows(cloud)
     if valid.shape[0] != cloud.shape[0]:
         raise ValueError(f"cloud_mask has {valid.shape[0]} entries for {cloud.shape[0]} points")
     ok = organized(valid, layers, points_per_layer)
