@@ -19,7 +19,7 @@ from pimm_agents.corner_lookup import NearestCornerGrid
 from pimm_agents.estimate import Observation, PoseEstimate, require
 from pimm_agents.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.fingerprint_map import FingerprintMap
-from pimm_agents.point_arrays import finite_rows
+from pimm_agents.point_features import valid_returns
 from pimm_agents.segmenter import Segmenter
 from pimm_env.corner_map import CornerMap
 from pimm_env.lidar import Lidar3DConfig, directions_3d
@@ -170,7 +170,7 @@ class PimmLocalizer:
             cloud = np.asarray(require(obs, "cloud"), dtype=np.float32)
             mask = require(obs, "cloud_mask", (len(cloud),)).astype(bool)
             self._last_cloud_time = cloud_time
-            if np.any(mask & finite_rows(cloud)):
+            if np.any(valid_returns(cloud, mask)):
                 self.perceive(cloud, mask, cloud_time, timings)
         if self.filter.motion_update(odom):
             features = self._features

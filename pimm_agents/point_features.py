@@ -55,6 +55,14 @@ def _shift_ok(ok: np.ndarray, axis: int, step: int) -> np.ndarray:
     return shifted
 
 
+def valid_returns(cloud: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """(N,) bool: the rows of the (N, 3) ``cloud`` that are returns, marked in ``mask`` and finite."""
+    mask = np.asarray(mask, dtype=bool).reshape(-1)
+    if len(mask) != len(cloud):
+        raise ValueError(f"cloud_mask has {len(mask)} entries for {len(cloud)} points")
+    return mask & finite_rows(cloud)
+
+
 def point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_layer: int) -> np.ndarray:
     """Features (layers * points_per_layer, NUM_FEATURES) float32 of every point; rows of masked points are 0.
 
@@ -64,9 +72,7 @@ def point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_
     cloud = np.asarray(cloud, dtype=np.float32)
     if cloud.ndim != 2 or cloud.shape[1] != 3:
         raise ValueError(f"cloud must be (N, 3), got shape {cloud.shape}")
-    valid = np.asarray(mask, dtype=bool).reshape(-1) & finite_rows(cloud)
-    if valid.shape[0] != cloud.shape[0]:
-        raise ValueError(f"cloud_mask has {valid.shape[0]} entries for {cloud.shape[0]} points")
+    valid = valid_returns(cloud, mask)
     ok = organized(valid, layers, points_per_layer)
     p = [np.where(ok, organized(cloud[:, k], layers, points_per_layer), np.float32(0.0)) for k in range(3)]
 

@@ -14,8 +14,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from pimm_agents.point_arrays import finite_rows
-from pimm_agents.point_features import point_features, with_context
+from pimm_agents.point_features import point_features, valid_returns, with_context
 from pimm_agents.pointnet import FusedPointNet, PointNetSegmenter, load_checkpoint
 
 
@@ -90,7 +89,7 @@ class Segmenter:
     def segment(self, cloud: np.ndarray, mask: np.ndarray) -> Segmentation:
         start = time.perf_counter()
         features = point_features(cloud, mask, self.layers, self.points_per_layer)
-        valid = np.asarray(mask, dtype=bool).reshape(-1) & finite_rows(np.asarray(cloud))
+        valid = valid_returns(np.asarray(cloud), mask)
         valid_index = np.flatnonzero(valid)
         if len(valid_index) == 0:
             raise ValueError("cannot segment a scan with no finite returns (empty or all-NaN cloud)")
