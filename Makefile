@@ -25,7 +25,7 @@ type:
 	$(PY) -m mypy pimm_env
 
 maps:
-	$(PY) -m pimm_env.derived_maps iilab
+	$(PY) -m pimm_env.mapping.derived_maps iilab
 
 perception:
 	$(PY) -m training rebuild --world iilab

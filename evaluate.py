@@ -86,10 +86,10 @@ def run(
     from tqdm import tqdm
 
     from pimm_agents import available_localizers, make_localizer
-    from pimm_agents.trials import TrialSpec, run_trials
-    from pimm_env.report import format_tables, format_timings, write_results
-    from pimm_env.scenarios import load_scenarios
-    from pimm_env.world import load_world
+    from pimm_agents.evaluation.report import format_tables, format_timings, write_results
+    from pimm_agents.evaluation.trials import TrialSpec, run_trials
+    from pimm_env.driving.scenarios import load_scenarios
+    from pimm_env.world.files import load_world
 
     available = load_scenarios(load_world(world).name)
     unknown = [s for s in scenarios if s not in available]
@@ -145,8 +145,8 @@ def score(
     json_out: bool = typer.Option(False, "--json", help="print one JSON object"),
 ) -> None:
     """The thesis's metrics from trial logs made anywhere (columns timestamp_real ... cov_theta)."""
-    from pimm_env.metrics import summarize, trial_metrics
-    from pimm_env.trial_log import read_csv
+    from pimm_agents.evaluation.metrics import summarize, trial_metrics
+    from pimm_agents.evaluation.trial_log import read_csv
 
     per_file = {}
     for path in files:
@@ -182,9 +182,9 @@ def rollout(
     json_out: bool = typer.Option(False, "--json", help="print one JSON object instead of a table"),
 ) -> None:
     """Drive each scenario's waypoints (3D LiDAR on) and report length, time and odometry drift."""
-    from pimm_env.plots import plot_rollouts
-    from pimm_env.rollout import run
-    from pimm_env.scenarios import load_scenarios
+    from pimm_env.driving.plots import plot_rollouts
+    from pimm_env.driving.rollout import run
+    from pimm_env.driving.scenarios import load_scenarios
 
     available = load_scenarios(world)
     unknown = [s for s in scenarios if s not in available]
@@ -242,7 +242,7 @@ def bench(
     repeats: int = typer.Option(30, help="timed repetitions per figure"),
 ) -> None:
     """Time each stage on this machine (medians, ms) and the real-time factor of an area_a rollout."""
-    from pimm_env.benchmark import run_benchmarks
+    from pimm_agents.evaluation.benchmark import run_benchmarks
 
     figures = run_benchmarks(repeats=repeats)
     if json_out:
@@ -262,11 +262,11 @@ def perception(
 ) -> None:
     """Measure perception on fresh scans no training or map used: segmentation IoU, fingerprint retrieval,
     and the corner detector on true and on predicted labels (parts whose trained files are missing are left out)."""
-    from pimm_agents.corner_quality import collect_scans
-    from pimm_agents.perception_maps import checkpoint_path, load_perception
-    from pimm_agents.perception_quality import format_perception, perception_report
-    from pimm_env.derived_maps import load_derived_maps
-    from pimm_env.world import load_world
+    from pimm_agents.evaluation.corner_quality import collect_scans
+    from pimm_agents.evaluation.perception_quality import format_perception, perception_report
+    from pimm_agents.perception.files import checkpoint_path, load_perception
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.world.files import load_world
 
     loaded = load_world(world)
     segmenter = fingerprints = None

@@ -6,14 +6,14 @@ from collections.abc import Callable
 from dataclasses import fields, replace
 from typing import Any
 
-from pimm_agents.estimate import Localizer
-from pimm_env.lidar import Lidar2DConfig
-from pimm_env.world import World, load_world
+from pimm_agents.localizer import Localizer
+from pimm_env.sim.lidar import Lidar2DConfig
+from pimm_env.world.files import World, load_world
 
 
 def _amcl(world: World, overrides: dict[str, Any], name: str, preset: dict[str, Any]) -> Localizer:
-    from pimm_agents.amcl import Amcl, AmclConfig
-    from pimm_env.derived_maps import load_derived_maps
+    from pimm_agents.amcl.localizer import Amcl, AmclConfig
+    from pimm_env.mapping.derived_maps import load_derived_maps
 
     config = _configured(AmclConfig(), {**preset, **overrides}, name)
     lidar = overrides.get("lidar2d") or Lidar2DConfig()
@@ -30,10 +30,10 @@ def _configured(config: Any, overrides: dict[str, Any], name: str) -> Any:
 
 def _pimm(world: World, overrides: dict[str, Any]) -> Localizer:
     """Settings may name a field of PimmConfig or of its FeatureFilterConfig (``num_particles=2000``)."""
-    from pimm_agents.feature_filter import FeatureFilterConfig
-    from pimm_agents.perception_maps import load_perception
-    from pimm_agents.pimm import PimmConfig, PimmLocalizer
-    from pimm_env.derived_maps import load_derived_maps
+    from pimm_agents.perception.files import load_perception
+    from pimm_agents.pimm.feature_filter import FeatureFilterConfig
+    from pimm_agents.pimm.localizer import PimmConfig, PimmLocalizer
+    from pimm_env.mapping.derived_maps import load_derived_maps
 
     filter_keys = {f.name for f in fields(FeatureFilterConfig)}
     top_keys = {f.name for f in fields(PimmConfig)} - {"filter", "corners"}
@@ -49,7 +49,7 @@ def _pimm(world: World, overrides: dict[str, Any]) -> Localizer:
 
 
 def _amcl_preset(name: str) -> dict[str, Any]:
-    from pimm_agents.amcl import AMCL_RECOVERY, AMCL_RECOVERY_NAV2
+    from pimm_agents.amcl.localizer import AMCL_RECOVERY, AMCL_RECOVERY_NAV2
 
     return {"amcl": {}, "amcl-recovery": AMCL_RECOVERY, "amcl-recovery-nav2": AMCL_RECOVERY_NAV2}[name]
 

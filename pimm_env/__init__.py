@@ -5,9 +5,9 @@
 
 from gymnasium.envs.registration import register
 
-from pimm_env.base_env import SimConfig
-from pimm_env.semantics import SemanticClass
+from pimm_env.envs.base_env import SimConfig
+from pimm_env.world.semantics import SemanticClass
 
-register(id="pimm/IILab-v0", entry_point="pimm_env.iilab_env:IILabEnv", max_episode_steps=20_000)
+register(id="pimm/IILab-v0", entry_point="pimm_env.envs.iilab_env:IILabEnv", max_episode_steps=20_000)
 
 __all__ = ["SemanticClass", "SimConfig"]

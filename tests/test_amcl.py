@@ -4,14 +4,14 @@ import numpy as np
 import pytest
 
 from pimm_agents import available_localizers, make_localizer
-from pimm_agents.amcl import Amcl, AmclConfig, subsample_beams
-from pimm_agents.trials import TrialSpec, run_trial
-from pimm_env.base_env import SimConfig
-from pimm_env.grid import GridSpec
-from pimm_env.iilab_env import IILabEnv
-from pimm_env.occupancy import OccupancyGrid
-from pimm_env.rollout import drive
-from pimm_env.scenarios import get_scenario
+from pimm_agents.amcl.localizer import Amcl, AmclConfig, subsample_beams
+from pimm_agents.evaluation.trials import TrialSpec, run_trial
+from pimm_env.driving.rollout import drive
+from pimm_env.driving.scenarios import get_scenario
+from pimm_env.envs.base_env import SimConfig
+from pimm_env.envs.iilab_env import IILabEnv
+from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.world.grid import GridSpec
 
 
 def box_room() -> OccupancyGrid:

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from pimm_agents.corner_detector import CornerDetectorConfig, _ends_at, detect_corners
-from pimm_agents.planes import Plane
-from pimm_env.semantics import SemanticClass
+from pimm_agents.corners.detector import CornerDetectorConfig, _ends_at, detect_corners
+from pimm_agents.corners.planes import Plane
+from pimm_env.world.semantics import SemanticClass
 
 WALL, CEILING = int(SemanticClass.WALL), int(SemanticClass.CEILING)
 

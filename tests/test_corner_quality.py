@@ -1,8 +1,8 @@
 import numpy as np
 
-from pimm_agents.corner_quality import _in_sight, visible_corners
-from pimm_env.derived_maps import load_derived_maps
-from pimm_env.iilab_env import IILabEnv
+from pimm_agents.evaluation.corner_quality import _in_sight, visible_corners
+from pimm_env.envs.iilab_env import IILabEnv
+from pimm_env.mapping.derived_maps import load_derived_maps
 
 
 def test_a_corner_whose_face_is_glass_is_not_counted_visible():

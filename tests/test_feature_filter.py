@@ -1,13 +1,13 @@
 import numpy as np
 import pytest
 
-from pimm_agents.corner_lookup import NearestCornerGrid
-from pimm_agents.feature_filter import FeatureFilter, FeatureFilterConfig
-from pimm_agents.pimm import OdometryHistory, compensate
-from pimm_env.corner_map import CornerMap
-from pimm_env.grid import GridSpec
-from pimm_env.occupancy import OccupancyGrid
-from pimm_env.robot import carry, compose, relative_motion
+from pimm_agents.corners.lookup import NearestCornerGrid
+from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
+from pimm_agents.pimm.localizer import OdometryHistory, compensate
+from pimm_env.geometry import carry, compose, relative_motion
+from pimm_env.mapping.corner_map import CornerMap
+from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.world.grid import GridSpec
 
 # An L-shaped room: 10 m x 6 m without its 4 m x 3 m north-east block. Corners as (x, y, bisector heading).
 CORNERS = np.array(

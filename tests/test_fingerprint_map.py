@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from pimm_agents.fingerprint_map import FingerprintConfig, FingerprintMap
-from pimm_agents.perception_quality import retrieval_errors
+from pimm_agents.evaluation.perception_quality import retrieval_errors
+from pimm_agents.perception.fingerprint_map import FingerprintConfig, FingerprintMap
 
 
 def line_map(n: int = 20, dim: int = 8) -> FingerprintMap:

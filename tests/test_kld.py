@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.kld import bin_keys, kld_bound, kld_limit, kld_sample_count
+from pimm_agents.particles.kld import bin_keys, kld_bound, kld_limit, kld_sample_count
 
 
 @pytest.mark.parametrize(("k", "expected"), [(2, 19.2731), (10, 130.1616), (100, 1128.6504)])

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from pimm_agents.likelihood_field import LikelihoodField, LikelihoodFieldParams
-from pimm_env.grid import GridSpec
-from pimm_env.occupancy import OccupancyGrid
+from pimm_agents.amcl.likelihood_field import LikelihoodField, LikelihoodFieldParams
+from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.world.grid import GridSpec
 
 PARAMS = LikelihoodFieldParams(z_hit=0.5, z_rand=0.5, sigma_hit=0.2, max_distance=0.6, range_max=10.0)
 

@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from pimm_env.corner_map import derive_corner_map, load_corner_map
-from pimm_env.derived_maps import build_derived_maps, corner_matches, fidelity_iou, load_derived_maps
-from pimm_env.occupancy import load_map_server, occupancy_from_world, save_map_server, tolerant_iou
-from pimm_env.world import load_world
+from pimm_env.mapping.corner_map import derive_corner_map, load_corner_map
+from pimm_env.mapping.derived_maps import build_derived_maps, corner_matches, fidelity_iou, load_derived_maps
+from pimm_env.mapping.occupancy import load_map_server, occupancy_from_world, save_map_server, tolerant_iou
+from pimm_env.world.files import load_world
 
 from .conftest import shared_file
 

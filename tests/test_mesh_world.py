@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from pimm_env.base_env import LidarRobotEnv
-from pimm_env.mesh_world import read_obj
-from pimm_env.semantics import SemanticClass
-from pimm_env.world import WorldFileError, load_world
+from pimm_env.envs.base_env import LidarRobotEnv
+from pimm_env.world.files import WorldFileError, load_world
+from pimm_env.world.mesh import read_obj
+from pimm_env.world.semantics import SemanticClass
 
 from .conftest import shared_file
 

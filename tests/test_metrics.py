@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from pimm_env.metrics import best_and_worst, summarize, timing_summary, trial_metrics
-from pimm_env.trial_log import CSV_COLUMNS, TrialLog, read_csv
+from pimm_agents.evaluation.metrics import best_and_worst, summarize, timing_summary, trial_metrics
+from pimm_agents.evaluation.trial_log import CSV_COLUMNS, TrialLog, read_csv
 
 
 def make_log(position_errors, angle_errors_deg=None, dt=0.5, kidnap_index=None) -> TrialLog:

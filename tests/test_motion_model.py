@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.motion_model import odometry_delta, sample_differential
+from pimm_agents.particles.motion_model import odometry_delta, sample_differential
 
 
 def test_delta_of_a_forward_move_and_a_turn():

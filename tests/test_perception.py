@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from pimm_agents.fingerprint_map import FingerprintMap
-from pimm_agents.perception_maps import checkpoint_path, fingerprint_path, load_perception
-from pimm_agents.perception_quality import iou_per_class
-from pimm_env.iilab_env import IILabEnv
+from pimm_agents.evaluation.perception_quality import iou_per_class
+from pimm_agents.perception.files import checkpoint_path, fingerprint_path, load_perception
+from pimm_agents.perception.fingerprint_map import FingerprintMap
+from pimm_env.envs.iilab_env import IILabEnv
 
 
 @pytest.fixture(scope="module")
@@ -17,7 +17,7 @@ def perception():
 def test_shipped_weights_are_small_and_record_how_they_were_made():
     path = checkpoint_path("iilab")
     assert path.stat().st_size <= 5_000_000
-    from pimm_agents.pointnet import load_checkpoint
+    from pimm_agents.perception.pointnet import load_checkpoint
 
     _, record = load_checkpoint(path)
     assert record["command"].startswith("python -m training train")
@@ -59,7 +59,7 @@ def test_descriptor_size_mismatch_is_named(tmp_path, monkeypatch, perception):
     small = FingerprintMap(fmap.descriptors[:, :4], fmap.positions, fmap.headings)
     with pytest.raises(ValueError, match="query descriptor has"):
         small.query(segmenter.segment(*_one_scan()).descriptor)
-    import pimm_agents.perception_maps as pm
+    import pimm_agents.perception.files as pm
 
     small.save(tmp_path / "fingerprints.npz")
     monkeypatch.setattr(pm, "fingerprint_path", lambda world: tmp_path / "fingerprints.npz")

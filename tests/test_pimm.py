@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from pimm_agents import make_localizer
-from pimm_agents.pimm import PimmLocalizer
-from pimm_env.iilab_env import IILabEnv
+from pimm_agents.pimm.localizer import PimmLocalizer
+from pimm_env.envs.iilab_env import IILabEnv
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def test_reset_returns_to_a_uniform_cloud(pimm):
 
 @pytest.mark.expensive
 def test_pimm_converges_in_area_b():
-    from pimm_agents.trials import TrialSpec, run_trial
+    from pimm_agents.evaluation.trials import TrialSpec, run_trial
 
     result = run_trial(TrialSpec(scenario="area_b", localizer="pimm", trial=0, seed=0))
     assert result.metrics.converged, result.metrics

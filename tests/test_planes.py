@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.planes import PlaneParams, _median, constrained_ransac, extract_planes
+from pimm_agents.corners.planes import PlaneParams, _median, constrained_ransac, extract_planes
 
 
 def wall_and_clutter(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.point_arrays import column_bounds, column_mean, finite_rows
+from pimm_agents.perception.point_arrays import column_bounds, column_mean, finite_rows
 
 
 def test_finite_rows_flags_a_non_finite_value_in_any_column():

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from pimm_agents.point_features import FEATURES, point_features, with_context
-from pimm_env.lidar import Lidar3DConfig, directions_3d
+from pimm_agents.perception.point_features import FEATURES, point_features, with_context
+from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
 
 L3 = Lidar3DConfig(layers=40, points_per_layer=36, vertical_fov_deg=120.0)
 

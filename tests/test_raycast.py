@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from pimm_env.lidar import Lidar3DConfig, cast_rays, directions_3d
-from pimm_env.raycast import BulletRayCaster, PrismRayCaster
-from pimm_env.scene import BulletScene
-from pimm_env.world import load_world
+from pimm_env.sim.lidar import Lidar3DConfig, cast_rays, directions_3d
+from pimm_env.sim.raycast import BulletRayCaster, PrismRayCaster
+from pimm_env.sim.scene import BulletScene
+from pimm_env.world.files import load_world
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.resampling import (
+from pimm_agents.particles.resampling import (
     effective_sample_size,
     multinomial_resample,
     residual_resample,

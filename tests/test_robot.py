@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_env.robot import DiffDriveRobot, RobotConfig, integrate_odometry
+from pimm_env.sim.robot import DiffDriveRobot, RobotConfig, integrate_odometry
 
 
 def test_odometry_equations():

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from pimm_env.controller import PurePursuit
-from pimm_env.rollout import odom_to_map, run
-from pimm_env.scenarios import get_scenario, load_scenarios
+from pimm_env.driving.controller import PurePursuit
+from pimm_env.driving.rollout import odom_to_map, run
+from pimm_env.driving.scenarios import get_scenario, load_scenarios
 
 
 def test_scenarios_are_available_by_name():

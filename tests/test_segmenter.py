@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 import torch
 
-from pimm_agents.pointnet import PointNetConfig, PointNetSegmenter, load_checkpoint, save_checkpoint
-from pimm_agents.segmenter import Segmenter, disputed_returns, nearest_sampled, strided_sample
+from pimm_agents.perception.pointnet import PointNetConfig, PointNetSegmenter, load_checkpoint, save_checkpoint
+from pimm_agents.perception.segmenter import Segmenter, disputed_returns, nearest_sampled, strided_sample
 
 SMALL = PointNetConfig(points=256, local_widths=(8, 16), global_widths=(16, 32), head_widths=(16, 8), descriptor_dim=6)
 
@@ -73,7 +73,7 @@ def varied_checkpoint(tmp_path):
 def test_segmenter_classifies_returns_at_class_boundaries_itself(varied_checkpoint):
     """Off the sampled points a return takes its nearest sample's class unless it lies between two samples of
     different classes; there it gets the class the network gives it, against the sampled global feature."""
-    from pimm_agents.point_features import point_features, with_context
+    from pimm_agents.perception.point_features import point_features, with_context
 
     segmenter = Segmenter(varied_checkpoint)
     cloud, mask = scan(np.random.default_rng(1))
@@ -126,7 +126,7 @@ def test_checkpoint_round_trip_and_errors(tmp_path, checkpoint):
 
 
 def test_fused_inference_matches_the_trained_module():
-    from pimm_agents.pointnet import FusedPointNet
+    from pimm_agents.perception.pointnet import FusedPointNet
 
     torch.manual_seed(1)
     model = PointNetSegmenter(SMALL)

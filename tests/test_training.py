@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import torch
 
-from pimm_agents.perception_quality import iou_per_class
-from pimm_agents.pointnet import PointNetConfig, save_checkpoint
-from pimm_agents.segmenter import Segmenter
+from pimm_agents.evaluation.perception_quality import iou_per_class
+from pimm_agents.perception.pointnet import PointNetConfig, save_checkpoint
+from pimm_agents.perception.segmenter import Segmenter
 from training.dataset import generate, load, save, split
 from training.fingerprints import build_fingerprint_map
 from training.train import TrainConfig, class_weights, contrastive_loss, pair_batches, train
@@ -94,7 +94,7 @@ def test_rebuild_command_makes_every_perception_file_for_a_world(room_file, tmp_
     validation = record["validation"]  # scored on the 2 validation scans, every return
     assert validation["scans"] == 2 and set(validation["iou"]) == {"wall", "ceiling", "floor", "clutter"}
     assert "mean" in result.output and f"{validation['mean_iou']:.3f}" in result.output
-    from pimm_agents.perception_maps import load_perception
+    from pimm_agents.perception.files import load_perception
 
     segmenter, fmap = load_perception(str(room_file))
     assert len(fmap) >= 3 and fmap.dim == segmenter.descriptor_dim

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from pimm_env.semantics import SemanticClass
-from pimm_env.shapes import Box
-from pimm_env.world import WorldFileError, load_world, world_from_spec
+from pimm_env.world.files import WorldFileError, load_world, world_from_spec
+from pimm_env.world.semantics import SemanticClass
+from pimm_env.world.shapes import Box
 
 
 def test_iilab_world_has_every_kind_of_structure():

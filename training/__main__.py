@@ -21,7 +21,7 @@ DATA_DIR = Path("build/datasets")
 
 
 def _dataset_paths(world: str) -> tuple[Path, Path]:
-    from pimm_env.world import load_world
+    from pimm_env.world.files import load_world
 
     folder = DATA_DIR / load_world(world).name
     return folder / "scans.npz", folder / "validation.npz"
@@ -54,8 +54,8 @@ def train(
     """Train the segmenter and descriptor on the world's dataset (80/20 split), report per-epoch metrics."""
     import numpy as np
 
-    from pimm_agents.perception_maps import checkpoint_path
-    from pimm_agents.pointnet import PointNetConfig, save_checkpoint
+    from pimm_agents.perception.files import checkpoint_path
+    from pimm_agents.perception.pointnet import PointNetConfig, save_checkpoint
     from training.dataset import load, split
     from training.train import TrainConfig, describe
     from training.train import train as fit
@@ -94,9 +94,9 @@ def validate(
 ) -> None:
     """Per-class IoU on the separate validation set, every return labelled as the localizer does; the result
     is also written into the checkpoint's .json record."""
-    from pimm_agents.perception_maps import checkpoint_path
-    from pimm_agents.perception_quality import format_segmentation, segmentation_scores
-    from pimm_agents.segmenter import Segmenter
+    from pimm_agents.evaluation.perception_quality import format_segmentation, segmentation_scores
+    from pimm_agents.perception.files import checkpoint_path
+    from pimm_agents.perception.segmenter import Segmenter
     from training.dataset import load
     from training.validate import scan_set_confusion
 
@@ -121,8 +121,8 @@ def fingerprints(
     seed: int = typer.Option(0, help="seed of the headings and noise"),
 ) -> None:
     """Descriptors of scans on a grid of free positions, saved as the world's fingerprint map."""
-    from pimm_agents.perception_maps import checkpoint_path, fingerprint_path
-    from pimm_agents.segmenter import Segmenter
+    from pimm_agents.perception.files import checkpoint_path, fingerprint_path
+    from pimm_agents.perception.segmenter import Segmenter
     from training.fingerprints import build_fingerprint_map
 
     fmap = build_fingerprint_map(world, Segmenter(checkpoint_path(world)), spacing, seed)
@@ -141,7 +141,7 @@ def rebuild(
     seed: int = typer.Option(0),
 ) -> None:
     """Dataset, then weights, then fingerprint map: everything perception needs for a world."""
-    from pimm_agents.pointnet import PointNetConfig
+    from pimm_agents.perception.pointnet import PointNetConfig
 
     dataset(world=world, scans=scans, validation=validation, seed=seed)
     train(world=world, epochs=epochs, points=PointNetConfig().points, seed=seed, out=None)

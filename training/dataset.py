@@ -50,7 +50,7 @@ def generate(world: str, count: int, seed: int, progress: bool = True) -> ScanSe
     """``count`` scans at random free poses of ``world`` (uniform over free space, random heading), seeded."""
     from tqdm import tqdm
 
-    from pimm_env.iilab_env import IILabEnv
+    from pimm_env.envs.iilab_env import IILabEnv
 
     if count < 1:
         raise ValueError(f"scan count must be at least 1, got {count}")
@@ -76,7 +76,7 @@ def generate(world: str, count: int, seed: int, progress: bool = True) -> ScanSe
 
 
 def save(scans: ScanSet, path: Path) -> None:
-    from pimm_env.npz_file import write_npz
+    from pimm_env.mapping.npz_file import write_npz
 
     arrays = {"ranges": scans.ranges, "labels": scans.labels, "poses": scans.poses, "areas": scans.areas}
     write_npz(path, FORMAT, world=np.str_(scans.world), **arrays)
@@ -84,7 +84,7 @@ def save(scans: ScanSet, path: Path) -> None:
 
 def load(path: Path) -> ScanSet:
     """Read a dataset written by :func:`save`; a missing file or field is named in the error."""
-    from pimm_env.npz_file import read_npz
+    from pimm_env.mapping.npz_file import read_npz
 
     fields = ("world", "ranges", "labels", "poses", "areas")
     data = read_npz(path, "dataset", fields, FORMAT, "make one with `python -m training dataset`")

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pimm_agents.fingerprint_map import FingerprintMap
-from pimm_agents.segmenter import Segmenter
+from pimm_agents.perception.fingerprint_map import FingerprintMap
+from pimm_agents.perception.segmenter import Segmenter
 
 
 def build_fingerprint_map(
@@ -14,7 +14,7 @@ def build_fingerprint_map(
     """Scan at every ``spacing`` grid position where the robot fits, with a random heading (seeded)."""
     from tqdm import tqdm
 
-    from pimm_env.iilab_env import IILabEnv
+    from pimm_env.envs.iilab_env import IILabEnv
 
     env = IILabEnv(world=world)
     rng = np.random.default_rng(seed)

@@ -19,12 +19,12 @@ import torch
 from scipy.spatial import cKDTree
 from torch import nn
 
-from pimm_agents.perception_quality import iou_per_class
-from pimm_agents.point_features import point_features, with_context
-from pimm_agents.pointnet import PointNetConfig, PointNetSegmenter, parameter_count
-from pimm_agents.segmenter import strided_sample
-from pimm_env.lidar import Lidar3DConfig, directions_3d
-from pimm_env.semantics import CLASS_NAMES
+from pimm_agents.evaluation.perception_quality import iou_per_class
+from pimm_agents.perception.point_features import point_features, with_context
+from pimm_agents.perception.pointnet import PointNetConfig, PointNetSegmenter, parameter_count
+from pimm_agents.perception.segmenter import strided_sample
+from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
+from pimm_env.world.semantics import CLASS_NAMES
 from training.dataset import ScanSet
 
 

@@ -1,13 +1,13 @@
 """Segmentation quality of a checkpoint on a stored scan set, with every return labelled the way the
-localizer labels it (:class:`~pimm_agents.segmenter.Segmenter`), not only the points the network samples."""
+localizer labels it (:class:`~pimm_agents.perception.segmenter.Segmenter`), not only the points the network samples."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from pimm_agents.perception_quality import confusion_matrix
-from pimm_agents.segmenter import Segmenter
-from pimm_env.lidar import Lidar3DConfig, directions_3d
+from pimm_agents.evaluation.perception_quality import confusion_matrix
+from pimm_agents.perception.segmenter import Segmenter
+from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
 from training.dataset import ScanSet
 
 

@@ -1,0 +1,156 @@
+"""Stage timings for ``evaluate.py bench``: medians over repeated runs, in milliseconds."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+
+def median_ms(fn: Callable[[], object], repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return 1000 * float(np.median(times))
+
+
+def run_benchmarks(repeats: int = 30) -> dict[str, float]:
+    """Env step with and without a fresh 3D scan, both ray casters, and an area_a rollout's real-time factor."""
+    from pimm_env.driving.rollout import run
+    from pimm_env.driving.scenarios import get_scenario
+    from pimm_env.envs.base_env import SimConfig
+    from pimm_env.envs.iilab_env import IILabEnv
+    from pimm_env.sim.raycast import BulletRayCaster, PrismRayCaster
+
+    figures: dict[str, float] = {}
+    env = IILabEnv(terminate_on_collision=False)
+    env.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
+    stepped_plain, stepped_scan = [], []
+    action = np.array([0.2, 0.0], dtype=np.float32)
+    while min(len(stepped_plain), len(stepped_scan)) < repeats:
+        start = time.perf_counter()
+        _, _, _, _, info = env.step(action)
+        elapsed = time.perf_counter() - start
+        (stepped_scan if info["fresh_cloud"] else stepped_plain).append(elapsed)
+        if env.robot.pose[0] > -2.0:
+            env.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
+    figures["env_step_ms"] = 1000 * float(np.median(stepped_plain))
+    figures["env_step_scan_ms"] = 1000 * float(np.median(stepped_scan))
+    l3 = env.config.lidar3d
+    origin = np.array([-10.0, 4.2, env.world.floor_z + l3.height])
+    prism = PrismRayCaster(env.world)
+    bullet = BulletRayCaster(env.scene.client, env.scene.body_classes)
+    figures["lidar3d_prism_ms"] = median_ms(
+        lambda: prism.cast(origin, env._azimuths3d, env._elevations, l3.max_range), repeats
+    )
+    figures["lidar3d_bullet_ms"] = median_ms(
+        lambda: bullet.cast(origin, env._azimuths3d, env._elevations, l3.max_range), max(3, repeats // 5)
+    )
+    env.close()
+    config = replace(SimConfig(), lidar3d=replace(SimConfig().lidar3d, rate_hz=10.0))
+    rollout_env = IILabEnv(config=config, terminate_on_collision=False)
+    result = run(get_scenario("area_a"), env=rollout_env)
+    rollout_env.close()
+    figures["realtime_factor"] = result.realtime_factor
+    figures.update(amcl_benchmarks(repeats))
+    figures["corners_ms"] = corners_benchmark(repeats)
+    figures.update(perception_benchmarks(repeats))
+    figures.update(pimm_benchmarks(repeats))
+    return figures
+
+
+def pimm_benchmarks(repeats: int) -> dict[str, float]:
+    """The feature filter's measurement update (10 000 particles, 5 features) and PIMM's whole update per
+    fresh scan while driving (segmentation, corners, retrieval, and the filter whenever odometry allows)."""
+    from pimm_agents.factory import make_localizer
+    from pimm_agents.pimm.localizer import PimmLocalizer
+    from pimm_env.envs.iilab_env import IILabEnv
+
+    pimm = make_localizer("pimm")
+    assert isinstance(pimm, PimmLocalizer)
+    pimm.reset(seed=0)
+    rng = np.random.default_rng(0)
+    features = np.column_stack(
+        [rng.uniform(-6, 6, (5, 2)), rng.uniform(-np.pi, np.pi, 5), np.full(5, 0.3), np.full(5, 0.2)]
+    )
+    weights = pimm.filter.weights.copy()
+
+    def measurement() -> None:
+        pimm.filter.weights = weights.copy()
+        pimm.filter.measurement_update(features)
+
+    figures = {"pf_update_ms": median_ms(measurement, repeats)}
+    env = IILabEnv(terminate_on_collision=False)
+    obs, _ = env.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
+    pimm.reset(seed=0)
+    totals = []
+    action = np.array([0.3, 0.0], dtype=np.float32)
+    while len(totals) < repeats:
+        estimate = pimm.update(obs)
+        if "segmentation" in estimate.timings:
+            totals.append(estimate.timings["total"])
+        obs, *_ = env.step(action)
+    env.close()
+    figures["pimm_pipeline_ms"] = float(np.median(totals))
+    return figures
+
+
+def perception_benchmarks(repeats: int) -> dict[str, float]:
+    """Segmentation + descriptor of one scan, and one fingerprint-map query, with the shipped iilab files."""
+    from pimm_agents.perception.files import load_perception
+    from pimm_env.envs.iilab_env import IILabEnv
+
+    segmenter, fingerprints = load_perception("iilab")
+    env = IILabEnv()
+    obs, _ = env.reset(seed=3)
+    env.close()
+    cloud, mask = obs["cloud"], obs["cloud_mask"]
+    descriptor = segmenter.segment(cloud, mask).descriptor
+    return {
+        "segmentation_ms": median_ms(lambda: segmenter.segment(cloud, mask), repeats),
+        "fingerprint_query_ms": median_ms(lambda: fingerprints.query(descriptor), repeats),
+    }
+
+
+def corners_benchmark(repeats: int) -> float:
+    """Median corner-detection time per scan (true labels) over scans at random free poses."""
+    from pimm_agents.corners.detector import detect_corners
+    from pimm_agents.evaluation.corner_quality import collect_scans
+
+    scans = collect_scans("iilab", max(5, repeats // 3), seed=7)
+    times = []
+    for scan in scans:
+        points, labels, _, _ = scan.corner_input()
+        times.append(median_ms(lambda p=points, lab=labels: detect_corners(p, lab), 1))
+    return float(np.median(times))
+
+
+def amcl_benchmarks(repeats: int) -> dict[str, float]:
+    """AMCL's measurement update (2 000 particles x 60 beams, the stage the thesis timed) and a whole
+    filter update (motion, measurement, KLD resampling, cluster estimate) from a global start."""
+    from pimm_agents.amcl.localizer import Amcl
+    from pimm_agents.factory import make_localizer
+    from pimm_env.envs.iilab_env import IILabEnv
+
+    env = IILabEnv(terminate_on_collision=False)
+    obs, _ = env.reset(seed=0, options={"pose": [-18.5, 14.0, 1.5708]})
+    env.close()
+    amcl = make_localizer("amcl")
+    assert isinstance(amcl, Amcl)
+    amcl.reset(seed=0)
+    scan = np.asarray(obs["scan"], dtype=float)
+    figures = {"amcl_update_ms": median_ms(lambda: amcl._sensor_update(scan), repeats)}
+    assert amcl.particle_count == amcl.config.max_particles == 2000
+
+    particles, weights = amcl.particles.copy(), amcl.weights.copy()
+
+    def whole_update() -> None:
+        amcl.particles, amcl.weights = particles.copy(), weights.copy()
+        amcl._filter(np.zeros(3), scan, (0.0, 0.3, 0.0), {})
+
+    figures["amcl_filter_update_ms"] = median_ms(whole_update, max(5, repeats // 3))
+    return figures

@@ -1,0 +1,86 @@
+"""The thesis's localization metrics (section 4.1.1), as pure functions of trial logs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pimm_agents.evaluation.trial_log import TrialLog
+from pimm_env.geometry import wrap_angle
+
+POSITION_THRESHOLD_M = 3.0
+ANGLE_THRESHOLD_DEG = 30.0
+
+
+@dataclass(frozen=True)
+class TrialMetrics:
+    converged: bool
+    convergence_time_s: float | None  # from the log's first estimate
+    position_error_m: float | None  # mean after convergence
+    angle_error_deg: float | None  # mean absolute wrapped, after convergence
+
+
+def position_errors(log: TrialLog) -> np.ndarray:
+    return np.hypot(*(log.estimate[:, :2] - log.true[:, :2]).T)
+
+
+def angle_errors_deg(log: TrialLog) -> np.ndarray:
+    return np.degrees(np.abs(wrap_angle(log.estimate[:, 2] - log.true[:, 2])))
+
+
+def trial_metrics(
+    log: TrialLog, position_threshold: float = POSITION_THRESHOLD_M, angle_threshold_deg: float = ANGLE_THRESHOLD_DEG
+) -> TrialMetrics:
+    """Converged at t if from t to the end the errors stay under both thresholds; the earliest such t counts."""
+    if len(log) == 0:
+        return TrialMetrics(False, None, None, None)
+    pos, ang = position_errors(log), angle_errors_deg(log)
+    bad = (pos >= position_threshold) | (ang >= angle_threshold_deg)
+    if bad[-1]:
+        return TrialMetrics(False, None, None, None)
+    start = int(np.nonzero(bad)[0][-1]) + 1 if bad.any() else 0
+    return TrialMetrics(
+        True,
+        float(log.time[start] - log.time[0]),
+        float(pos[start:].mean()),
+        float(ang[start:].mean()),
+    )
+
+
+def summarize(trials: list[TrialMetrics]) -> dict[str, float | int | None]:
+    """Convergence rate over all trials; time and errors averaged over the trials that converged."""
+    done = [t for t in trials if t.converged]
+
+    def mean(values: list[float | None]) -> float | None:
+        return float(np.mean(values)) if values else None
+
+    return {
+        "trials": len(trials),
+        "convergence_rate": len(done) / len(trials) if trials else 0.0,
+        "convergence_time_s": mean([t.convergence_time_s for t in done]),
+        "position_error_m": mean([t.position_error_m for t in done]),
+        "angle_error_deg": mean([t.angle_error_deg for t in done]),
+    }
+
+
+def best_and_worst(trials: list[TrialMetrics]) -> tuple[int | None, int | None]:
+    """Indices of the best trial (lowest convergence time) and the worst (highest mean position error)
+    among the trials that converged; a trial that never converged is the worst if there is one."""
+    done = [i for i, t in enumerate(trials) if t.converged]
+    never = [i for i, t in enumerate(trials) if not t.converged]
+    best = min(done, key=lambda i: trials[i].convergence_time_s) if done else None
+    if never:
+        worst = never[0]
+    else:
+        worst = max(done, key=lambda i: trials[i].position_error_m) if done else None
+    return best, worst
+
+
+def timing_summary(timings: list[dict[str, float]]) -> dict[str, dict[str, float]]:
+    """Mean and peak ms of every stage over the updates that reported it."""
+    stages: dict[str, list[float]] = {}
+    for entry in timings:
+        for stage, ms in entry.items():
+            stages.setdefault(stage, []).append(ms)
+    return {s: {"mean": float(np.mean(v)), "max": float(np.max(v))} for s, v in stages.items()}

@@ -1,0 +1,79 @@
+"""The evaluation wrapper: drives a localizer with the env's observations and records truth and estimate."""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import gymnasium as gym
+import numpy as np
+
+from pimm_agents.evaluation.trial_log import TrialLog
+
+
+class _Estimate(Protocol):
+    pose: np.ndarray
+    covariance: np.ndarray
+    stamp: float
+    timings: dict[str, float]
+
+
+class _Localizer(Protocol):
+    def reset(self, seed: int | None = None) -> None: ...
+    def update(self, obs: dict[str, np.ndarray]) -> _Estimate: ...
+
+
+class LocalizationRecorder(gym.Wrapper):
+    """Feeds every observation to ``localizer`` and records (truth, estimate) at every fresh scan.
+
+    ``reset`` resets the localizer too, except for a kidnap (``options={"kidnap": ...}``), which the
+    localizer must discover by itself; the log marks where it happened. ``info["estimate"]`` carries the
+    latest estimate. ``trial_log()`` returns what was recorded since the last full reset.
+    """
+
+    def __init__(self, env: gym.Env, localizer: _Localizer) -> None:
+        super().__init__(env)
+        self.localizer = localizer
+        self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._timings: list[dict[str, float]] = []
+        self._kidnap_index: int | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        kidnap = (options or {}).get("kidnap")
+        if kidnap is None or kidnap is False:
+            self.localizer.reset(seed=seed)
+            self._rows, self._timings, self._kidnap_index = [], [], None
+        else:
+            self._kidnap_index = len(self._rows)
+        self._observe(obs, info, record=True)
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._observe(obs, info, record=bool(info.get("fresh_scan") or info.get("fresh_cloud")))
+        return obs, reward, terminated, truncated, info
+
+    def _observe(self, obs: dict[str, np.ndarray], info: dict[str, Any], record: bool) -> None:
+        estimate = self.localizer.update(obs)
+        info["estimate"] = estimate
+        if estimate.timings:
+            self._timings.append(dict(estimate.timings))
+        if record:
+            cov = np.diag(np.asarray(estimate.covariance, dtype=float))
+            time = float(np.asarray(obs["time"]).reshape(-1)[0])
+            self._rows.append((time, float(estimate.stamp), np.asarray(info["true_pose"], float), estimate.pose, cov))
+
+    def trial_log(self) -> TrialLog:
+        if not self._rows:
+            empty = np.zeros((0, 3))
+            return TrialLog(np.zeros(0), np.zeros(0), empty, empty, empty, None, [])
+        times, stamps, true, est, cov = zip(*self._rows, strict=True)
+        return TrialLog(
+            np.array(times),
+            np.array(stamps),
+            np.array(true),
+            np.array(est),
+            np.array(cov),
+            self._kidnap_index,
+            list(self._timings),
+        )

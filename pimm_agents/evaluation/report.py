@@ -1,0 +1,171 @@
+"""Evaluation results as the thesis shows them: summary.json, per-trial CSVs, tables and figures."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from pimm_agents.evaluation.metrics import (
+    TrialMetrics,
+    angle_errors_deg,
+    best_and_worst,
+    position_errors,
+    summarize,
+    timing_summary,
+)
+from pimm_agents.evaluation.trial_log import TrialLog
+
+#: Thesis tables 4.2-4.5: convergence rate, mean convergence time (s), position (m) and angle (deg) error.
+THESIS_RESULTS: dict[str, dict[str, tuple[float, float | None, float | None, float | None]]] = {
+    "area_a": {"amcl": (0.4, 55.93, 1.1, 1.08), "pimm": (1.0, 20.88, 0.84, 3.2)},
+    "area_b": {"amcl": (1.0, 2.6, 0.30, 1.91), "pimm": (1.0, 4.53, 0.50, 7.65)},
+    "a_c_b": {"amcl": (0.7, 12.54, 0.17, 1.46), "pimm": (1.0, 34.48, 0.89, 3.55)},
+    "a_c_b_kidnap": {"amcl": (0.0, None, None, None), "pimm": (1.0, 7.33, 0.33, 2.16)},
+}
+
+
+class _Trial(Protocol):
+    @property
+    def spec(self) -> Any: ...
+
+    log: TrialLog
+    metrics: TrialMetrics
+
+
+def summary_of(results: Sequence[_Trial]) -> dict[str, Any]:
+    """``{"scenarios": {scenario: {localizer: {...}}}}`` in the schema of ARCHITECTURE.md."""
+    groups: dict[tuple[str, str], list[_Trial]] = {}
+    for result in results:
+        groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
+    scenarios: dict[str, dict[str, Any]] = {}
+    for (scenario, localizer), trials in groups.items():
+        entry: dict[str, Any] = summarize([t.metrics for t in trials])
+        entry["timings_ms"] = timing_summary([timing for t in trials for timing in t.log.timings])
+        scenarios.setdefault(scenario, {})[localizer] = entry
+    return {"scenarios": scenarios}
+
+
+def _cell(value: float | None, fmt: str) -> str:
+    return "-" if value is None else format(value, fmt)
+
+
+def _name_width(names: Any, least: int) -> int:
+    """Column width that fits every name with two spaces to spare."""
+    return max([least, *(len(n) + 2 for n in names)])
+
+
+def format_tables(summary: dict[str, Any]) -> str:
+    """One table per scenario, ours beside the thesis's numbers (for localizers the thesis ran)."""
+    lines = []
+    w = _name_width((name for rows in summary["scenarios"].values() for name in rows), 16)
+    for scenario, by_localizer in summary["scenarios"].items():
+        lines.append(f"\n{scenario}")
+        lines.append(
+            f"  {'localizer':<{w}}{'trials':>7}{'conv. rate %':>14}{'conv. time s':>14}"
+            f"{'pos. err m':>12}{'ang. err deg':>14}"
+        )
+        for localizer, row in by_localizer.items():
+            lines.append(
+                f"  {localizer:<{w}}{row['trials']:>7}{100 * row['convergence_rate']:>14.0f}"
+                f"{_cell(row['convergence_time_s'], '.2f'):>14}{_cell(row['position_error_m'], '.2f'):>12}"
+                f"{_cell(row['angle_error_deg'], '.2f'):>14}"
+            )
+            thesis = THESIS_RESULTS.get(scenario, {}).get(localizer.split("-")[0])
+            if thesis is not None and localizer in ("amcl", "pimm"):
+                rate, t, pos, ang = thesis
+                lines.append(
+                    f"  {'  thesis':<{w}}{10:>7}{100 * rate:>14.0f}{_cell(t, '.2f'):>14}{_cell(pos, '.2f'):>12}"
+                    f"{_cell(ang, '.2f'):>14}"
+                )
+    return "\n".join(lines)
+
+
+def format_timings(summary: dict[str, Any]) -> str:
+    """Mean and peak ms per stage and localizer, over all scenarios (thesis section 4.6)."""
+    stages: dict[str, dict[str, list[tuple[float, float]]]] = {}
+    for by_localizer in summary["scenarios"].values():
+        for localizer, row in by_localizer.items():
+            for stage, t in row["timings_ms"].items():
+                stages.setdefault(localizer, {}).setdefault(stage, []).append((t["mean"], t["max"]))
+    w = _name_width(stages, 16)
+    sw = _name_width((stage for by_stage in stages.values() for stage in by_stage), 14)
+    lines = [f"\n  {'localizer':<{w}}{'stage':<{sw}}{'mean ms':>10}{'peak ms':>10}"]
+    for localizer, by_stage in stages.items():
+        for stage, values in by_stage.items():
+            mean = float(np.mean([v[0] for v in values]))
+            peak = float(np.max([v[1] for v in values]))
+            lines.append(f"  {localizer:<{w}}{stage:<{sw}}{mean:>10.2f}{peak:>10.2f}")
+    return "\n".join(lines)
+
+
+def write_results(folder: Path, results: Sequence[_Trial], config: dict[str, Any], world: str) -> dict[str, Any]:
+    """summary.json, config.json, one CSV per trial and the best/worst figures; returns the summary."""
+    folder = Path(folder)
+    summary = summary_of(results)
+    (folder / "summary.json").write_text(json.dumps(summary, indent=2))
+    (folder / "config.json").write_text(json.dumps(config, indent=2, default=str))
+    logs = folder / "logs"
+    logs.mkdir(exist_ok=True)
+    for result in results:
+        s = result.spec
+        result.log.write_csv(logs / f"{s.scenario}_{s.localizer}_trial{s.trial:02d}.csv")
+    groups: dict[tuple[str, str], list[_Trial]] = {}
+    for result in results:
+        groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
+    figures = folder / "figures"
+    figures.mkdir(exist_ok=True)
+    for (scenario, localizer), trials in groups.items():
+        best, worst = best_and_worst([t.metrics for t in trials])
+        for label, index in (("best", best), ("worst", worst)):
+            if index is not None:
+                plot_trial(world, trials[index], figures / f"{scenario}_{localizer}_{label}.png", label)
+    return summary
+
+
+def plot_trial(world: str, trial: _Trial, path: Path, label: str) -> Path:
+    """Trajectories on the map (true and estimated) and position/angle error over time, as thesis fig. 4.2."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pimm_agents.evaluation.metrics import ANGLE_THRESHOLD_DEG, POSITION_THRESHOLD_M
+    from pimm_env.envs.render import show_map
+
+    log = trial.log
+    fig, (ax_map, ax_err) = plt.subplots(1, 2, figsize=(14, 5), gridspec_kw={"width_ratios": [1.4, 1]})
+    show_map(ax_map, world)
+    true_xy = log.true[:, :2]
+    if log.kidnap_index is not None:  # no line across the teleport
+        true_xy = np.insert(true_xy, log.kidnap_index, np.nan, axis=0)
+    ax_map.plot(true_xy[:, 0], true_xy[:, 1], "-", color="tab:green", lw=1.5, label="true")
+    ax_map.plot(log.estimate[:, 0], log.estimate[:, 1], ".", color="tab:red", ms=2, label="estimate")
+    ax_map.set_xlabel("x (m)")
+    ax_map.set_ylabel("y (m)")
+    ax_map.legend(loc="upper right", fontsize=8)
+    m = trial.metrics
+    verdict = f"converged at {m.convergence_time_s:.1f} s" if m.converged else "did not converge"
+    ax_map.set_title(f"{trial.spec.localizer}, {trial.spec.scenario}, {label} trial ({trial.spec.trial}): {verdict}")
+    t = log.time - log.time[0]
+    ax_err.plot(t, position_errors(log), color="tab:blue", lw=1, label="position error (m)")
+    ax_err.axhline(POSITION_THRESHOLD_M, color="tab:blue", ls=":", lw=0.8)
+    ax_err.set_xlabel("time (s)")
+    ax_err.set_ylabel("position error (m)", color="tab:blue")
+    ax_ang = ax_err.twinx()
+    ax_ang.plot(t, angle_errors_deg(log), color="tab:orange", lw=1, label="angle error (deg)")
+    ax_ang.axhline(ANGLE_THRESHOLD_DEG, color="tab:orange", ls=":", lw=0.8)
+    ax_ang.set_ylabel("angle error (deg)", color="tab:orange")
+    if log.kidnap_index is not None:
+        ax_err.axvline(t[log.kidnap_index], color="k", ls="--", lw=1)
+        ax_err.text(t[log.kidnap_index], ax_err.get_ylim()[1] * 0.9, " kidnap", fontsize=8)
+    if m.converged:
+        start = t[0] + m.convergence_time_s + (t[log.kidnap_index] if log.kidnap_index is not None else 0.0)
+        ax_err.axvline(start, color="tab:green", ls="--", lw=1)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,126 @@
+"""Segmentation and place descriptor of one 3D scan with the trained PointNet, on the CPU.
+
+The network looks at a fixed number of the scan's points, every k-th return in scan order (the thesis's
+"partial segmentation" future work); every other return takes the class of the nearest of those in scan order,
+which is almost always its neighbour in the same layer.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from pimm_agents.perception.point_features import point_features, valid_returns, with_context
+from pimm_agents.perception.pointnet import FusedPointNet, PointNetSegmenter, load_checkpoint
+
+
+def strided_sample(valid_index: np.ndarray, count: int, offset: int = 0) -> np.ndarray:
+    """Positions (into ``valid_index``) of ``count`` points spread evenly over the returns, in scan order.
+
+    With fewer returns than ``count`` every return is taken and the list is filled by repeating them, which
+    changes neither the max-pooled global feature nor any point's class.
+    """
+    n = len(valid_index)
+    if n == 0:
+        raise ValueError("the scan has no returns to segment")
+    if n <= count:
+        return np.resize(np.arange(n), count)
+    stride = n / count
+    return np.minimum((offset % max(1, int(stride)) + stride * np.arange(count)).astype(np.int64), n - 1)
+
+
+def _bracketing_samples(n_valid: int, sampled: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sampled positions in scan order, and for each return the slots of the samples before and after it."""
+    order = sampled[: min(n_valid, len(sampled))]
+    after = np.searchsorted(order, np.arange(n_valid))
+    return order, np.maximum(after - 1, 0), np.minimum(after, len(order) - 1)
+
+
+def nearest_sampled(n_valid: int, sampled: np.ndarray) -> np.ndarray:
+    """For each of ``n_valid`` returns in scan order, the slot in ``sampled`` of the nearest sampled return.
+
+    ``sampled`` is what :func:`strided_sample` gives: increasing, then (for short scans) repeats of itself.
+    """
+    order, left, right = _bracketing_samples(n_valid, sampled)
+    pos = np.arange(n_valid)
+    return np.where(np.abs(order[left] - pos) <= np.abs(order[right] - pos), left, right)
+
+
+def disputed_returns(n_valid: int, sampled: np.ndarray, classes: np.ndarray) -> np.ndarray:
+    """Positions (in scan order) of the returns that were not sampled and lie between two sampled returns of
+    different classes: where a class boundary falls, which the nearest sample's class may get wrong.
+
+    ``classes`` holds the class of each slot of ``sampled``.
+    """
+    order, left, right = _bracketing_samples(n_valid, sampled)
+    unsure = classes[left] != classes[right]
+    unsure[order] = False
+    return np.flatnonzero(unsure)
+
+
+@dataclass(frozen=True)
+class Segmentation:
+    """Per-point classes of the whole scan (-1 where no return) and the scan's place descriptor."""
+
+    labels: np.ndarray
+    descriptor: np.ndarray
+    timings_ms: dict[str, float]
+
+
+class Segmenter:
+    """Runs a trained checkpoint on scans from the env: ``segment(cloud, mask) -> Segmentation``."""
+
+    def __init__(self, checkpoint: Path, layers: int = 40, points_per_layer: int = 360) -> None:
+        self.model: PointNetSegmenter
+        self.model, self.training = load_checkpoint(checkpoint)
+        self.network = FusedPointNet(self.model)
+        self.checkpoint = Path(checkpoint)
+        self.layers = layers
+        self.points_per_layer = points_per_layer
+
+    @property
+    def descriptor_dim(self) -> int:
+        return self.model.config.descriptor_dim
+
+    def segment(self, cloud: np.ndarray, mask: np.ndarray) -> Segmentation:
+        start = time.perf_counter()
+        features = point_features(cloud, mask, self.layers, self.points_per_layer)
+        valid = valid_returns(np.asarray(cloud), mask)
+        valid_index = np.flatnonzero(valid)
+        if len(valid_index) == 0:
+            raise ValueError("cannot segment a scan with no finite returns (empty or all-NaN cloud)")
+        sampled = strided_sample(valid_index, self.model.config.points)
+        offsets = self.model.config.context_offsets
+        chosen = with_context(features, valid_index[sampled], self.layers, self.points_per_layer, offsets)
+        net = self.network
+        prepared = time.perf_counter()
+        with torch.inference_mode():
+            local = net.local_features(torch.from_numpy(chosen))
+            glob = net.global_feature(local)
+            classes = net.logits(local, glob).argmax(dim=1).numpy().astype(np.int8)
+            descriptor = net.descriptor_of(glob)
+            inferred = time.perf_counter()
+            # every return takes its nearest sample's class, except near class boundaries: there the network
+            # classifies the return itself, against the same global feature
+            in_order = classes[nearest_sampled(len(valid_index), sampled)]
+            todo = disputed_returns(len(valid_index), sampled, classes)
+            if len(todo):
+                extra = with_context(features, valid_index[todo], self.layers, self.points_per_layer, offsets)
+                logits = net.logits(net.local_features(torch.from_numpy(extra)), glob)
+                in_order[todo] = logits.argmax(dim=1).numpy()
+        labels = np.full(len(valid), -1, dtype=np.int8)
+        labels[valid_index] = in_order
+        done = time.perf_counter()
+        return Segmentation(
+            labels=labels,
+            descriptor=descriptor.numpy().astype(np.float32),
+            timings_ms={
+                "features": 1000 * (prepared - start),
+                "network": 1000 * (inferred - prepared),
+                "boundaries": 1000 * (done - inferred),
+            },
+        )

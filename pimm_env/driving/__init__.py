@@ -1,0 +1,1 @@
+"""Driving the robot: named scenarios, a pure-pursuit controller, rollouts and their figures."""

@@ -1,0 +1,1 @@
+"""The Gymnasium environments: the simulator base class, the iiLab env, and top-down rendering."""

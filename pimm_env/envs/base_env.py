@@ -1,0 +1,338 @@
+"""The simulator behind PIMM's environments: a world, a diff-drive robot, wheel odometry and two LiDARs.
+
+Concrete environments (see :mod:`pimm_env.envs.iilab_env`) choose the world and add reward and info hooks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from scipy import ndimage
+
+from pimm_env.geometry import wrap_angle
+from pimm_env.mapping.derived_maps import DerivedMaps, load_derived_maps
+from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig, beam_angles_2d, directions_3d, noisy_ranges
+from pimm_env.sim.raycast import BulletRayCaster, PrismRayCaster, RayCaster
+from pimm_env.sim.robot import DiffDriveRobot, RobotConfig
+from pimm_env.sim.scene import BulletScene
+from pimm_env.world.files import World, load_world
+from pimm_env.world.semantics import SemanticClass
+
+MAX_TIME = 1.0e6  # s; bound of the time fields of the observation
+MAX_ODOM = 1.0e4  # m; bound of the odometry position
+RESET_OPTIONS = frozenset({"pose", "kidnap"})
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything that defines a simulation besides the world."""
+
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    lidar3d: Lidar3DConfig = field(default_factory=Lidar3DConfig)
+    lidar2d: Lidar2DConfig = field(default_factory=Lidar2DConfig)
+    start_clearance: float = 0.15  # extra free space around random start poses (m)
+    ray_caster: str = "auto"  # "auto" (fast prism caster where the world allows), "prism" or "bullet"
+
+
+class LidarRobotEnv(gym.Env):
+    """Base simulator; see :class:`pimm_env.envs.iilab_env.IILabEnv` for the documented environment."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self, world: str | World = "iilab", config: SimConfig | None = None, render_mode: str | None = None
+    ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode {render_mode!r} is not supported; use one of {self.metadata['render_modes']}"
+            )
+        self.render_mode = render_mode
+        self.config = config or SimConfig()
+        self._world_arg = world
+        self.world = world if isinstance(world, World) else load_world(world)
+        self.maps: DerivedMaps = load_derived_maps(self.world)
+        self.scene = BulletScene(self.world, self.config.robot.footprint_radius)
+        self.caster = self._make_caster()
+        self._collision_clearance, self._start_cells = self._clearance_maps()
+        self.robot = DiffDriveRobot(self.config.robot)
+
+        l3, l2 = self.config.lidar3d, self.config.lidar2d
+        half = np.radians(l3.vertical_fov_deg) / 2
+        self._elevations = np.linspace(-half, half, l3.layers)
+        self._azimuths3d = -np.pi + 2 * np.pi * np.arange(l3.points_per_layer) / l3.points_per_layer
+        self._azimuths2d = beam_angles_2d(l2)
+        self._directions3d = directions_3d(l3)  # sensor frame, same order as the cast
+        n = l3.num_points
+        r = self.config.robot
+        self.action_space = spaces.Box(
+            low=np.array([-r.max_linear, -r.max_angular], dtype=np.float32),
+            high=np.array([r.max_linear, r.max_angular], dtype=np.float32),
+            dtype=np.float32,
+        )
+        time_box = spaces.Box(low=np.float64(0.0), high=np.float64(MAX_TIME), shape=(1,), dtype=np.float64)
+        self.observation_space = spaces.Dict(
+            {
+                "odom": spaces.Box(
+                    low=np.array([-MAX_ODOM, -MAX_ODOM, -np.pi], dtype=np.float32),
+                    high=np.array([MAX_ODOM, MAX_ODOM, np.pi], dtype=np.float32),
+                    dtype=np.float32,
+                ),
+                "cloud": spaces.Box(np.float32(-l3.max_range), np.float32(l3.max_range), (n, 3), np.float32),
+                "cloud_mask": spaces.MultiBinary(n),
+                "scan": spaces.Box(np.float32(0.0), np.float32(l2.max_range), (l2.beams,), np.float32),
+                "time": time_box,
+                "cloud_time": time_box,
+                "scan_time": time_box,
+            }
+        )
+        self._time = 0.0
+        self._next_cloud = 0.0
+        self._next_scan = 0.0
+        self._cloud = np.zeros((n, 3), dtype=np.float32)
+        self._cloud_mask = np.zeros(n, dtype=np.int8)
+        self._labels = np.full(n, -1, dtype=np.int8)
+        self._scan = np.full(l2.beams, l2.max_range, dtype=np.float32)
+        self._cloud_time = 0.0
+        self._scan_time = 0.0
+        self._collided = False
+        self._fresh = (False, False)
+
+    # ------------------------------------------------------------------ set-up helpers
+    def _make_caster(self) -> RayCaster:
+        choice = self.config.ray_caster
+        if choice not in ("auto", "prism", "bullet"):
+            raise ValueError(f"ray_caster {choice!r}: expected 'auto', 'prism' or 'bullet'")
+        if choice == "prism" or (choice == "auto" and PrismRayCaster.supports(self.world)):
+            return PrismRayCaster(self.world)
+        return BulletRayCaster(self.scene.client, self.scene.body_classes)
+
+    def _clearance_maps(self) -> tuple[np.ndarray, np.ndarray]:
+        """Distance to anything the robot's body could touch, and the cells where a random start may be."""
+        grid = self.maps.occupancy.grid
+        body = grid.empty_mask()
+        solid = [SemanticClass.WALL, SemanticClass.CLUTTER]
+        for height in (0.05, 0.2, 0.35):
+            body |= self.world.footprint(grid, self.world.floor_z + height, classes=solid)
+        clearance = ndimage.distance_transform_edt(~body) * grid.resolution
+        radius = self.config.robot.footprint_radius
+        start = self.maps.occupancy.free & (clearance >= radius + self.config.start_clearance)
+        return clearance, np.argwhere(start)
+
+    def clearance_at(self, x: float, y: float) -> float:
+        """Distance (m) from (x, y) to the nearest obstacle at body height; 0 outside the map."""
+        rows, cols, valid = self.maps.occupancy.grid.cells_of(np.array([[x, y]]))
+        if not valid[0]:
+            return 0.0
+        return float(self._collision_clearance[rows[0], cols[0]])
+
+    def start_positions(self, spacing: float) -> np.ndarray:
+        """(x, y) of a square grid with ``spacing`` (m) over the cells where a random start may be."""
+        if spacing <= 0:
+            raise ValueError(f"grid spacing must be positive, got {spacing}")
+        grid = self.maps.occupancy.grid
+        allowed = grid.empty_mask()
+        allowed[tuple(self._start_cells.T)] = True
+        step = max(1, round(spacing / grid.resolution))
+        rows, cols = np.nonzero(allowed[::step, ::step])
+        x = grid.origin[0] + (cols * step + 0.5) * grid.resolution
+        y = grid.origin[1] + (rows * step + 0.5) * grid.resolution
+        return np.column_stack([x, y])
+
+    def _blocked(self, x: float, y: float) -> bool:
+        return self.clearance_at(x, y) < self.config.robot.footprint_radius
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = set(options) - RESET_OPTIONS
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: {sorted(RESET_OPTIONS)}")
+        if "pose" in options and "kidnap" in options:
+            raise ValueError("reset options 'pose' and 'kidnap' exclude each other")
+        kidnap = options.get("kidnap", False)
+        if kidnap is not False and kidnap is not None:
+            pose = self._random_pose() if kidnap is True else self._checked_pose(kidnap, "kidnap")
+            self.robot.teleport(pose)
+        else:
+            pose = (
+                self._checked_pose(options["pose"], "pose") if options.get("pose") is not None else self._random_pose()
+            )
+            self.robot.reset(pose, self.np_random)
+            self._time = 0.0
+            self._next_cloud = self._next_scan = 0.0
+        self._collided = False
+        self.scene.place_robot(self.robot.pose)
+        self._sense()
+        return self._observation(), self._info()
+
+    def step(self, action):
+        action = np.asarray(action, dtype=float)
+        if action.shape != (2,):
+            raise ValueError(f"action must have shape (2,) [linear m/s, angular rad/s], got shape {action.shape}")
+        if not np.all(np.isfinite(action)):
+            raise ValueError(f"action must be finite, got {action.tolist()}")
+        action = np.clip(action, self.action_space.low, self.action_space.high)
+        self._collided = self.robot.step(float(action[0]), float(action[1]), self.np_random, self._blocked)
+        self._time += self.config.robot.control_dt
+        self.scene.place_robot(self.robot.pose)
+        self._sense()
+        obs = self._observation()
+        info = self._info()
+        return obs, float(self._reward(info)), bool(self._terminated(info)), False, info
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        from pimm_env.envs.render import draw_top_down
+
+        return draw_top_down(self)
+
+    def close(self) -> None:
+        if getattr(self, "scene", None) is not None:
+            self.scene.close()
+
+    # ------------------------------------------------------------------ hooks for concrete envs
+    def _reward(self, info: dict[str, Any]) -> float:
+        return 0.0
+
+    def _terminated(self, info: dict[str, Any]) -> bool:
+        return False
+
+    # ------------------------------------------------------------------ internals
+    def _random_pose(self) -> np.ndarray:
+        if len(self._start_cells) == 0:
+            raise RuntimeError(f"world {self.world.name!r} has no free cell wide enough for the robot")
+        grid = self.maps.occupancy.grid
+        row, col = self._start_cells[self.np_random.integers(len(self._start_cells))]
+        jitter = self.np_random.uniform(-0.5, 0.5, size=2) * grid.resolution
+        x = grid.origin[0] + (col + 0.5) * grid.resolution + jitter[0]
+        y = grid.origin[1] + (row + 0.5) * grid.resolution + jitter[1]
+        return np.array([x, y, self.np_random.uniform(-np.pi, np.pi)])
+
+    def _checked_pose(self, pose: Any, name: str) -> np.ndarray:
+        try:
+            arr = np.asarray(pose, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ValueError(f"reset option {name!r} must be [x, y, theta], got {pose!r}") from None
+        if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+            raise ValueError(f"reset option {name!r} must be three finite numbers [x, y, theta], got {pose!r}")
+        x, y = arr[0], arr[1]
+        rows, cols, valid = self.maps.occupancy.grid.cells_of(arr[None, :2])
+        if not valid[0] or (not self.maps.occupancy.free[rows[0], cols[0]] and self.world.area_of(x, y) is None):
+            raise ValueError(f"reset option {name!r}: ({x:.2f}, {y:.2f}) is outside the map of {self.world.name!r}")
+        if self._blocked(x, y):
+            raise ValueError(
+                f"reset option {name!r}: ({x:.2f}, {y:.2f}) is inside an obstacle "
+                f"(clearance {self.clearance_at(x, y):.2f} m < robot radius {self.config.robot.footprint_radius} m)"
+            )
+        arr[2] = wrap_angle(arr[2])
+        return arr
+
+    def _sense(self) -> None:
+        """Take the scans that are due at the current time."""
+        l3, l2 = self.config.lidar3d, self.config.lidar2d
+        x, y, theta = self.robot.pose
+        fresh_cloud = fresh_scan = False
+        eps = 1e-9
+        if self._time + eps >= self._next_cloud:
+            origin = np.array([x, y, self.world.floor_z + l3.height])
+            ranges, labels = self.caster.cast(origin, self._azimuths3d + theta, self._elevations, l3.max_range)
+            ranges, labels = ranges.reshape(-1), labels.reshape(-1)
+            hit = np.isfinite(ranges)
+            noisy = noisy_ranges(
+                np.where(hit, ranges, 0) / l3.max_range, hit, l3.max_range, l3.min_range, l3.noise_std, self.np_random
+            )
+            returned = hit & (noisy < l3.max_range)
+            self._cloud = np.where(returned[:, None], self._directions3d * noisy[:, None], 0.0).astype(np.float32)
+            self._cloud_mask = returned.astype(np.int8)
+            self._labels = np.where(returned, labels, -1).astype(np.int8)
+            self._cloud_time = self._time
+            self._next_cloud = self._next_cloud + 1.0 / l3.rate_hz
+            fresh_cloud = True
+        if self._time + eps >= self._next_scan:
+            origin = np.array([x, y, self.world.floor_z + l2.height])
+            ranges, _ = self.caster.cast(origin, self._azimuths2d + theta, np.zeros(1), l2.max_range)
+            ranges = ranges.reshape(-1)
+            hit = np.isfinite(ranges)
+            scan = noisy_ranges(
+                np.where(hit, ranges, 0) / l2.max_range, hit, l2.max_range, l2.min_range, l2.noise_std, self.np_random
+            )
+            self._scan = scan.astype(np.float32)
+            self._scan_time = self._time
+            self._next_scan = self._next_scan + 1.0 / l2.rate_hz
+            fresh_scan = True
+        self._fresh = (fresh_cloud, fresh_scan)
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        odom = self.robot.odom
+        return {
+            "odom": np.array(
+                [
+                    np.clip(odom[0], -MAX_ODOM, MAX_ODOM),
+                    np.clip(odom[1], -MAX_ODOM, MAX_ODOM),
+                    np.clip(odom[2], -np.pi, np.pi),
+                ],
+                dtype=np.float32,
+            ),
+            "cloud": self._cloud.copy(),
+            "cloud_mask": self._cloud_mask.copy(),
+            "scan": self._scan.copy(),
+            "time": np.array([self._time]),
+            "cloud_time": np.array([self._cloud_time]),
+            "scan_time": np.array([self._scan_time]),
+        }
+
+    def _info(self) -> dict[str, Any]:
+        return {
+            "true_pose": self.robot.pose.copy(),
+            "labels": self._labels.copy(),
+            "collision": bool(self._collided),
+            "fresh_cloud": self._fresh[0],
+            "fresh_scan": self._fresh[1],
+            "area": self.world.area_of(*self.robot.pose[:2]),
+            "travelled": self.robot.travelled,
+        }
+
+    # ------------------------------------------------------------------ pickling
+    def __getstate__(self) -> dict[str, Any]:
+        dynamic = {
+            k: v
+            for k, v in self.__dict__.items()
+            if k.startswith("_")
+            and k
+            not in {
+                "_world_arg",
+                "_collision_clearance",
+                "_start_cells",
+                "_elevations",
+                "_azimuths3d",
+                "_azimuths2d",
+                "_directions3d",
+            }
+        }
+        return {
+            "world": self._world_arg,
+            "config": asdict(self.config),
+            "render_mode": self.render_mode,
+            "robot": self.robot.__dict__.copy(),
+            "dynamic": dynamic,
+        }
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        cfg = state["config"]
+        config = SimConfig(
+            robot=RobotConfig(**cfg["robot"]),
+            lidar3d=Lidar3DConfig(**cfg["lidar3d"]),
+            lidar2d=Lidar2DConfig(**cfg["lidar2d"]),
+            start_clearance=cfg["start_clearance"],
+            ray_caster=cfg["ray_caster"],
+        )
+        LidarRobotEnv.__init__(self, state["world"], config, state["render_mode"])
+        self.robot.__dict__.update(state["robot"])
+        self.__dict__.update(state["dynamic"])
+        self.scene.place_robot(self.robot.pose)

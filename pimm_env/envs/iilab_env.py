@@ -1,0 +1,84 @@
+"""The iiLab environment: the thesis's building, robot and sensors as a Gymnasium env."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pimm_env.envs.base_env import LidarRobotEnv, SimConfig
+from pimm_env.world.files import World
+
+
+class IILabEnv(LidarRobotEnv):
+    """
+    ## Description
+
+    A differential-drive robot with wheel encoders, a 3D LiDAR and a 2D LiDAR in the iiLab building
+    (thesis section 3.1): large hall A, corridor C and cluttered area B, with ceilings at 3.91, 7.91 and
+    3.01 m. The environment serves localization: it carries no task, and a localizer consumes its
+    observations while an evaluator compares the estimates with ``info["true_pose"]``.
+
+    ## Action Space
+
+    ``Box(2,)`` float32: linear velocity in [-1, 1] m/s and angular velocity in [-2, 2] rad/s, like a
+    ``cmd_vel`` Twist. Out-of-range actions are clipped; non-finite actions raise ``ValueError``.
+
+    ## Observation Space
+
+    | key          | shape        | dtype   | meaning                                                        |
+    |--------------|--------------|---------|----------------------------------------------------------------|
+    | `odom`       | (3,)         | float32 | wheel-odometry pose (x, y, theta) in the odometry frame        |
+    | `cloud`      | (14400, 3)   | float32 | 3D LiDAR points in the sensor frame (40 layers x 360), padded  |
+    | `cloud_mask` | (14400,)     | int8    | 1 where `cloud` holds a real return                            |
+    | `scan`       | (360,)       | float32 | 2D LiDAR ranges from -pi counter-clockwise, no return = 10 m   |
+    | `time`       | (1,)         | float64 | sim time of this observation (s)                               |
+    | `cloud_time` | (1,)         | float64 | sim time of the 3D scan carried in `cloud`                     |
+    | `scan_time`  | (1,)         | float64 | sim time of the 2D scan carried in `scan`                      |
+
+    Scans come at 10 Hz while the control step is 32 ms, so most observations repeat the last scan; a
+    localizer tells a fresh one by its time. Ground truth is never in the observation.
+
+    ## Rewards
+
+    None: the reward is always 0.0.
+
+    ## Starting State
+
+    A uniformly random free pose (at least 0.15 m more than the robot's radius from any obstacle), with
+    odometry at (0, 0, 0). ``options={"pose": [x, y, theta]}`` places the robot; a pose inside an obstacle
+    or outside the map raises ``ValueError``. ``options={"kidnap": True}`` (random free pose) or
+    ``options={"kidnap": [x, y, theta]}`` teleports the robot without resetting time, wheels or odometry.
+
+    ## Episode End
+
+    Terminates when the robot touches an obstacle (unless ``terminate_on_collision=False``); truncated by
+    the registered ``max_episode_steps`` (20 000 steps, 640 s).
+
+    ## Arguments
+
+    | argument                 | default   | meaning                                                         |
+    |--------------------------|-----------|-----------------------------------------------------------------|
+    | `world`                  | `"iilab"` | world name under `maps/`, a world file, or a `World`            |
+    | `config`                 | defaults  | `SimConfig`: robot, 3D/2D LiDAR settings, ray caster            |
+    | `render_mode`            | `None`    | `"rgb_array"`: top-down map, robot and current scans            |
+    | `terminate_on_collision` | `True`    | end the episode when the body touches an obstacle               |
+
+    `info` holds `true_pose` (map frame), `labels` (semantic class per cloud point, -1 for no return),
+    `collision`, `fresh_cloud`, `fresh_scan`, `area` (A, B, C or None) and `travelled` (m).
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    def __init__(
+        self,
+        world: str | World = "iilab",
+        config: SimConfig | None = None,
+        render_mode: str | None = None,
+        terminate_on_collision: bool = True,
+    ) -> None:
+        super().__init__(world=world, config=config, render_mode=render_mode)
+        self._terminate_on_collision = terminate_on_collision
+
+    def _terminated(self, info: dict[str, Any]) -> bool:
+        return self._terminate_on_collision and info["collision"]

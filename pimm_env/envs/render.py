@@ -1,0 +1,76 @@
+"""Top-down pictures: the occupancy map, the robot, its current scans and optional paths (numpy only)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pimm_env.mapping.occupancy import OccupancyGrid
+
+if TYPE_CHECKING:
+    from pimm_env.envs.base_env import LidarRobotEnv
+
+#: RGB per semantic class: wall, ceiling, floor, clutter.
+CLASS_COLORS = np.array([[200, 60, 40], [60, 140, 220], [150, 150, 150], [230, 170, 30]], dtype=np.uint8)
+
+
+def map_image(occupancy: OccupancyGrid) -> np.ndarray:
+    """RGB image of the map, north up: free white, occupied black, unknown grey."""
+    image = np.full((*occupancy.grid.shape, 3), 190, dtype=np.uint8)
+    image[occupancy.free] = 255
+    image[occupancy.occupied] = 0
+    return image
+
+
+def show_map(ax, world: str) -> None:
+    """Draw ``world``'s occupancy map on a matplotlib axis, in map coordinates (metres)."""
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.world.files import load_world
+
+    occupancy = load_derived_maps(load_world(world)).occupancy
+    g = occupancy.grid
+    x0, y0 = g.origin
+    extent = [x0, x0 + g.shape[1] * g.resolution, y0, y0 + g.shape[0] * g.resolution]
+    ax.imshow(map_image(occupancy), origin="lower", extent=extent)
+
+
+def plot_points(image: np.ndarray, occupancy: OccupancyGrid, xy: np.ndarray, color, size: int = 0) -> None:
+    """Paint map-frame points ``xy`` (N, 2) into a map image (in the grid's row order) in place."""
+    rows, cols, valid = occupancy.grid.cells_of(np.asarray(xy, dtype=float).reshape(-1, 2))
+    rows, cols = rows[valid], cols[valid]
+    for dr in range(-size, size + 1):
+        for dc in range(-size, size + 1):
+            r = np.clip(rows + dr, 0, image.shape[0] - 1)
+            c = np.clip(cols + dc, 0, image.shape[1] - 1)
+            image[r, c] = color
+
+
+def draw_robot(image: np.ndarray, occupancy: OccupancyGrid, pose: np.ndarray, radius: float, color) -> None:
+    angles = np.linspace(0, 2 * np.pi, 48)
+    disc = np.stack([pose[0] + radius * np.cos(angles), pose[1] + radius * np.sin(angles)], axis=1)
+    plot_points(image, occupancy, disc, color)
+    ray = pose[:2] + np.linspace(0, 2 * radius, 20)[:, None] * np.array([np.cos(pose[2]), np.sin(pose[2])])
+    plot_points(image, occupancy, ray, color)
+
+
+def draw_top_down(env: LidarRobotEnv) -> np.ndarray:
+    """The map with the 3D cloud coloured by class, the 2D scan in red and the robot in blue."""
+    occupancy = env.maps.occupancy
+    image = map_image(occupancy)
+    x, y, theta = env.robot.pose
+    c, s = np.cos(theta), np.sin(theta)
+    mask = env._cloud_mask.astype(bool)
+    points = env._cloud[mask]
+    labels = env._labels[mask]
+    world_xy = np.stack([x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]], axis=1)
+    for label, color in enumerate(CLASS_COLORS):
+        if label != 2:  # the floor would cover everything
+            plot_points(image, occupancy, world_xy[labels == label], color)
+    l2 = env.config.lidar2d
+    angles = env._azimuths2d + theta
+    hit = env._scan < l2.max_range
+    ends = np.stack([x + env._scan * np.cos(angles), y + env._scan * np.sin(angles)], axis=1)[hit]
+    plot_points(image, occupancy, ends, (255, 0, 0), size=1)
+    draw_robot(image, occupancy, env.robot.pose, env.config.robot.footprint_radius, (30, 60, 230))
+    return np.ascontiguousarray(np.flipud(image))

@@ -1,0 +1,31 @@
+"""SE(2) pose math shared by the simulator and the localizers: poses are (x, y, theta) in one frame."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def compose(origin: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """Poses (N, 3) given in the frame of ``origin`` (x, y, theta), expressed in the frame ``origin`` is in."""
+    poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+    c, s = np.cos(origin[2]), np.sin(origin[2])
+    x = origin[0] + c * poses[:, 0] - s * poses[:, 1]
+    y = origin[1] + s * poses[:, 0] + c * poses[:, 1]
+    return np.stack([x, y, wrap_angle(poses[:, 2] + origin[2])], axis=1)
+
+
+def relative_motion(previous: np.ndarray, current: np.ndarray) -> np.ndarray:
+    """``current`` expressed in the frame of ``previous`` (both (x, y, theta) in one frame)."""
+    c, s = np.cos(previous[2]), np.sin(previous[2])
+    dx, dy = current[0] - previous[0], current[1] - previous[1]
+    return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(current[2] - previous[2])])
+
+
+def carry(pose: np.ndarray, odom_then: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
+    """A map-frame pose known when the odometry read ``odom_then``, moved on by the odometry since."""
+    return compose(pose, relative_motion(odom_then, odom_now))[0]
+
+
+def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
+    """Angle in [-pi, pi)."""
+    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi

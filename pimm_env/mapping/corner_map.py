@@ -1,0 +1,141 @@
+"""The corner map: every place where two walls meet under a ceiling (thesis 3.1.2, "Feature Map").
+
+The thesis drew its ten corners by hand; here they are derived from the world. For each ceiling height,
+the walls are cut just below the ceiling on a fine grid, and every grid vertex where the four cells around
+it hold one odd cell out (three wall cells and a free one: an inside corner; one wall cell and three free:
+an outside corner) is a candidate. A candidate is kept when both wall faces run straight for at least
+``min_face`` metres (so wall ends at doorways do not count), the ceiling covers it, and it faces a named
+area. Its orientation is the thesis's: the bisector of the two wall directions seen from the corner.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from pimm_env.world.files import World
+from pimm_env.world.grid import GridSpec
+from pimm_env.world.semantics import SemanticClass
+
+FORMAT = "pimm-corners/1"
+
+
+@dataclass(frozen=True)
+class CornerMapConfig:
+    resolution: float = 0.05
+    below_ceiling: float = 0.10  # height below the ceiling's underside at which walls are cut
+    min_face: float = 0.30  # both faces must run straight this far from the corner
+    area_margin: float = 0.30  # how far outside a named area a corner may lie
+
+
+@dataclass(frozen=True)
+class CornerMap:
+    """Corners as arrays: ``xy`` (N, 2), ceiling height ``z`` (N,), orientation ``theta`` (N,) in radians."""
+
+    xy: np.ndarray
+    z: np.ndarray
+    theta: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.z)
+
+
+def derive_corner_map(world: World, config: CornerMapConfig | None = None) -> CornerMap:
+    config = config or CornerMapConfig()
+    grid = world.grid(config.resolution)
+    in_area = ndimage.distance_transform_edt(~world.area_mask(grid)) * grid.resolution <= config.area_margin
+    found: list[tuple[float, float, float, float]] = []
+    for height in world.ceiling_heights():
+        walls = world.footprint(grid, height - config.below_ceiling, classes=[SemanticClass.WALL])
+        ceiling = world.footprint(grid, height + 0.01, classes=[SemanticClass.CEILING])
+        for x, y, theta in _corners_of_mask(walls, ceiling & in_area, grid, config):
+            found.append((x, y, height, theta))
+    if not found:
+        return CornerMap(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
+    arr = np.array(found)
+    return CornerMap(arr[:, :2], arr[:, 2], arr[:, 3])
+
+
+def _corners_of_mask(
+    walls: np.ndarray, allowed: np.ndarray, grid: GridSpec, config: CornerMapConfig
+) -> list[tuple[float, float, float]]:
+    """Corner vertices of the wall mask: (x, y, theta) for each vertex with one odd cell out of four."""
+    n_face = max(1, round(config.min_face / grid.resolution))
+    quad = {  # quadrant (sx, sy) of each cell of the 2x2 block around vertex (r, c)
+        (-1, -1): walls[:-1, :-1],
+        (1, -1): walls[:-1, 1:],
+        (-1, 1): walls[1:, :-1],
+        (1, 1): walls[1:, 1:],
+    }
+    count = sum(q.astype(int) for q in quad.values())
+    corners = []
+    for (sx, sy), cell in quad.items():
+        # The odd cell is a wall among three free cells, or a free cell among three walls.
+        odd = np.argwhere(((count == 1) & cell) | ((count == 3) & ~cell))
+        for r0, c0 in odd:
+            r, c = r0 + 1, c0 + 1  # vertex index: cells r-1, r and c-1, c surround it
+            value = walls[r + (sy - 1) // 2, c + (sx - 1) // 2]
+            if not _faces_straight(walls, r, c, sx, sy, value, n_face):
+                continue
+            block = [(r + (qy - 1) // 2, c + (qx - 1) // 2) for qx, qy in quad]
+            if not any(allowed[i, j] and not walls[i, j] for i, j in block):
+                continue
+            x = grid.origin[0] + c * grid.resolution
+            y = grid.origin[1] + r * grid.resolution
+            corners.append((x, y, float(np.arctan2(sy, sx))))
+    return corners
+
+
+def _faces_straight(walls: np.ndarray, r: int, c: int, sx: int, sy: int, value: bool, n: int) -> bool:
+    """Both faces leave the vertex straight: along x, the odd cell's row keeps ``value`` and the other row
+    keeps its opposite for ``n`` cells; likewise along y."""
+    rows, cols = walls.shape
+    row_odd, row_other = r + (sy - 1) // 2, r + (-sy - 1) // 2
+    col_odd, col_other = c + (sx - 1) // 2, c + (-sx - 1) // 2
+    for k in range(n):
+        cx = col_odd + sx * k
+        ry = row_odd + sy * k
+        if not (0 <= cx < cols and 0 <= ry < rows and 0 <= row_other < rows and 0 <= col_other < cols):
+            return False
+        if walls[row_odd, cx] != value or walls[row_other, cx] == value:
+            return False
+        if walls[ry, col_odd] != value or walls[ry, col_other] == value:
+            return False
+    return True
+
+
+def save_corner_map(corners: CornerMap, path: Path, world_name: str, stamp: str) -> None:
+    lines = [
+        f"format: {FORMAT}",
+        f"world: {world_name}",
+        f"source: {stamp}",
+        "# x, y: the corner (m, map frame); z: the ceiling's underside (m); theta: orientation (deg),",
+        "# the bisector of the two wall directions as seen from the corner (thesis 3.3.3).",
+        "corners:",
+    ]
+    for (x, y), z, theta in zip(corners.xy, corners.z, corners.theta, strict=True):
+        lines.append(f"  - {{x: {x:.3f}, y: {y:.3f}, z: {z:.3f}, theta: {np.degrees(theta):.1f}}}")
+    if len(corners) == 0:
+        lines[-1] = "corners: []"
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+def load_corner_map(path: Path) -> CornerMap:
+    """Read a corner map; accepts this project's format and the thesis's ``features:`` list."""
+    import yaml
+
+    data = yaml.safe_load(Path(path).read_text())
+    if isinstance(data, dict) and "corners" in data:
+        rows = [(c["x"], c["y"], c.get("z", 0.0), c["theta"]) for c in data["corners"] or []]
+    elif isinstance(data, dict) and "features" in data:
+        rows = [
+            (f["position"]["x"], f["position"]["y"], f["position"].get("z", 0.0), f["orientation"]["theta"])
+            for f in data["features"]
+        ]
+    else:
+        raise ValueError(f"{path}: expected a 'corners' (or thesis 'features') list")
+    arr = np.array(rows, dtype=float).reshape(-1, 4)
+    return CornerMap(arr[:, :2], arr[:, 2], np.radians(arr[:, 3]))

@@ -1,0 +1,124 @@
+"""Occupancy grids: cut from a world at one height, and read or written in ROS map_server format."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from pimm_env.world.files import World
+from pimm_env.world.grid import GridSpec
+
+OCCUPIED, UNKNOWN, FREE = 0, 205, 254
+
+
+@dataclass(frozen=True)
+class OccupancyGrid:
+    """Occupied and free cells over ``grid``; cells that are neither are unknown."""
+
+    grid: GridSpec
+    occupied: np.ndarray
+    free: np.ndarray
+
+    def distance_to_occupied(self) -> np.ndarray:
+        """Metres from every cell centre to the nearest occupied cell centre."""
+        if not self.occupied.any():
+            return np.full(self.grid.shape, np.inf)
+        return ndimage.distance_transform_edt(~self.occupied) * self.grid.resolution
+
+
+def occupancy_from_world(world: World, resolution: float, height: float) -> OccupancyGrid:
+    """Cells occupied at ``height`` above the floor by elements flagged for the occupancy map."""
+    grid = world.grid(resolution)
+    occupied = world.footprint(grid, world.floor_z + height, occupancy_only=True)
+    free = world.area_mask(grid) & ~occupied
+    return OccupancyGrid(grid, occupied, free)
+
+
+def save_map_server(occupancy: OccupancyGrid, yaml_path: Path) -> None:
+    """Write ``<name>.pgm`` and ``<name>.yaml`` as ROS map_server reads them (trinary, not negated).
+
+    Free is 254, occupied 0 and unknown 205, with map_saver's thresholds, so that 205 reads back unknown.
+    """
+    yaml_path = Path(yaml_path)
+    image = np.full(occupancy.grid.shape, UNKNOWN, dtype=np.uint8)
+    image[occupancy.free] = FREE
+    image[occupancy.occupied] = OCCUPIED
+    pgm_path = yaml_path.with_suffix(".pgm")
+    rows, cols = image.shape
+    with pgm_path.open("wb") as handle:
+        handle.write(f"P5\n{cols} {rows}\n255\n".encode())
+        handle.write(np.flipud(image).tobytes())
+    ox, oy = occupancy.grid.origin
+    yaml_path.write_text(
+        f"image: {pgm_path.name}\nmode: trinary\nresolution: {occupancy.grid.resolution}\n"
+        f"origin: [{ox:.4f}, {oy:.4f}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+
+
+def read_pgm(path: Path) -> np.ndarray:
+    """Read a binary (P5) 8-bit PGM image, top row first."""
+    data = Path(path).read_bytes()
+    tokens: list[bytes] = []
+    pos = 0
+    while len(tokens) < 4:
+        while data[pos : pos + 1].isspace():
+            pos += 1
+        if data[pos : pos + 1] == b"#":
+            pos = data.index(b"\n", pos)
+            continue
+        end = pos
+        while not data[end : end + 1].isspace():
+            end += 1
+        tokens.append(data[pos:end])
+        pos = end
+    if tokens[0] != b"P5" or int(tokens[3]) > 255:
+        raise ValueError(f"{path}: expected an 8-bit binary PGM (P5), got header {tokens!r}")
+    cols, rows = int(tokens[1]), int(tokens[2])
+    pixels = np.frombuffer(data, dtype=np.uint8, count=rows * cols, offset=pos + 1)
+    return pixels.reshape(rows, cols)
+
+
+def load_map_server(yaml_path: Path) -> OccupancyGrid:
+    """Read a map_server map (``.yaml`` with its image), applying its thresholds and ``negate``."""
+    import yaml
+
+    yaml_path = Path(yaml_path)
+    meta = yaml.safe_load(yaml_path.read_text())
+    for key in ("image", "resolution", "origin", "occupied_thresh", "free_thresh"):
+        if key not in meta:
+            raise ValueError(f"{yaml_path}: missing field {key!r}")
+    image = np.flipud(read_pgm(yaml_path.parent / meta["image"])).astype(float)
+    occupancy_prob = image / 255.0 if meta.get("negate", 0) else (255.0 - image) / 255.0
+    occupied = occupancy_prob > float(meta["occupied_thresh"])
+    free = occupancy_prob < float(meta["free_thresh"])
+    grid = GridSpec((float(meta["origin"][0]), float(meta["origin"][1])), float(meta["resolution"]), image.shape)
+    return OccupancyGrid(grid, occupied, free)
+
+
+def resample_occupied(source: OccupancyGrid, target: GridSpec) -> np.ndarray:
+    """Occupied cells of ``source`` drawn onto the cells of ``target`` (any source pixel inside marks a cell)."""
+    gx, gy = source.grid.cell_centers()
+    points = np.stack([gx[source.occupied], gy[source.occupied]], axis=1)
+    rows, cols, valid = target.cells_of(points)
+    mask = target.empty_mask()
+    mask[rows[valid], cols[valid]] = True
+    return mask
+
+
+def tolerant_iou(a: np.ndarray, b: np.ndarray, tolerance_cells: int) -> float:
+    """IoU of two occupied masks on one grid, where a cell matches if the other mask is within tolerance.
+
+    Matched cells are those of ``a`` near ``b`` plus those of ``b`` near ``a``; the score is the share of
+    the union ``a | b`` they make up. With zero tolerance this is the plain IoU.
+    """
+    structure = ndimage.generate_binary_structure(2, 1)
+    near_a = ndimage.binary_dilation(a, structure, iterations=tolerance_cells) if tolerance_cells else a
+    near_b = ndimage.binary_dilation(b, structure, iterations=tolerance_cells) if tolerance_cells else b
+    union = a | b
+    if not union.any():
+        return 1.0
+    matched = (a & near_b) | (b & near_a)
+    return float(matched.sum() / union.sum())

@@ -1,0 +1,143 @@
+"""Ray casting for the LiDARs: pybullet's ``rayTestBatch`` for any world, and an exact fast path for
+worlds made only of vertical prisms (boxes with vertical sides and vertical cylinders).
+
+Every LiDAR ray of one scan leaves the same origin. A vertical plane through the origin at azimuth ``a``
+cuts each prism in a rectangle: the stretch ``[s_in, s_out]`` of horizontal distance where the 2D ray is
+inside the prism's footprint, times the prism's height range ``[z0, z1]``. A ray at elevation ``e`` is the
+line ``z = z_origin + s tan(e)`` in that plane, so its first hit is a closed-form test against a handful
+of rectangles per azimuth. This is about ten times faster than pybullet on the iilab (see
+``evaluate.py bench``) and gives the same ranges, which a test checks.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from pimm_env.sim.lidar import cast_rays
+from pimm_env.world.files import World
+from pimm_env.world.shapes import Box, Cylinder
+
+
+class RayCaster(Protocol):
+    def cast(
+        self, origin: np.ndarray, azimuths: np.ndarray, elevations: np.ndarray, max_range: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Range (``inf`` for no hit within ``max_range``) and semantic label (-1) of every ray, shape (E, A).
+
+        ``azimuths`` are in the map frame; rays are ordered elevation-major.
+        """
+        ...
+
+
+def _directions(azimuths: np.ndarray, elevations: np.ndarray) -> np.ndarray:
+    el, az = np.meshgrid(elevations, azimuths, indexing="ij")
+    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+
+
+class BulletRayCaster:
+    """Casts rays in a pybullet scene (any shapes, meshes included)."""
+
+    def __init__(self, client, body_classes: np.ndarray) -> None:
+        self.client = client
+        self.body_classes = body_classes
+
+    def cast(self, origin, azimuths, elevations, max_range):
+        dirs = _directions(azimuths, elevations).reshape(-1, 3)
+        origins = np.broadcast_to(origin, dirs.shape)
+        fractions, bodies = cast_rays(self.client, origins, origins + dirs * max_range)
+        hit = bodies >= 0
+        ranges = np.where(hit, fractions * max_range, np.inf)
+        labels = np.full(len(bodies), -1, dtype=np.int8)
+        labels[hit] = self.body_classes[bodies[hit]]
+        shape = (len(elevations), len(azimuths))
+        return ranges.reshape(shape), labels.reshape(shape)
+
+
+class PrismRayCaster:
+    """Exact ray casting against boxes with vertical sides and vertical cylinders, vectorized in numpy."""
+
+    def __init__(self, world: World) -> None:
+        boxes = [e for e in world.elements if isinstance(e.shape, Box)]
+        cylinders = [e for e in world.elements if isinstance(e.shape, Cylinder)]
+        if len(boxes) + len(cylinders) != len(world.elements):
+            raise ValueError(f"world {world.name!r} has shapes other than boxes and cylinders")
+        self.box_center = np.array([b.shape.center[:2] for b in boxes]).reshape(-1, 2)
+        self.box_half = np.array([b.shape.half_extents[:2] for b in boxes]).reshape(-1, 2)
+        yaw = np.array([b.shape.yaw for b in boxes])
+        self.box_cos, self.box_sin = np.cos(yaw), np.sin(yaw)
+        self.cyl_center = np.array([c.shape.center for c in cylinders]).reshape(-1, 2)
+        self.cyl_radius = np.array([c.shape.radius for c in cylinders])
+        self.z_range = np.array([e.shape.z_range for e in boxes + cylinders]).reshape(-1, 2)
+        self.labels = np.array([int(e.semantic) for e in boxes + cylinders], dtype=np.int8)
+
+    @staticmethod
+    def supports(world: World) -> bool:
+        return all(isinstance(e.shape, (Box, Cylinder)) for e in world.elements)
+
+    def _spans(self, origin_xy: np.ndarray, azimuths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Horizontal entry and exit distance of each azimuth's 2D ray through each footprint, (A, P)."""
+        ux, uy = np.cos(azimuths)[:, None], np.sin(azimuths)[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # Boxes: slab test in each box's own frame.
+            px = origin_xy[0] - self.box_center[:, 0]
+            py = origin_xy[1] - self.box_center[:, 1]
+            lx = self.box_cos * px + self.box_sin * py
+            ly = -self.box_sin * px + self.box_cos * py
+            dx = self.box_cos * ux + self.box_sin * uy
+            dy = -self.box_sin * ux + self.box_cos * uy
+            tx1, tx2 = (-self.box_half[:, 0] - lx) / dx, (self.box_half[:, 0] - lx) / dx
+            ty1, ty2 = (-self.box_half[:, 1] - ly) / dy, (self.box_half[:, 1] - ly) / dy
+            # A ray parallel to a slab is inside it for all s or for none.
+            inside_x = np.abs(lx) <= self.box_half[:, 0]
+            inside_y = np.abs(ly) <= self.box_half[:, 1]
+            tx_lo = np.where(dx == 0, np.where(inside_x, -np.inf, np.inf), np.minimum(tx1, tx2))
+            tx_hi = np.where(dx == 0, np.where(inside_x, np.inf, -np.inf), np.maximum(tx1, tx2))
+            ty_lo = np.where(dy == 0, np.where(inside_y, -np.inf, np.inf), np.minimum(ty1, ty2))
+            ty_hi = np.where(dy == 0, np.where(inside_y, np.inf, -np.inf), np.maximum(ty1, ty2))
+            box_in = np.maximum(tx_lo, ty_lo)
+            box_out = np.minimum(tx_hi, ty_hi)
+        # Cylinders: 2D ray against a circle.
+        fx = origin_xy[0] - self.cyl_center[:, 0]
+        fy = origin_xy[1] - self.cyl_center[:, 1]
+        b = fx * ux + fy * uy
+        disc = b * b - (fx * fx + fy * fy - self.cyl_radius**2)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        cyl_in = np.where(disc >= 0, -b - root, np.inf)
+        cyl_out = np.where(disc >= 0, -b + root, -np.inf)
+        s_in = np.concatenate([box_in, cyl_in], axis=1)
+        s_out = np.concatenate([box_out, cyl_out], axis=1)
+        return np.maximum(s_in, 0.0), s_out
+
+    def cast(self, origin, azimuths, elevations, max_range):
+        origin = np.asarray(origin, dtype=float)
+        s_in, s_out = self._spans(origin[:2], np.asarray(azimuths, dtype=float))
+        valid = (s_out >= s_in) & (s_in <= max_range)
+        k = max(1, int(valid.sum(axis=1).max()))
+        # Keep only the k candidate prisms of each azimuth (most prisms are behind or beside the ray).
+        order = np.argsort(~valid, axis=1, kind="stable")[:, :k]
+        s_in = np.take_along_axis(s_in, order, axis=1)[None]
+        s_out = np.take_along_axis(s_out, order, axis=1)[None]
+        ok = np.take_along_axis(valid, order, axis=1)[None]
+        s_in = np.where(ok, s_in, 0.0)  # padding columns: keep them finite, they are masked below
+        s_out = np.where(ok, s_out, -1.0)
+        z0 = self.z_range[order, 0][None]
+        z1 = self.z_range[order, 1][None]
+        slope = np.tan(np.asarray(elevations, dtype=float))[:, None, None]
+        z_at_entry = origin[2] + slope * s_in
+        side = (z_at_entry >= z0) & (z_at_entry <= z1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_bottom = (z0 - origin[2]) / slope  # rising ray meets the underside
+            s_top = (z1 - origin[2]) / slope  # falling ray meets the top
+        below = (slope > 0) & (z_at_entry < z0) & (s_bottom <= s_out)
+        above = (slope < 0) & (z_at_entry > z1) & (s_top <= s_out)
+        s_hit = np.where(side, s_in, np.where(below, s_bottom, np.where(above, s_top, np.inf)))
+        s_hit = np.where(ok, s_hit, np.inf)
+        nearest = np.argmin(s_hit, axis=2)
+        s_best = np.take_along_axis(s_hit, nearest[..., None], axis=2)[..., 0]
+        ranges = s_best / np.cos(np.asarray(elevations, dtype=float))[:, None]
+        hit = ranges <= max_range
+        prism = order[np.arange(order.shape[0])[None, :], nearest]
+        labels = np.where(hit, self.labels[prism], -1)
+        return np.where(hit, ranges, np.inf), labels.astype(np.int8)

@@ -1,0 +1,121 @@
+"""Worlds made of triangle meshes: an OBJ file plus rules that map object names to semantic classes.
+
+Mesh world file::
+
+    format: pimm-mesh-world/1
+    name: iilab-mesh
+    mesh: ../../../shared/data/iilab/iilab.obj   # relative to this file
+    up_axis: y                 # y: a vertex (x, y, z) of the file is the map point (x, -z, y); or z
+    floor_z: 0.30
+    rules:                     # first match wins; fnmatch patterns on the OBJ object names
+      - {match: "Cealing*", class: ceiling}
+      - {match: "Floor", class: floor}
+      - {match: "Wall*", class: wall}
+      - {match: "*", class: clutter}
+    occupancy: [wall, clutter] # classes drawn into the occupancy map
+    areas: {...}               # optional named polygons, as in a world file; default: the floor's outline
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from fnmatch import fnmatchcase
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pimm_env.world.model import Element, World, WorldFileError
+from pimm_env.world.reader import FieldReader
+from pimm_env.world.semantics import SemanticClass, parse_class
+from pimm_env.world.shapes import Mesh
+
+
+def read_obj(path: Path, up_axis: str = "z") -> dict[str, Mesh]:
+    """Objects of a Wavefront OBJ file as triangle meshes in the map frame (polygons are fanned)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"mesh file {path} does not exist")
+    vertices: list[tuple[float, float, float]] = []
+    faces: dict[str, list[list[int]]] = {}
+    current = "default"
+    for number, line in enumerate(path.read_text().splitlines(), start=1):
+        parts = line.split()
+        if not parts:
+            continue
+        try:
+            if parts[0] == "o" or parts[0] == "g":
+                current = " ".join(parts[1:]) or "default"
+            elif parts[0] == "v":
+                x, y, z = (float(v) for v in parts[1:4])
+                vertices.append((x, -z, y) if up_axis == "y" else (x, y, z))
+            elif parts[0] == "f":
+                idx = [int(token.split("/")[0]) for token in parts[1:]]
+                idx = [i - 1 if i > 0 else len(vertices) + i for i in idx]
+                faces.setdefault(current, []).extend([idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1))
+        except (ValueError, IndexError):
+            raise ValueError(f"{path}:{number}: cannot parse {line.strip()!r}") from None
+    all_vertices = np.array(vertices, dtype=float).reshape(-1, 3)
+    meshes: dict[str, Mesh] = {}
+    for name, tris in faces.items():
+        tri = np.array(tris, dtype=np.int64)
+        if tri.size and (tri.min() < 0 or tri.max() >= len(all_vertices)):
+            raise ValueError(f"{path}: object {name!r} refers to a vertex that does not exist")
+        used, local = np.unique(tri, return_inverse=True)
+        meshes[name] = Mesh(all_vertices[used], local.reshape(-1, 3))
+    return meshes
+
+
+def classify(name: str, rules: list[tuple[str, SemanticClass]]) -> SemanticClass | None:
+    for pattern, semantic in rules:
+        if fnmatchcase(name, pattern):
+            return semantic
+    return None
+
+
+def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
+    """Build a world from a parsed mesh world file (see the module docstring)."""
+    mesh_ref = data.get("mesh")
+    if not isinstance(mesh_ref, str):
+        raise WorldFileError(path, "mesh", f"expected the path of an OBJ file, got {mesh_ref!r}")
+    mesh_path = (Path(path).parent / mesh_ref).resolve()
+    if not mesh_path.is_file():
+        raise WorldFileError(path, "mesh", f"file {mesh_path} does not exist")
+    up_axis = data.get("up_axis", "z")
+    if up_axis not in ("y", "z"):
+        raise WorldFileError(path, "up_axis", f"expected 'y' or 'z', got {up_axis!r}")
+    raw_rules = data.get("rules")
+    if not isinstance(raw_rules, list) or not raw_rules:
+        raise WorldFileError(path, "rules", f"expected a list of {{match, class}}, got {raw_rules!r}")
+    rules = []
+    for i, rule in enumerate(raw_rules):
+        if not isinstance(rule, Mapping) or not isinstance(rule.get("match"), str):
+            raise WorldFileError(path, f"rules[{i}]", f"expected {{match: PATTERN, class: CLASS}}, got {rule!r}")
+        try:
+            rules.append((rule["match"], parse_class(str(rule.get("class")))))
+        except ValueError as exc:
+            raise WorldFileError(path, f"rules[{i}].class", str(exc)) from None
+    try:
+        occupancy_classes = {parse_class(c) for c in data.get("occupancy", ["wall", "clutter"])}
+    except ValueError as exc:
+        raise WorldFileError(path, "occupancy", str(exc)) from None
+    elements = []
+    for name, mesh in read_obj(mesh_path, up_axis).items():
+        semantic = classify(name, rules)
+        if semantic is None:
+            raise WorldFileError(path, "rules", f"no rule matches object {name!r} of {mesh_path.name}")
+        elements.append(Element(name, semantic, mesh, semantic in occupancy_classes))
+    floor_z = float(data.get("floor_z", 0.0))
+    areas_raw = data.get("areas")
+    if areas_raw:
+        reader = FieldReader(path)
+        areas = {str(k): reader.polygon(v, f"areas.{k}") for k, v in areas_raw.items()}
+    else:
+        floors = [e.shape.vertices[:, :2] for e in elements if e.semantic == SemanticClass.FLOOR]
+        if not floors:
+            raise WorldFileError(path, "areas", "no areas given and no floor object to take them from")
+        pts = np.concatenate(floors)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        areas = {"all": np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])}
+    name = data.get("name") or Path(path).parent.name
+    return World(name=str(name), elements=elements, areas=areas, floor_z=floor_z, source=Path(path))

@@ -1,0 +1,100 @@
+"""Typed access to the fields of a parsed world file, with errors that name the file and the field."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pimm_env.world.model import WorldFileError
+from pimm_env.world.shapes import Box, Cylinder, Shape
+
+
+class FieldReader:
+    """Typed field access that reports the file and field of any bad value."""
+
+    def __init__(self, path: Path | str) -> None:
+        self.path = path
+
+    def fail(self, field_name: str, message: str) -> WorldFileError:
+        return WorldFileError(self.path, field_name, message)
+
+    def string(self, data: Mapping[str, Any], key: str, where: str = "") -> str:
+        value = data.get(key)
+        if not isinstance(value, str) or not value:
+            raise self.fail(f"{where}.{key}" if where else key, f"expected a non-empty string, got {value!r}")
+        return value
+
+    def number(self, value: Any, field_name: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+            raise self.fail(field_name, f"expected a finite number, got {value!r}")
+        return float(value)
+
+    def vector(self, value: Any, n: int, field_name: str) -> tuple[float, ...]:
+        if not isinstance(value, Sequence) or isinstance(value, str) or len(value) != n:
+            raise self.fail(field_name, f"expected a list of {n} numbers, got {value!r}")
+        return tuple(self.number(v, f"{field_name}[{k}]") for k, v in enumerate(value))
+
+    def positive(self, value: Any, field_name: str) -> float:
+        number = self.number(value, field_name)
+        if number <= 0:
+            raise self.fail(field_name, f"expected a positive number, got {value!r}")
+        return number
+
+    def z_range(self, value: Any, field_name: str) -> tuple[float, float]:
+        z0, z1 = self.vector(value, 2, field_name)
+        if z1 <= z0:
+            raise self.fail(field_name, f"expected [bottom, top] with top > bottom, got {list(value)}")
+        return z0, z1
+
+    def polygon(self, value: Any, field_name: str) -> np.ndarray:
+        if not isinstance(value, Sequence) or len(value) < 3:
+            raise self.fail(field_name, f"expected a polygon of at least 3 [x, y] points, got {value!r}")
+        return np.array([self.vector(p, 2, f"{field_name}[{k}]") for k, p in enumerate(value)])
+
+    def shapes(self, kind: str, spec: Any, where: str) -> list[Shape]:
+        if not isinstance(spec, Mapping):
+            raise self.fail(where, f"expected a mapping, got {spec!r}")
+        if kind == "box":
+            return [self.box(spec, where)]
+        if kind == "cylinder":
+            center = self.vector(spec.get("center"), 2, f"{where}.center")
+            radius = self.positive(spec.get("radius"), f"{where}.radius")
+            return [Cylinder(center, radius, self.z_range(spec.get("z"), f"{where}.z"))]
+        return self.wall(spec, where)
+
+    def box(self, spec: Mapping[str, Any], where: str) -> Box:
+        if "min" in spec or "max" in spec:
+            lo = np.array(self.vector(spec.get("min"), 3, f"{where}.min"))
+            hi = np.array(self.vector(spec.get("max"), 3, f"{where}.max"))
+            if np.any(hi <= lo):
+                raise self.fail(f"{where}.max", f"must exceed min on every axis: min {lo.tolist()}, max {hi.tolist()}")
+            return Box(tuple((lo + hi) / 2), tuple((hi - lo) / 2))
+        center = self.vector(spec.get("center"), 3, f"{where}.center")
+        size = self.vector(spec.get("size"), 3, f"{where}.size")
+        if min(size) <= 0:
+            raise self.fail(f"{where}.size", f"expected positive sizes, got {list(size)}")
+        yaw = self.number(spec.get("yaw", 0.0), f"{where}.yaw")
+        return Box(center, tuple(s / 2 for s in size), yaw)
+
+    def wall(self, spec: Mapping[str, Any], where: str) -> list[Shape]:
+        path = spec.get("path")
+        if not isinstance(path, Sequence) or len(path) < 2:
+            raise self.fail(f"{where}.path", f"expected at least 2 [x, y] points, got {path!r}")
+        points = np.array([self.vector(p, 2, f"{where}.path[{k}]") for k, p in enumerate(path)])
+        thickness = self.positive(spec.get("thickness"), f"{where}.thickness")
+        z0, z1 = self.z_range(spec.get("z"), f"{where}.z")
+        boxes: list[Shape] = []
+        for k, (a, b) in enumerate(itertools.pairwise(points)):
+            length = float(np.linalg.norm(b - a))
+            if length == 0:
+                raise self.fail(f"{where}.path[{k + 1}]", f"repeats the previous point {a.tolist()}")
+            # Extend each segment by half the thickness so that consecutive segments close their corner.
+            mid = (a + b) / 2
+            yaw = float(np.arctan2(b[1] - a[1], b[0] - a[0]))
+            half = ((length + thickness) / 2, thickness / 2, (z1 - z0) / 2)
+            boxes.append(Box((float(mid[0]), float(mid[1]), (z0 + z1) / 2), half, yaw))
+        return boxes
