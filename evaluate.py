@@ -33,50 +33,33 @@ def _results_dir(out: Path, kind: str) -> Path:
 def main(ctx: typer.Context) -> None:
     """With no command: the main job, 3 trials of every scenario with every localizer on the default world."""
     if ctx.invoked_subcommand is None:
-        from pimm_agents import available_localizers
-
         run(
             scenarios=DEFAULT_SCENARIOS,
-            localizers=available_localizers(),
+            localizers=None,
             trials=3,
             seed=0,
             world="iilab",
             out=Path("results"),
             workers=0,
+            params=None,
             settings=[],
             json_out=False,
         )
 
 
-def _parse_settings(settings: list[str]) -> dict[str, float | int | bool | str]:
-    parsed: dict[str, float | int | bool | str] = {}
-    for item in settings:
-        key, sep, raw = item.partition("=")
-        if not sep or not key:
-            raise typer.BadParameter(f"expected KEY=VALUE, got {item!r}", param_hint="--set")
-        value: float | int | bool | str = raw
-        for cast in (int, float):
-            try:
-                value = cast(raw)
-                break
-            except ValueError:
-                continue
-        if raw in ("true", "false"):
-            value = raw == "true"
-        parsed[key] = value
-    return parsed
-
-
 @app.command()
 def run(
-    scenarios: list[str] = typer.Option(DEFAULT_SCENARIOS, "--scenarios", help="scenario names"),
-    localizers: list[str] = typer.Option(["amcl", "amcl-recovery"], "--localizers", help="localizer names"),
+    scenarios: list[str] | None = typer.Option(None, "--scenarios", help="scenario names (default: the world's)"),
+    localizers: list[str] | None = typer.Option(
+        None, "--localizers", help="names or module:factory (default: every registered one, or --params' sections)"
+    ),
     trials: int = typer.Option(10, min=1, help="trials per scenario and localizer (thesis: 10)"),
     seed: int = typer.Option(0, help="trial i uses seed + i for the simulation and the localizer"),
     world: str = typer.Option("iilab", help="world name or world file"),
     out: Path = typer.Option(Path("results"), help="where the timestamped results folder goes"),
     workers: int = typer.Option(0, help="worker processes (0: one per core)"),
-    settings: list[str] = typer.Option([], "--set", help="localizer setting KEY=VALUE, e.g. max_particles=500"),
+    params: Path | None = typer.Option(None, "--params", help="params file: one section per localizer name"),
+    settings: list[str] = typer.Option([], "--set", help="NAME.KEY=VALUE, e.g. amcl.max_particles=500"),
     json_out: bool = typer.Option(False, "--json", help="print the summary as one JSON object"),
 ) -> None:
     """Run localizers on scenarios, trials in parallel; print the thesis's tables and write logs and figures."""
@@ -85,32 +68,40 @@ def run(
 
     from tqdm import tqdm
 
-    from pimm_agents import available_localizers, make_localizer
     from pimm_agents.evaluation.report import format_tables, format_timings, write_results
     from pimm_agents.evaluation.trials import TrialSpec, run_trials
+    from pimm_agents.factory import available_localizers, check_name, resolved_params
+    from pimm_agents.params import ParamsError, merge_params, parse_settings, read_params_file, write_params_file
     from pimm_env.driving.scenarios import load_scenarios
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
-    available = load_scenarios(load_world(world).name)
+    loaded = load_world(world)
+    maps = ensure_derived_maps(loaded)
+    available = load_scenarios(loaded)
+    scenarios = scenarios or list(available)
     unknown = [s for s in scenarios if s not in available]
     if unknown:
         raise typer.BadParameter(
             f"unknown scenario(s) {unknown}; valid: {', '.join(available)}", param_hint="--scenarios"
         )
-    bad = [name for name in localizers if name not in available_localizers()]
-    if bad:
-        raise typer.BadParameter(
-            f"unknown localizer(s) {bad}; valid: {', '.join(available_localizers())}", param_hint="--localizers"
-        )
-    overrides = _parse_settings(settings)
-    configs = {}
-    for name in localizers:  # fail here, not in a worker, on a bad setting; and record the resolved config
+    try:
+        from_file = read_params_file(params) if params is not None else {}
+    except ParamsError as error:
+        raise typer.BadParameter(str(error), param_hint="--params") from None
+    localizers = localizers or list(from_file) or available_localizers()
+    for name in localizers:
         try:
-            configs[name] = getattr(make_localizer(name, world, **overrides), "config", None)
+            check_name(name)
         except ValueError as error:
-            raise typer.BadParameter(str(error), param_hint="--set") from None
+            raise typer.BadParameter(str(error), param_hint="--localizers") from None
+    try:
+        sections = merge_params(from_file, parse_settings(settings, localizers))
+        configs = {name: resolved_params(name, sections.get(name)) for name in localizers}
+    except ParamsError as error:  # fail here, not in a worker, on a bad setting
+        raise typer.BadParameter(str(error), param_hint="--params/--set") from None
     specs = [
-        TrialSpec(scenario, localizer, trial, seed + trial, world, overrides)
+        TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer])
         for scenario in scenarios
         for localizer in localizers
         for trial in range(trials)
@@ -120,23 +111,29 @@ def run(
     start = time.perf_counter()
     with tqdm(total=len(specs), desc="trials", unit="trial", disable=json_out) as bar:
         results = run_trials(specs, workers=min(workers, len(specs)), on_done=lambda _: bar.update())
-    config = {
+    write_params_file(folder / "config.yaml", configs)
+    run_record = {
         "world": world,
         "scenarios": scenarios,
-        "localizers": {name: repr(cfg) for name, cfg in configs.items()},
+        "localizers": localizers,
         "trials": trials,
         "seed": seed,
         "workers": workers,
-        "settings": overrides,
         "wall_s": round(time.perf_counter() - start, 1),
+        "repeat": "python evaluate.py run --params config.yaml --world {} --scenarios {} --trials {} --seed {}".format(
+            world, " ".join(scenarios), trials, seed
+        ),
     }
-    summary = write_results(folder, results, config, world)
+    summary = write_results(folder, results, run_record, maps.occupancy)
     if json_out:
         typer.echo(json.dumps({**summary, "folder": str(folder)}))
         return
     typer.echo(format_tables(summary))
     typer.echo(format_timings(summary))
-    typer.echo(f"\n{len(specs)} trials in {config['wall_s']} s; results: {folder}/ (summary.json, logs/, figures/)")
+    typer.echo(
+        f"\n{len(specs)} trials in {run_record['wall_s']} s; results: {folder}/ "
+        "(summary.json, config.yaml, run.json, logs/, figures/)"
+    )
 
 
 @app.command()
@@ -185,8 +182,12 @@ def rollout(
     from pimm_env.driving.plots import plot_rollouts
     from pimm_env.driving.rollout import run
     from pimm_env.driving.scenarios import load_scenarios
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
 
-    available = load_scenarios(world)
+    loaded = load_world(world)
+    occupancy = ensure_derived_maps(loaded).occupancy
+    available = load_scenarios(loaded)
     unknown = [s for s in scenarios if s not in available]
     if unknown:
         raise typer.BadParameter(
@@ -197,7 +198,7 @@ def rollout(
     for name in scenarios:
         if not json_out:
             typer.echo(f"rolling out {name} ...", err=True)
-        results.append(run(available[name], world=world, seed=seed))
+        results.append(run(available[name], world=loaded, seed=seed))
     summary = {
         r.scenario: {
             "length_m": round(r.length_m, 3),
@@ -216,7 +217,7 @@ def rollout(
         for r in results
     }
     (folder / "rollouts.json").write_text(json.dumps({"world": world, "seed": seed, "rollouts": summary}, indent=2))
-    picture = plot_rollouts(world, results, folder / "rollouts.png")
+    picture = plot_rollouts(occupancy, results, folder / "rollouts.png")
     if json_out:
         typer.echo(json.dumps({"world": world, "seed": seed, "rollouts": summary, "folder": str(folder)}))
         return
@@ -243,7 +244,10 @@ def bench(
 ) -> None:
     """Time each stage on this machine (medians, ms) and the real-time factor of an area_a rollout."""
     from pimm_agents.evaluation.benchmark import run_benchmarks
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
 
+    ensure_derived_maps(load_world("iilab"))
     figures = run_benchmarks(repeats=repeats)
     if json_out:
         typer.echo(json.dumps(figures))
@@ -265,10 +269,11 @@ def perception(
     from pimm_agents.evaluation.corner_quality import collect_scans
     from pimm_agents.evaluation.perception_quality import format_perception, perception_report
     from pimm_agents.perception.files import checkpoint_path, load_perception
-    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
     loaded = load_world(world)
+    maps = ensure_derived_maps(loaded)
     segmenter = fingerprints = None
     if checkpoint_path(loaded).exists():
         segmenter, fingerprints = load_perception(loaded)
@@ -278,7 +283,7 @@ def perception(
         )
     collected = collect_scans(world, scans, seed)
     result = perception_report(
-        collected, load_derived_maps(loaded).corners, segmenter, fingerprints, figure=figure, world=world
+        collected, maps.corners, segmenter, fingerprints, figure=figure, occupancy=maps.occupancy
     )
     typer.echo(json.dumps(result) if json_out else format_perception(result))
 

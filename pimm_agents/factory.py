@@ -1,79 +1,144 @@
-"""Build a localizer by name for a world: the one place that knows which localizers exist."""
+"""Build a localizer by name for a world: the one place that knows which localizers exist.
+
+Three kinds of names:
+- the built-in localizers (``pimm``, ``amcl`` and its variants), each a config dataclass plus a builder;
+- ``package.module:factory``, a user's factory called as ``factory(world=World, **params)``;
+- installed packages' factories, registered in the ``pimm.localizers`` entry-point group (same call).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import fields, replace
+import dataclasses
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from importlib.metadata import entry_points
 from typing import Any
 
 from pimm_agents.localizer import Localizer
-from pimm_env.sim.lidar import Lidar2DConfig
-from pimm_env.world.files import World, load_world
+from pimm_agents.params import Params, ParamsError, apply_params, config_to_params, merge_params
+from pimm_env.world.files import load_world
+from pimm_env.world.model import World
+
+ENTRY_POINT_GROUP = "pimm.localizers"
+PluginFactory = Callable[..., Localizer]
 
 
-def _amcl(world: World, overrides: dict[str, Any], name: str, preset: dict[str, Any]) -> Localizer:
-    from pimm_agents.amcl.localizer import Amcl, AmclConfig
+@dataclass(frozen=True)
+class BuiltIn:
+    """A built-in localizer: its default config (the thesis's or nav2's values) and how to build it."""
+
+    default_config: Callable[[], Any]
+    build: Callable[[World, Any, str], Localizer]
+
+
+def _amcl_config(preset: str) -> Callable[[], Any]:
+    def make() -> Any:
+        from pimm_agents.amcl.localizer import AMCL_RECOVERY, AMCL_RECOVERY_NAV2, AmclConfig
+
+        extra = {"amcl": {}, "amcl-recovery": AMCL_RECOVERY, "amcl-recovery-nav2": AMCL_RECOVERY_NAV2}[preset]
+        return dataclasses.replace(AmclConfig(), **extra)
+
+    return make
+
+
+def _build_amcl(world: World, config: Any, name: str) -> Localizer:
+    from pimm_agents.amcl.localizer import Amcl
     from pimm_env.mapping.derived_maps import load_derived_maps
 
-    config = _configured(AmclConfig(), {**preset, **overrides}, name)
-    lidar = overrides.get("lidar2d") or Lidar2DConfig()
-    return Amcl(load_derived_maps(world).occupancy, config, lidar, name=name)
+    return Amcl(load_derived_maps(world).occupancy, config, name=name)
 
 
-def _configured(config: Any, overrides: dict[str, Any], name: str) -> Any:
-    known = {f.name for f in fields(config)}
-    unknown = sorted(set(overrides) - known - {"lidar2d"})
-    if unknown:
-        raise ValueError(f"localizer {name!r} has no setting(s) {unknown}; valid: {', '.join(sorted(known))}")
-    return replace(config, **{k: v for k, v in overrides.items() if k in known})
+def _pimm_config() -> Any:
+    from pimm_agents.pimm.localizer import PimmConfig
+
+    return PimmConfig()
 
 
-def _pimm(world: World, overrides: dict[str, Any]) -> Localizer:
-    """Settings may name a field of PimmConfig or of its FeatureFilterConfig (``num_particles=2000``)."""
+def _build_pimm(world: World, config: Any, name: str) -> Localizer:
     from pimm_agents.perception.files import load_perception
-    from pimm_agents.pimm.feature_filter import FeatureFilterConfig
-    from pimm_agents.pimm.localizer import PimmConfig, PimmLocalizer
+    from pimm_agents.pimm.localizer import PimmLocalizer
     from pimm_env.mapping.derived_maps import load_derived_maps
 
-    filter_keys = {f.name for f in fields(FeatureFilterConfig)}
-    top_keys = {f.name for f in fields(PimmConfig)} - {"filter", "corners"}
-    unknown = sorted(set(overrides) - filter_keys - top_keys)
-    if unknown:
-        valid = ", ".join(sorted(filter_keys | top_keys))
-        raise ValueError(f"localizer 'pimm' has no setting(s) {unknown}; valid: {valid}")
-    filter_config = replace(FeatureFilterConfig(), **{k: v for k, v in overrides.items() if k in filter_keys})
-    config = replace(PimmConfig(filter=filter_config), **{k: v for k, v in overrides.items() if k in top_keys})
     maps = load_derived_maps(world)
     segmenter, fingerprints = load_perception(world)
-    return PimmLocalizer(maps.occupancy, maps.corners, segmenter, fingerprints, config)
+    return PimmLocalizer(maps.occupancy, maps.corners, segmenter, fingerprints, config, name=name)
 
 
-def _amcl_preset(name: str) -> dict[str, Any]:
-    from pimm_agents.amcl.localizer import AMCL_RECOVERY, AMCL_RECOVERY_NAV2
-
-    return {"amcl": {}, "amcl-recovery": AMCL_RECOVERY, "amcl-recovery-nav2": AMCL_RECOVERY_NAV2}[name]
-
-
-def _amcl_variant(name: str) -> Callable[[World, dict[str, Any]], Localizer]:
-    return lambda world, overrides: _amcl(world, overrides, name, _amcl_preset(name))
-
-
-LOCALIZERS: dict[str, Callable[[World, dict[str, Any]], Localizer]] = {
-    "pimm": _pimm,
-    **{name: _amcl_variant(name) for name in ("amcl", "amcl-recovery", "amcl-recovery-nav2")},
+BUILT_IN: dict[str, BuiltIn] = {
+    "pimm": BuiltIn(_pimm_config, _build_pimm),
+    **{name: BuiltIn(_amcl_config(name), _build_amcl) for name in ("amcl", "amcl-recovery", "amcl-recovery-nav2")},
 }
 
 
+def _installed() -> dict[str, Any]:
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name not in BUILT_IN}
+
+
 def available_localizers() -> list[str]:
-    return list(LOCALIZERS)
+    """Every registered name: the built-in localizers, then those of installed packages."""
+    return [*BUILT_IN, *sorted(_installed())]
 
 
-def make_localizer(name: str, world: str | World = "iilab", **overrides: Any) -> Localizer:
+def is_plugin_spec(name: str) -> bool:
+    return ":" in name
+
+
+def plugin_factory(name: str) -> PluginFactory:
+    """The factory behind ``module:attribute`` or an installed package's registered name."""
+    installed = _installed()
+    if name in installed:
+        return installed[name].load()
+    if not is_plugin_spec(name):
+        raise ValueError(f"unknown localizer {name!r}; valid: {', '.join(available_localizers())} or module:factory")
+    module_name, _, attribute = name.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as error:
+        raise ValueError(f"localizer {name!r}: cannot import module {module_name!r}: {error}") from None
+    factory = getattr(module, attribute, None)
+    if not callable(factory):
+        raise ValueError(f"localizer {name!r}: module {module_name!r} has no callable {attribute!r}")
+    return factory
+
+
+def check_name(name: str) -> None:
+    """Raise ``ValueError`` naming the valid localizers if ``name`` is none of them (imports a plugin's module)."""
+    if name not in BUILT_IN:
+        plugin_factory(name)
+
+
+def resolve_config(name: str, params: Mapping[str, Any] | None = None) -> Any:
+    """The config a built-in localizer would run with: its defaults with ``params`` applied."""
+    if name not in BUILT_IN:
+        raise ValueError(f"{name!r} is not a built-in localizer; built-in: {', '.join(BUILT_IN)}")
+    return apply_params(BUILT_IN[name].default_config(), dict(params or {}), name)
+
+
+def resolved_params(name: str, params: Mapping[str, Any] | None = None) -> Params:
+    """What a run's ``config.yaml`` records for ``name``: every field for a built-in, the given params otherwise."""
+    if name in BUILT_IN:
+        return config_to_params(resolve_config(name, params))
+    return dict(params or {})
+
+
+def make_localizer(
+    name: str, world: str | World = "iilab", params: Mapping[str, Any] | None = None, **overrides: Any
+) -> Localizer:
     """The localizer ``name`` for ``world`` (a name, a world file or a loaded world).
 
-    Keyword arguments override fields of the localizer's config object, e.g. ``max_particles=500``.
+    ``params`` is its params-file section; keyword arguments override fields on top of it, nested as the
+    config is (``max_particles=500``; ``corners={"planes": {"method": "open3d"}}`` for PIMM).
     """
-    if name not in LOCALIZERS:
-        raise ValueError(f"unknown localizer {name!r}; valid: {', '.join(LOCALIZERS)}")
     loaded = world if isinstance(world, World) else load_world(world)
-    return LOCALIZERS[name](loaded, overrides)
+    settings = merge_params(params or {}, overrides)
+    if name in BUILT_IN:
+        return BUILT_IN[name].build(loaded, resolve_config(name, settings), name)
+    localizer = plugin_factory(name)(world=loaded, **settings)
+    for attribute in ("update", "reset"):
+        if not callable(getattr(localizer, attribute, None)):
+            raise TypeError(f"localizer {name!r}: its factory returned {localizer!r}, which has no {attribute}()")
+    return localizer
+
+
+__all__ = ["ParamsError", "available_localizers", "make_localizer", "resolve_config", "resolved_params"]

@@ -37,12 +37,20 @@ class PoseEstimate:
 
 
 class Localizer(Protocol):
-    """Built from a world's maps and one config object; consumes the env's observations one at a time."""
+    """Built from a world's maps and one config object; consumes the env's observations one at a time.
+
+    ``sensors`` names the observation keys it reads (``odom``, ``scan``, ``cloud``): an evaluation switches
+    off a simulated LiDAR that no localizer reads.
+    """
 
     name: str
+    sensors: tuple[str, ...]
 
-    def reset(self, seed: int | None = None) -> None:
-        """Forget everything: the pose is unknown (global localization)."""
+    def reset(
+        self, seed: int | None = None, initial_pose: np.ndarray | None = None, initial_cov: np.ndarray | None = None
+    ) -> None:
+        """Forget everything. With no ``initial_pose`` the pose is unknown (global localization); with one, the
+        localizer starts from it with covariance ``initial_cov`` (None: nav2's 0.5 m, 0.5 m, pi/12 rad)."""
 
     def update(self, obs: Observation) -> PoseEstimate:
         """Consume one observation and return the current estimate."""

@@ -37,7 +37,7 @@ def test_registered_names_and_unknown_ones():
     assert {"amcl", "amcl-recovery", "amcl-recovery-nav2"} <= set(available_localizers())
     with pytest.raises(ValueError, match="valid: .*amcl-recovery"):
         make_localizer("nope")
-    with pytest.raises(ValueError, match="no setting"):
+    with pytest.raises(ValueError, match="unknown key .particles.; valid keys: .*max_particles"):
         make_localizer("amcl", particles=3)
 
 

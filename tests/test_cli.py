@@ -2,6 +2,7 @@ import json
 from pathlib import Path
 
 import pytest
+import yaml
 from typer.testing import CliRunner
 
 import evaluate
@@ -37,15 +38,19 @@ def test_run_rejects_unknown_names_and_settings(tmp_path):
     assert result.exit_code != 0 and "amcl-recovery" in result.output and "magic" in result.output
     result = runner.invoke(evaluate.app, ["run", "--scenarios", "moon", "--out", str(tmp_path)])
     assert result.exit_code != 0 and "a_c_b_kidnap" in result.output
-    result = runner.invoke(evaluate.app, ["run", "--set", "particles=5", "--out", str(tmp_path)])
+    result = runner.invoke(
+        evaluate.app, ["run", "--localizers", "amcl", "--set", "amcl.particles=5", "--out", str(tmp_path)]
+    )
     assert result.exit_code != 0 and "max_particles" in result.output
+    result = runner.invoke(evaluate.app, ["run", "--localizers", "amcl", "--set", "pimm.x=5", "--out", str(tmp_path)])
+    assert result.exit_code != 0 and "localizers: amcl" in result.output
     assert not list(tmp_path.iterdir())  # nothing written for a rejected run
 
 
 @pytest.mark.expensive
 def test_run_one_trial_end_to_end_then_score_its_log(tmp_path):
     args = ["run", "--scenarios", "area_b", "--localizers", "amcl", "--trials", "1", "--workers", "1"]
-    args += ["--set", "max_particles=500", "--set", "min_particles=100", "--out", str(tmp_path), "--json"]
+    args += ["--set", "amcl.max_particles=500", "--set", "amcl.min_particles=100", "--out", str(tmp_path), "--json"]
     result = CliRunner().invoke(evaluate.app, args)
     assert result.exit_code == 0, result.output
     data = json.loads(result.output.strip().splitlines()[-1])
@@ -57,7 +62,9 @@ def test_run_one_trial_end_to_end_then_score_its_log(tmp_path):
     assert set(row["timings_ms"]) >= {"sensor", "total"} and row["timings_ms"]["sensor"]["max"] > 0
     folder = Path(data["folder"])
     assert json.loads((folder / "summary.json").read_text())["scenarios"]["area_b"]["amcl"] == row
-    assert "max_particles=500" in (folder / "config.json").read_text()
+    config = yaml.safe_load((folder / "config.yaml").read_text())
+    assert config["amcl"]["max_particles"] == 500 and config["amcl"]["min_particles"] == 100
+    assert json.loads((folder / "run.json").read_text())["seed"] == 0
     logs = sorted((folder / "logs").glob("*.csv"))
     assert [p.name for p in logs] == ["area_b_amcl_trial00.csv"]
     assert len(list((folder / "figures").glob("*.png"))) >= 1

@@ -2,7 +2,14 @@ import numpy as np
 import pytest
 
 from pimm_env.mapping.corner_map import derive_corner_map, load_corner_map
-from pimm_env.mapping.derived_maps import build_derived_maps, corner_matches, fidelity_iou, load_derived_maps
+from pimm_env.mapping.derived_maps import (
+    StaleMapsError,
+    build_derived_maps,
+    corner_matches,
+    ensure_derived_maps,
+    fidelity_iou,
+    load_derived_maps,
+)
 from pimm_env.mapping.occupancy import load_map_server, occupancy_from_world, save_map_server, tolerant_iou
 from pimm_env.world.files import load_world
 
@@ -67,15 +74,20 @@ def test_no_ceiling_no_corner(room_file):
     assert len(derive_corner_map(load_world(room_file))) == 0
 
 
-def test_derived_maps_are_cached_and_rebuilt_when_the_world_changes(room_file):
-    world = load_world(room_file)
-    build_derived_maps(world)
+def test_derived_maps_are_read_only_and_rebuilt_by_the_ensure_step(room_file):
+    with pytest.raises(StaleMapsError, match="missing or older.*python -m pimm_env.mapping.derived_maps"):
+        load_derived_maps(load_world(room_file))
+    assert not (room_file.parent / "occupancy.pgm").exists(), "reading must never write"
+    build_derived_maps(load_world(room_file))
     assert (room_file.parent / "occupancy.pgm").is_file() and (room_file.parent / "corners.yaml").is_file()
     again = load_derived_maps(load_world(room_file))
     assert len(again.corners) == 4
     room_file.write_text(room_file.read_text().replace("max: [6.2, 4.0, 3.0]", "max: [6.2, 4.0, 2.0]"))
-    changed = load_derived_maps(load_world(room_file))
+    with pytest.raises(StaleMapsError):
+        load_derived_maps(load_world(room_file))
+    changed = ensure_derived_maps(load_world(room_file))
     assert len(changed.corners) == 2, "the east wall no longer reaches the ceiling"
+    assert len(load_derived_maps(load_world(room_file)).corners) == 2
 
 
 def test_iilab_occupancy_matches_the_thesis_map():

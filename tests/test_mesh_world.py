@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from pimm_env.envs.base_env import LidarRobotEnv
+from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.world.files import WorldFileError, load_world
 from pimm_env.world.mesh import read_obj
 from pimm_env.world.semantics import SemanticClass
@@ -58,6 +59,7 @@ def test_rules_assign_classes_and_the_env_runs_on_the_mesh(mesh_world_file):
     by_name = {e.name: e.semantic for e in world.elements}
     assert by_name["Cealing_main"] == SemanticClass.CEILING and by_name["Crate"] == SemanticClass.CLUTTER
     assert by_name["Floor"] == SemanticClass.FLOOR and by_name["Wall3"] == SemanticClass.WALL
+    ensure_derived_maps(world)
     env = LidarRobotEnv(world=world)
     try:
         _, info = env.reset(seed=0, options={"pose": [1.0, 1.0, 0.0]})

@@ -8,7 +8,7 @@ from pimm_env.envs.iilab_env import IILabEnv
 
 @pytest.fixture(scope="module")
 def pimm() -> PimmLocalizer:
-    localizer = make_localizer("pimm", num_particles=2000)
+    localizer = make_localizer("pimm", filter={"num_particles": 2000})
     assert isinstance(localizer, PimmLocalizer)
     return localizer
 
@@ -42,8 +42,10 @@ def test_pimm_survives_scans_with_no_returns(pimm):
 
 
 def test_unknown_pimm_setting_lists_the_valid_ones():
-    with pytest.raises(ValueError, match="num_particles"):
+    with pytest.raises(ValueError, match="pimm: unknown key 'particles'; valid keys: corners, filter"):
         make_localizer("pimm", particles=10)
+    with pytest.raises(ValueError, match="pimm.filter: unknown key 'particles'; valid keys: .*num_particles"):
+        make_localizer("pimm", filter={"particles": 10})
 
 
 def test_reset_returns_to_a_uniform_cloud(pimm):

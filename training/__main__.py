@@ -20,6 +20,14 @@ app = typer.Typer(add_completion=False, help=__doc__)
 DATA_DIR = Path("build/datasets")
 
 
+def _prepare(world: str) -> None:
+    """Build the world's derived maps if missing or stale: the simulator only reads them."""
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    ensure_derived_maps(load_world(world))
+
+
 def _dataset_paths(world: str) -> tuple[Path, Path]:
     from pimm_env.world.files import load_world
 
@@ -37,6 +45,7 @@ def dataset(
     """Labelled scans at random free poses, and a validation set from poses drawn with another seed."""
     from training.dataset import VALIDATION_SEED_OFFSET, generate, save
 
+    _prepare(world)
     main_path, val_path = _dataset_paths(world)
     save(generate(world, scans, seed), main_path)
     save(generate(world, validation, seed + VALIDATION_SEED_OFFSET), val_path)
@@ -125,6 +134,7 @@ def fingerprints(
     from pimm_agents.perception.segmenter import Segmenter
     from training.fingerprints import build_fingerprint_map
 
+    _prepare(world)
     fmap = build_fingerprint_map(world, Segmenter(checkpoint_path(world)), spacing, seed)
     target = fingerprint_path(world)
     fmap.save(target, {"spacing_m": str(spacing), "seed": str(seed)})

@@ -16,6 +16,7 @@ import numpy as np
 from pimm_agents.amcl.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.localizer import Observation, PoseEstimate, require
 from pimm_agents.particles.free_space import FreeSpace
+from pimm_agents.particles.initial_pose import gaussian_poses
 from pimm_agents.particles.kld import bin_keys, kld_sample_count
 from pimm_agents.particles.motion_model import odometry_delta, sample_differential
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
@@ -128,16 +129,7 @@ class Amcl:
         if initial_pose is None:
             self.particles = self.free_space.sample(n, self.rng)
         else:
-            mean = np.asarray(initial_pose, dtype=float)
-            cov = np.diag([0.25, 0.25, (np.pi / 12) ** 2]) if initial_cov is None else np.asarray(initial_cov, float)
-            if (
-                mean.shape != (3,)
-                or cov.shape != (3, 3)
-                or not (np.all(np.isfinite(mean)) and np.all(np.isfinite(cov)))
-            ):
-                raise ValueError(f"initial pose must be 3 finite numbers and its covariance 3 x 3: {mean}, {cov}")
-            self.particles = self.rng.multivariate_normal(mean, cov, n)
-            self.particles[:, 2] = wrap_angle(self.particles[:, 2])
+            self.particles = gaussian_poses(initial_pose, initial_cov, n, self.rng)
         self.weights = np.full(n, 1.0 / n)
         self.w_slow = self.w_fast = 0.0
         self._updates = 0
@@ -157,7 +149,7 @@ class Amcl:
         if scan_time != self._last_scan_time:
             self._last_scan_time = scan_time
             if self._odom_at_update is None:
-                self._filter(odom, scan, None, timings)
+                self.filter_update(odom, scan, None, timings)
             else:
                 d = odom - self._odom_at_update
                 dtheta = abs(float(wrap_angle(d[2])))
@@ -166,19 +158,21 @@ class Amcl:
                     or abs(d[1]) > self.config.update_min_d
                     or (dtheta > self.config.update_min_a)
                 ):
-                    self._filter(odom, scan, odometry_delta(self._odom_at_update, odom), timings)
+                    self.filter_update(odom, scan, odometry_delta(self._odom_at_update, odom), timings)
         self._estimate = self._report(odom, stamp, timings)
         return self._estimate
 
     # ------------------------------------------------------------------ the filter
-    def _filter(
+    def filter_update(
         self, odom: np.ndarray, scan: np.ndarray, delta: tuple[float, float, float] | None, timings: dict[str, float]
     ) -> None:
+        """One filter step at a fresh scan: motion by ``delta`` (None: none), measurement, resampling every
+        ``resample_interval`` steps, and the heaviest cluster's pose; stage times (ms) go into ``timings``."""
         start = time.perf_counter()
         if delta is not None:
             self.particles = sample_differential(self.particles, delta, self.config.alphas, self.rng)
         moved = time.perf_counter()
-        self._sensor_update(scan)
+        self.measurement_update(scan)
         sensed = time.perf_counter()
         self._updates += 1
         if self._updates % self.config.resample_interval == 0:
@@ -195,7 +189,9 @@ class Amcl:
             total=1000 * (done - start),
         )
 
-    def _sensor_update(self, scan: np.ndarray) -> None:
+    def measurement_update(self, scan: np.ndarray) -> None:
+        """Weigh the particles by the likelihood field of ``scan`` (all its beams, the configured subset used)
+        and update the recovery averages."""
         ranges = scan[self._beams]
         usable = np.isfinite(ranges) & (ranges >= self.lidar.min_range) & (ranges < self.lidar.max_range)
         factors = self.field.weight_factors(self.particles, ranges[usable], self._bearings[usable])

@@ -24,6 +24,7 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     from pimm_env.driving.scenarios import get_scenario
     from pimm_env.envs.base_env import SimConfig
     from pimm_env.envs.iilab_env import IILabEnv
+    from pimm_env.sim.lidar import azimuths_3d, elevations_3d
     from pimm_env.sim.raycast import BulletRayCaster, PrismRayCaster
 
     figures: dict[str, float] = {}
@@ -44,11 +45,10 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     origin = np.array([-10.0, 4.2, env.world.floor_z + l3.height])
     prism = PrismRayCaster(env.world)
     bullet = BulletRayCaster(env.scene.client, env.scene.body_classes)
-    figures["lidar3d_prism_ms"] = median_ms(
-        lambda: prism.cast(origin, env._azimuths3d, env._elevations, l3.max_range), repeats
-    )
+    azimuths, elevations = azimuths_3d(l3), elevations_3d(l3)
+    figures["lidar3d_prism_ms"] = median_ms(lambda: prism.cast(origin, azimuths, elevations, l3.max_range), repeats)
     figures["lidar3d_bullet_ms"] = median_ms(
-        lambda: bullet.cast(origin, env._azimuths3d, env._elevations, l3.max_range), max(3, repeats // 5)
+        lambda: bullet.cast(origin, azimuths, elevations, l3.max_range), max(3, repeats // 5)
     )
     env.close()
     config = replace(SimConfig(), lidar3d=replace(SimConfig().lidar3d, rate_hz=10.0))
@@ -143,14 +143,14 @@ def amcl_benchmarks(repeats: int) -> dict[str, float]:
     assert isinstance(amcl, Amcl)
     amcl.reset(seed=0)
     scan = np.asarray(obs["scan"], dtype=float)
-    figures = {"amcl_update_ms": median_ms(lambda: amcl._sensor_update(scan), repeats)}
+    figures = {"amcl_update_ms": median_ms(lambda: amcl.measurement_update(scan), repeats)}
     assert amcl.particle_count == amcl.config.max_particles == 2000
 
     particles, weights = amcl.particles.copy(), amcl.weights.copy()
 
     def whole_update() -> None:
         amcl.particles, amcl.weights = particles.copy(), weights.copy()
-        amcl._filter(np.zeros(3), scan, (0.0, 0.3, 0.0), {})
+        amcl.filter_update(np.zeros(3), scan, (0.0, 0.3, 0.0), {})
 
     figures["amcl_filter_update_ms"] = median_ms(whole_update, max(5, repeats // 3))
     return figures

@@ -9,6 +9,7 @@ import numpy as np
 from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, detect_corners
 from pimm_env.geometry import compose, wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
+from pimm_env.world.model import World
 from pimm_env.world.semantics import SemanticClass
 
 
@@ -141,13 +142,12 @@ class FreshScan:
         return self.cloud[self.mask], chosen[self.mask], self.pose, self.seen
 
 
-def collect_scans(world: str, count: int, seed: int) -> list[FreshScan]:
+def collect_scans(world: str | World, count: int, seed: int) -> list[FreshScan]:
     """``count`` scans at random free poses (seeded), with true labels and the visible map corners."""
     from pimm_env.envs.iilab_env import IILabEnv
-    from pimm_env.mapping.derived_maps import load_derived_maps
 
     env = IILabEnv(world=world)
-    corners = load_derived_maps(env.world).corners
+    corners = env.maps.corners
     l3 = env.config.lidar3d
     half_fov = np.radians(l3.vertical_fov_deg) / 2
     scans = []

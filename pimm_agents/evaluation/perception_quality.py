@@ -13,6 +13,7 @@ from pimm_agents.evaluation.corner_quality import FreshScan, corner_stats
 from pimm_agents.perception.fingerprint_map import FingerprintMap, Retrieval
 from pimm_agents.perception.segmenter import Segmenter
 from pimm_env.mapping.corner_map import CornerMap
+from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.semantics import CLASS_NAMES
 
 #: Thesis table 3.2 (segmentation) and table 3.4 (retrieval, on its own training scans, k = 5).
@@ -94,10 +95,10 @@ def perception_report(
     segmenter: Segmenter | None = None,
     fingerprints: FingerprintMap | None = None,
     figure: Path | None = None,
-    world: str = "iilab",
+    occupancy: OccupancyGrid | None = None,
 ) -> dict[str, Any]:
     """The ``evaluate.py perception`` JSON; parts whose component is missing are left out. With ``figure``,
-    also a picture of the retrievals on the map and of the segmentation's confusion matrix."""
+    also a picture of the retrievals on ``occupancy`` and of the segmentation's confusion matrix."""
     report: dict[str, Any] = {
         "corners": {"true_labels": _corner_dict(corner_stats([s.corner_input() for s in scans], corners))}
     }
@@ -123,13 +124,13 @@ def perception_report(
             )
             for area in sorted(set(areas) - {""})
         }
-    if figure is not None:
-        plot_perception(world, confusion, retrievals, truths, figure)
+    if figure is not None and occupancy is not None:
+        plot_perception(occupancy, confusion, retrievals, truths, figure)
     return report
 
 
 def plot_perception(
-    world: str, confusion: np.ndarray, retrievals: list[Retrieval], truths: np.ndarray, path: Path
+    occupancy: OccupancyGrid, confusion: np.ndarray, retrievals: list[Retrieval], truths: np.ndarray, path: Path
 ) -> Path:
     """Left: each query's true position joined to its nearest retrieved one (green within 2 m, red beyond).
     Right: the confusion matrix, each row normalized to the true class's returns."""
@@ -141,7 +142,7 @@ def plot_perception(
     from pimm_env.envs.render import show_map
 
     fig, (ax_map, ax_conf) = plt.subplots(1, 2, figsize=(15, 5.5), gridspec_kw={"width_ratios": [1.6, 1]})
-    show_map(ax_map, world)
+    show_map(ax_map, occupancy)
     for retrieval, truth in zip(retrievals, truths, strict=True):
         errors = np.linalg.norm(retrieval.positions - truth[:2], axis=1)
         best = retrieval.positions[int(np.argmin(errors))]

@@ -2,24 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 from pimm_agents.evaluation.trial_log import TrialLog
-
-
-class _Estimate(Protocol):
-    pose: np.ndarray
-    covariance: np.ndarray
-    stamp: float
-    timings: dict[str, float]
-
-
-class _Localizer(Protocol):
-    def reset(self, seed: int | None = None) -> None: ...
-    def update(self, obs: dict[str, np.ndarray]) -> _Estimate: ...
+from pimm_agents.localizer import Localizer
 
 
 class LocalizationRecorder(gym.Wrapper):
@@ -30,7 +19,7 @@ class LocalizationRecorder(gym.Wrapper):
     latest estimate. ``trial_log()`` returns what was recorded since the last full reset.
     """
 
-    def __init__(self, env: gym.Env, localizer: _Localizer) -> None:
+    def __init__(self, env: gym.Env, localizer: Localizer) -> None:
         super().__init__(env)
         self.localizer = localizer
         self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = []

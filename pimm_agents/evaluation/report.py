@@ -5,19 +5,19 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from pimm_agents.evaluation.metrics import (
-    TrialMetrics,
     angle_errors_deg,
     best_and_worst,
     position_errors,
     summarize,
     timing_summary,
 )
-from pimm_agents.evaluation.trial_log import TrialLog
+from pimm_agents.evaluation.trials import TrialResult
+from pimm_env.mapping.occupancy import OccupancyGrid
 
 #: Thesis tables 4.2-4.5: convergence rate, mean convergence time (s), position (m) and angle (deg) error.
 THESIS_RESULTS: dict[str, dict[str, tuple[float, float | None, float | None, float | None]]] = {
@@ -28,17 +28,9 @@ THESIS_RESULTS: dict[str, dict[str, tuple[float, float | None, float | None, flo
 }
 
 
-class _Trial(Protocol):
-    @property
-    def spec(self) -> Any: ...
-
-    log: TrialLog
-    metrics: TrialMetrics
-
-
-def summary_of(results: Sequence[_Trial]) -> dict[str, Any]:
+def summary_of(results: Sequence[TrialResult]) -> dict[str, Any]:
     """``{"scenarios": {scenario: {localizer: {...}}}}`` in the schema of ARCHITECTURE.md."""
-    groups: dict[tuple[str, str], list[_Trial]] = {}
+    groups: dict[tuple[str, str], list[TrialResult]] = {}
     for result in results:
         groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
     scenarios: dict[str, dict[str, Any]] = {}
@@ -102,18 +94,21 @@ def format_timings(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def write_results(folder: Path, results: Sequence[_Trial], config: dict[str, Any], world: str) -> dict[str, Any]:
-    """summary.json, config.json, one CSV per trial and the best/worst figures; returns the summary."""
+def write_results(
+    folder: Path, results: Sequence[TrialResult], run_record: dict[str, Any], occupancy: OccupancyGrid
+) -> dict[str, Any]:
+    """summary.json, run.json (what was run: world, scenarios, seeds), one CSV per trial and the best/worst
+    figures on ``occupancy``; returns the summary."""
     folder = Path(folder)
     summary = summary_of(results)
     (folder / "summary.json").write_text(json.dumps(summary, indent=2))
-    (folder / "config.json").write_text(json.dumps(config, indent=2, default=str))
+    (folder / "run.json").write_text(json.dumps(run_record, indent=2))
     logs = folder / "logs"
     logs.mkdir(exist_ok=True)
     for result in results:
         s = result.spec
         result.log.write_csv(logs / f"{s.scenario}_{s.localizer}_trial{s.trial:02d}.csv")
-    groups: dict[tuple[str, str], list[_Trial]] = {}
+    groups: dict[tuple[str, str], list[TrialResult]] = {}
     for result in results:
         groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
     figures = folder / "figures"
@@ -122,11 +117,11 @@ def write_results(folder: Path, results: Sequence[_Trial], config: dict[str, Any
         best, worst = best_and_worst([t.metrics for t in trials])
         for label, index in (("best", best), ("worst", worst)):
             if index is not None:
-                plot_trial(world, trials[index], figures / f"{scenario}_{localizer}_{label}.png", label)
+                plot_trial(occupancy, trials[index], figures / f"{scenario}_{localizer}_{label}.png", label)
     return summary
 
 
-def plot_trial(world: str, trial: _Trial, path: Path, label: str) -> Path:
+def plot_trial(occupancy: OccupancyGrid, trial: TrialResult, path: Path, label: str) -> Path:
     """Trajectories on the map (true and estimated) and position/angle error over time, as thesis fig. 4.2."""
     import matplotlib
 
@@ -138,7 +133,7 @@ def plot_trial(world: str, trial: _Trial, path: Path, label: str) -> Path:
 
     log = trial.log
     fig, (ax_map, ax_err) = plt.subplots(1, 2, figsize=(14, 5), gridspec_kw={"width_ratios": [1.4, 1]})
-    show_map(ax_map, world)
+    show_map(ax_map, occupancy)
     true_xy = log.true[:, :2]
     if log.kidnap_index is not None:  # no line across the teleport
         true_xy = np.insert(true_xy, log.kidnap_index, np.nan, axis=0)

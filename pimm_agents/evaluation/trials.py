@@ -20,7 +20,7 @@ class TrialSpec:
     trial: int
     seed: int
     world: str = "iilab"
-    overrides: dict[str, Any] = field(default_factory=dict)
+    params: dict[str, Any] = field(default_factory=dict)  # the localizer's params-file section
 
 
 @dataclass
@@ -40,27 +40,23 @@ def run_trial(spec: TrialSpec) -> TrialResult:
     from pimm_env.driving.scenarios import get_scenario
     from pimm_env.envs.base_env import SimConfig
     from pimm_env.envs.iilab_env import IILabEnv
+    from pimm_env.world.files import load_world
 
     start = time.perf_counter()
-    scenario = get_scenario(spec.scenario, _world_name(spec.world))
-    localizer = make_localizer(spec.localizer, spec.world, **spec.overrides)
+    world = load_world(spec.world)  # read once, passed to everything below
+    scenario = get_scenario(spec.scenario, world)
+    localizer = make_localizer(spec.localizer, world, params=spec.params)
     config = SimConfig()
     if "cloud" not in getattr(localizer, "sensors", ("cloud",)):  # nobody reads it: do not cast 14 400 rays
         config = replace(config, lidar3d=replace(config.lidar3d, rate_hz=1e-6))
-    env = LocalizationRecorder(IILabEnv(world=spec.world, config=config, terminate_on_collision=False), localizer)
+    env = LocalizationRecorder(IILabEnv(world=world, config=config, terminate_on_collision=False), localizer)
     try:
-        rollout = run(scenario, world=spec.world, seed=spec.seed, env=env)
+        rollout = run(scenario, seed=spec.seed, env=env)
         log = env.trial_log()
     finally:
         env.close()
     metrics = trial_metrics(log.after_kidnap() if scenario.kidnap_to is not None else log)
     return TrialResult(spec, log, metrics, time.perf_counter() - start, rollout.completed)
-
-
-def _world_name(world: str) -> str:
-    from pimm_env.world.files import load_world
-
-    return load_world(world).name
 
 
 def _limit_threads(threads: int) -> None:

@@ -6,8 +6,7 @@ from pathlib import Path
 
 from pimm_agents.perception.fingerprint_map import FingerprintConfig, FingerprintMap
 from pimm_agents.perception.segmenter import Segmenter
-from pimm_env.mapping.derived_maps import maps_dir_of
-from pimm_env.world.files import World, load_world
+from pimm_env.world.files import World, load_world, world_dir
 
 
 def _world(world: str | World) -> World:
@@ -15,11 +14,11 @@ def _world(world: str | World) -> World:
 
 
 def checkpoint_path(world: str | World) -> Path:
-    return maps_dir_of(_world(world)) / "pointnet.pt"
+    return world_dir(_world(world)) / "pointnet.pt"
 
 
 def fingerprint_path(world: str | World) -> Path:
-    return maps_dir_of(_world(world)) / "fingerprints.npz"
+    return world_dir(_world(world)) / "fingerprints.npz"
 
 
 def load_perception(

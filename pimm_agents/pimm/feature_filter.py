@@ -12,6 +12,7 @@ import numpy as np
 
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.particles.free_space import FreeSpace
+from pimm_agents.particles.initial_pose import gaussian_poses
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
 from pimm_env.geometry import relative_motion, wrap_angle
@@ -80,10 +81,16 @@ class FeatureFilter:
         self._odom_ref: np.ndarray | None = None
 
     # ------------------------------------------------------------------ life cycle
-    def reset(self, rng: np.random.Generator) -> None:
-        """Particles uniform over free space with equal weights; forget the odometry reference."""
+    def reset(
+        self, rng: np.random.Generator, initial_pose: np.ndarray | None = None, initial_cov: np.ndarray | None = None
+    ) -> None:
+        """Particles uniform over free space (or about ``initial_pose``) with equal weights; forget the odometry
+        reference."""
         self.rng = rng
-        self.particles = self.free_space.sample(self.config.num_particles, rng)
+        n = self.config.num_particles
+        self.particles = self.free_space.sample(n, rng) if initial_pose is None else gaussian_poses(
+            initial_pose, initial_cov, n, rng
+        )
         self.weights = np.full(self.config.num_particles, 1.0 / self.config.num_particles)
         self.ess = float(self.config.num_particles)
         self._odom_ref = None

@@ -130,9 +130,12 @@ class PimmLocalizer:
         directions = directions_3d(Lidar3DConfig(layers=layers, points_per_layer=per_layer)).astype(np.float32)
         self.perceive(5.0 * directions, np.ones(len(directions), dtype=bool), 0.0, {})
 
-    def reset(self, seed: int | None = None) -> None:
+    def reset(
+        self, seed: int | None = None, initial_pose: np.ndarray | None = None, initial_cov: np.ndarray | None = None
+    ) -> None:
+        """Forget everything: global localization, or particles about ``initial_pose`` (nav2's covariance)."""
         self.rng = np.random.default_rng(seed)
-        self.filter.reset(self.rng)
+        self.filter.reset(self.rng, initial_pose, initial_cov)
         self.history.clear()
         self._features = np.zeros((0, 5))
         self._features_stamp = 0.0

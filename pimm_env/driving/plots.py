@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 
 from pimm_env.driving.rollout import RolloutResult
+from pimm_env.mapping.occupancy import OccupancyGrid
 
 
-def plot_rollouts(world: str, results: Sequence[RolloutResult], path: Path) -> Path:
+def plot_rollouts(occupancy: OccupancyGrid, results: Sequence[RolloutResult], path: Path) -> Path:
     """Top-down picture of each rollout's true path and its odometry, one panel per scenario."""
     import matplotlib
 
@@ -22,7 +23,7 @@ def plot_rollouts(world: str, results: Sequence[RolloutResult], path: Path) -> P
     n = max(1, len(results))
     fig, axes = plt.subplots(1, n, figsize=(7 * n, 5), squeeze=False)
     for ax, result in zip(axes[0], results, strict=False):
-        show_map(ax, world)
+        show_map(ax, occupancy)
         ax.plot(result.true_path[:, 0], result.true_path[:, 1], "-", color="tab:green", lw=1.5, label="true path")
         if np.isfinite(result.final_drift_m):
             ax.plot(result.odom_path[:, 0], result.odom_path[:, 1], "--", color="tab:red", lw=1.0, label="odometry")

@@ -13,6 +13,7 @@ from pimm_env.driving.controller import PurePursuit, PursuitConfig
 from pimm_env.driving.scenarios import Scenario
 from pimm_env.envs.base_env import LidarRobotEnv, SimConfig
 from pimm_env.geometry import compose
+from pimm_env.world.model import World
 
 StepCallback = Callable[[dict[str, np.ndarray], dict[str, Any]], None]
 
@@ -69,7 +70,7 @@ def drive(
 
 def run(
     scenario: Scenario,
-    world: str = "iilab",
+    world: str | World = "iilab",
     seed: int = 0,
     lidar3d: bool = True,
     on_step: StepCallback | None = None,
@@ -99,7 +100,7 @@ def run(
             completed, collided, more_true, more_odom = drive(env, scenario.waypoints, scenario.speed, on_step)
             true_poses += more_true
             odoms += more_odom
-        duration = float(env.unwrapped._time)
+        duration = float(env.unwrapped.sim_time)
         travelled = float(env.unwrapped.robot.travelled)
     finally:
         if own_env:

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pimm_env.world.files import MAPS_DIR
+from pimm_env.world.files import resolve_world_path, world_dir
+from pimm_env.world.model import World
 
 
 @dataclass(frozen=True)
@@ -27,12 +28,19 @@ class Scenario:
         return float(np.linalg.norm(np.diff(self.waypoints, axis=0), axis=1).sum())
 
 
-def load_scenarios(world: str = "iilab", path: Path | None = None) -> dict[str, Scenario]:
+def scenarios_path(world: str | World) -> Path:
+    """``scenarios.yaml`` beside the world file of ``world`` (a name, a world file or a loaded world)."""
+    folder = world_dir(world) if isinstance(world, World) else resolve_world_path(world).parent
+    return folder / "scenarios.yaml"
+
+
+def load_scenarios(world: str | World = "iilab", path: Path | None = None) -> dict[str, Scenario]:
     import yaml
 
-    path = Path(path or MAPS_DIR / world / "scenarios.yaml")
+    path = Path(path or scenarios_path(world))
     if not path.is_file():
-        raise FileNotFoundError(f"world {world!r} has no scenarios file {path}")
+        name = world.name if isinstance(world, World) else world
+        raise FileNotFoundError(f"world {name!r} has no scenarios file {path}")
     raw = yaml.safe_load(path.read_text()).get("scenarios") or {}
     out: dict[str, Scenario] = {}
     for name, spec in raw.items():
@@ -52,7 +60,7 @@ def load_scenarios(world: str = "iilab", path: Path | None = None) -> dict[str, 
     return out
 
 
-def get_scenario(name: str, world: str = "iilab") -> Scenario:
+def get_scenario(name: str, world: str | World = "iilab") -> Scenario:
     scenarios = load_scenarios(world)
     if name not in scenarios:
         raise ValueError(f"unknown scenario {name!r}; valid: {', '.join(scenarios)}")

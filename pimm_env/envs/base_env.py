@@ -15,7 +15,15 @@ from scipy import ndimage
 
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.derived_maps import DerivedMaps, load_derived_maps
-from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig, beam_angles_2d, directions_3d, noisy_ranges
+from pimm_env.sim.lidar import (
+    Lidar2DConfig,
+    Lidar3DConfig,
+    azimuths_3d,
+    beam_angles_2d,
+    directions_3d,
+    elevations_3d,
+    noisy_ranges,
+)
 from pimm_env.sim.raycast import BulletRayCaster, PrismRayCaster, RayCaster
 from pimm_env.sim.robot import DiffDriveRobot, RobotConfig
 from pimm_env.sim.scene import BulletScene
@@ -61,9 +69,8 @@ class LidarRobotEnv(gym.Env):
         self.robot = DiffDriveRobot(self.config.robot)
 
         l3, l2 = self.config.lidar3d, self.config.lidar2d
-        half = np.radians(l3.vertical_fov_deg) / 2
-        self._elevations = np.linspace(-half, half, l3.layers)
-        self._azimuths3d = -np.pi + 2 * np.pi * np.arange(l3.points_per_layer) / l3.points_per_layer
+        self._elevations = elevations_3d(l3)
+        self._azimuths3d = azimuths_3d(l3)
         self._azimuths2d = beam_angles_2d(l2)
         self._directions3d = directions_3d(l3)  # sensor frame, same order as the cast
         n = l3.num_points
@@ -142,6 +149,11 @@ class LidarRobotEnv(gym.Env):
         y = grid.origin[1] + (rows * step + 0.5) * grid.resolution
         return np.column_stack([x, y])
 
+    @property
+    def sim_time(self) -> float:
+        """Simulated time since the last full reset (s); a kidnap does not reset it."""
+        return self._time
+
     def _blocked(self, x: float, y: float) -> bool:
         return self.clearance_at(x, y) < self.config.robot.footprint_radius
 
@@ -190,7 +202,16 @@ class LidarRobotEnv(gym.Env):
             return None
         from pimm_env.envs.render import draw_top_down
 
-        return draw_top_down(self)
+        return draw_top_down(
+            self.maps.occupancy,
+            self.robot.pose,
+            self._cloud,
+            self._labels,
+            self._scan,
+            self._azimuths2d,
+            self.config.lidar2d.max_range,
+            self.config.robot.footprint_radius,
+        )
 
     def close(self) -> None:
         if getattr(self, "scene", None) is not None:

@@ -2,14 +2,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from pimm_env.mapping.occupancy import OccupancyGrid
-
-if TYPE_CHECKING:
-    from pimm_env.envs.base_env import LidarRobotEnv
 
 #: RGB per semantic class: wall, ceiling, floor, clutter.
 CLASS_COLORS = np.array([[200, 60, 40], [60, 140, 220], [150, 150, 150], [230, 170, 30]], dtype=np.uint8)
@@ -23,12 +18,8 @@ def map_image(occupancy: OccupancyGrid) -> np.ndarray:
     return image
 
 
-def show_map(ax, world: str) -> None:
-    """Draw ``world``'s occupancy map on a matplotlib axis, in map coordinates (metres)."""
-    from pimm_env.mapping.derived_maps import load_derived_maps
-    from pimm_env.world.files import load_world
-
-    occupancy = load_derived_maps(load_world(world)).occupancy
+def show_map(ax, occupancy: OccupancyGrid) -> None:
+    """Draw an occupancy map on a matplotlib axis, in map coordinates (metres)."""
     g = occupancy.grid
     x0, y0 = g.origin
     extent = [x0, x0 + g.shape[1] * g.resolution, y0, y0 + g.shape[0] * g.resolution]
@@ -54,23 +45,30 @@ def draw_robot(image: np.ndarray, occupancy: OccupancyGrid, pose: np.ndarray, ra
     plot_points(image, occupancy, ray, color)
 
 
-def draw_top_down(env: LidarRobotEnv) -> np.ndarray:
-    """The map with the 3D cloud coloured by class, the 2D scan in red and the robot in blue."""
-    occupancy = env.maps.occupancy
+def draw_top_down(
+    occupancy: OccupancyGrid,
+    pose: np.ndarray,
+    cloud: np.ndarray,
+    labels: np.ndarray,
+    scan: np.ndarray,
+    scan_angles: np.ndarray,
+    scan_max_range: float,
+    robot_radius: float,
+) -> np.ndarray:
+    """The map with the 3D cloud (sensor frame, ``labels`` -1 where no return) coloured by class, the 2D scan
+    (ranges at ``scan_angles`` in the robot frame) in red and the robot at ``pose`` in blue."""
     image = map_image(occupancy)
-    x, y, theta = env.robot.pose
+    x, y, theta = pose
     c, s = np.cos(theta), np.sin(theta)
-    mask = env._cloud_mask.astype(bool)
-    points = env._cloud[mask]
-    labels = env._labels[mask]
+    returned = labels >= 0
+    points, classes = cloud[returned], labels[returned]
     world_xy = np.stack([x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]], axis=1)
     for label, color in enumerate(CLASS_COLORS):
         if label != 2:  # the floor would cover everything
-            plot_points(image, occupancy, world_xy[labels == label], color)
-    l2 = env.config.lidar2d
-    angles = env._azimuths2d + theta
-    hit = env._scan < l2.max_range
-    ends = np.stack([x + env._scan * np.cos(angles), y + env._scan * np.sin(angles)], axis=1)[hit]
+            plot_points(image, occupancy, world_xy[classes == label], color)
+    angles = scan_angles + theta
+    hit = scan < scan_max_range
+    ends = np.stack([x + scan * np.cos(angles), y + scan * np.sin(angles)], axis=1)[hit]
     plot_points(image, occupancy, ends, (255, 0, 0), size=1)
-    draw_robot(image, occupancy, env.robot.pose, env.config.robot.footprint_radius, (30, 60, 230))
+    draw_robot(image, occupancy, pose, robot_radius, (30, 60, 230))
     return np.ascontiguousarray(np.flipud(image))

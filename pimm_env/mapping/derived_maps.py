@@ -1,7 +1,9 @@
-"""Maps derived from a world, cached next to it: occupancy grid and corner map.
+"""Maps derived from a world, stored next to it: occupancy grid and corner map.
 
-Rebuild them with ``python -m pimm_env.mapping.derived_maps iilab`` (or ``make maps``). Each map records a hash
-of the world file and of the settings that made it; a stale map is rebuilt when it is next loaded.
+Each map records a hash of the world file and of the settings that made it. Reading them
+(:func:`load_derived_maps`, what the env and the localizers do) never writes: missing or stale maps are an
+error that says how to rebuild them. The commands that prepare a world call :func:`ensure_derived_maps`, and
+``python -m pimm_env.mapping.derived_maps iilab`` (``make maps``) rebuilds them by hand.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from pimm_env.mapping.occupancy import (
     save_map_server,
     tolerant_iou,
 )
-from pimm_env.world.files import MAPS_DIR, World, load_world
+from pimm_env.world.files import World, load_world, world_dir
 
 OCCUPANCY_RESOLUTION = 0.05
 #: Height of the 2D LiDAR above the floor; the occupancy grid is cut there.
@@ -45,15 +47,9 @@ def _stamp(world: World) -> str:
     return digest.hexdigest()[:16]
 
 
-def maps_dir_of(world: World) -> Path:
-    if world.source is not None:
-        return Path(world.source).resolve().parent
-    return MAPS_DIR / world.name
-
-
 def build_derived_maps(world: World, out_dir: Path | None = None) -> DerivedMaps:
     """Derive and write ``occupancy.{pgm,yaml}`` and ``corners.yaml`` for ``world``."""
-    out_dir = Path(out_dir or maps_dir_of(world))
+    out_dir = Path(out_dir or world_dir(world))
     out_dir.mkdir(parents=True, exist_ok=True)
     occupancy = occupancy_from_world(world, OCCUPANCY_RESOLUTION, SCAN_HEIGHT)
     corners = derive_corner_map(world)
@@ -65,20 +61,44 @@ def build_derived_maps(world: World, out_dir: Path | None = None) -> DerivedMaps
     return DerivedMaps(occupancy, corners)
 
 
-def load_derived_maps(world: World) -> DerivedMaps:
-    """The cached maps of ``world``, rebuilt first if missing or made from another version of it."""
-    out_dir = maps_dir_of(world)
-    occ_yaml, corners_yaml = out_dir / "occupancy.yaml", out_dir / "corners.yaml"
+class StaleMapsError(FileNotFoundError):
+    """A world's derived maps are missing or were made from another version of the world."""
+
+
+def _paths(world: World) -> tuple[Path, Path]:
+    out_dir = world_dir(world)
+    return out_dir / "occupancy.yaml", out_dir / "corners.yaml"
+
+
+def maps_are_fresh(world: World) -> bool:
+    """Whether both derived maps exist and were made from this version of the world file and settings."""
+    occ_yaml, corners_yaml = _paths(world)
     stamp = _stamp(world)
-    fresh = (
+    return (
         occ_yaml.is_file()
         and corners_yaml.is_file()
         and f"pimm source: {stamp}" in occ_yaml.read_text()
         and f"source: {stamp}" in corners_yaml.read_text()
     )
-    if not fresh:
-        return build_derived_maps(world, out_dir)
+
+
+def load_derived_maps(world: World) -> DerivedMaps:
+    """The stored maps of ``world``; never writes. Missing or stale maps raise :class:`StaleMapsError`."""
+    occ_yaml, corners_yaml = _paths(world)
+    if not maps_are_fresh(world):
+        source = world.source or world.name
+        raise StaleMapsError(
+            f"the derived maps of world {world.name!r} in {occ_yaml.parent} are missing or older than {source}; "
+            f"rebuild them with `python -m pimm_env.mapping.derived_maps {source}` (or `make maps`)"
+        )
     return DerivedMaps(load_map_server(occ_yaml), load_corner_map(corners_yaml))
+
+
+def ensure_derived_maps(world: World) -> DerivedMaps:
+    """The maps of ``world``, built and written first if missing or stale: the one step that writes them."""
+    if not maps_are_fresh(world):
+        return build_derived_maps(world)
+    return load_derived_maps(world)
 
 
 def fidelity_iou(ours: OccupancyGrid, reference: OccupancyGrid, tolerance: float = 0.1, band: float = 0.3) -> float:
@@ -128,7 +148,7 @@ def main(argv: list[str] | None = None) -> None:
         print(
             f"{world.name}: occupancy {occ.grid.shape[1]}x{occ.grid.shape[0]} cells at {occ.grid.resolution} m "
             f"({occ.occupied.sum()} occupied, {occ.free.sum()} free), {len(maps.corners)} corners "
-            f"-> {maps_dir_of(world)}"
+            f"-> {world_dir(world)}"
         )
 
 

@@ -40,12 +40,20 @@ class Lidar2DConfig:
     height: float = 0.30  # above the floor; the occupancy grid is cut at this height
 
 
+def elevations_3d(config: Lidar3DConfig) -> np.ndarray:
+    """Elevation of each layer (rad), lowest first, evenly over the vertical field of view."""
+    half = np.radians(config.vertical_fov_deg) / 2
+    return np.linspace(-half, half, config.layers)
+
+
+def azimuths_3d(config: Lidar3DConfig) -> np.ndarray:
+    """Azimuth of each point of a layer (rad) in the sensor frame, from -pi counter-clockwise."""
+    return -np.pi + 2 * np.pi * np.arange(config.points_per_layer) / config.points_per_layer
+
+
 def directions_3d(config: Lidar3DConfig) -> np.ndarray:
     """Unit ray directions in the sensor frame, (layers * points, 3), layer by layer from the lowest."""
-    half = np.radians(config.vertical_fov_deg) / 2
-    elevation = np.linspace(-half, half, config.layers)
-    azimuth = -np.pi + 2 * np.pi * np.arange(config.points_per_layer) / config.points_per_layer
-    el, az = np.meshgrid(elevation, azimuth, indexing="ij")
+    el, az = np.meshgrid(elevations_3d(config), azimuths_3d(config), indexing="ij")
     return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1).reshape(-1, 3)
 
 

@@ -51,6 +51,13 @@ def resolve_world_path(world: str | Path) -> Path:
     raise FileNotFoundError(f"unknown world {str(world)!r}: no file {named}; known worlds: {', '.join(known)}")
 
 
+def world_dir(world: World) -> Path:
+    """The folder of a world's files: its world file's folder, or ``maps/<name>`` for a world built in code."""
+    if world.source is not None:
+        return Path(world.source).resolve().parent
+    return MAPS_DIR / world.name
+
+
 def load_world(world: str | Path) -> World:
     """Load a world by name or path; dispatches to the mesh loader for ``format: pimm-mesh-world/1``."""
     import yaml

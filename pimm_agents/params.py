@@ -1,0 +1,165 @@
+"""Localizer settings as data: a params file in the spirit of nav2's, one section per localizer name.
+
+A params file (YAML)::
+
+    amcl:
+      max_particles: 500
+    pimm:
+      filter: {num_particles: 5000}
+      corners:
+        planes: {method: open3d}
+
+Each section is nested as the localizer's config dataclass is. :func:`apply_params` sets those fields on a
+config object, refusing an unknown key with the valid keys at that level; :func:`config_to_params` writes a
+config back in the same form, so a run's ``config.yaml`` read back gives the very same configs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+Params = dict[str, Any]
+
+
+class ParamsError(ValueError):
+    """A params file or setting names an unknown key or has a value of the wrong type."""
+
+
+def config_to_params(config: Any) -> Params:
+    """A config dataclass as nested plain data (dicts, lists, Python numbers and strings)."""
+    return {f.name: _plain(getattr(config, f.name)) for f in dataclasses.fields(config)}
+
+
+def _plain(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return config_to_params(value)
+    if isinstance(value, (tuple, list)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def apply_params(config: Any, params: Mapping[str, Any], where: str) -> Any:
+    """``config`` with the fields named in ``params`` replaced; nested dataclasses take nested mappings.
+
+    ``where`` names the section in errors (``pimm.corners``).
+    """
+    if not isinstance(params, Mapping):
+        raise ParamsError(f"{where}: expected a mapping of settings, got {params!r}")
+    fields = {f.name: f for f in dataclasses.fields(config)}
+    changes: dict[str, Any] = {}
+    for key, value in params.items():
+        if key not in fields:
+            raise ParamsError(f"{where}: unknown key {key!r}; valid keys: {', '.join(sorted(fields))}")
+        current = getattr(config, key)
+        if dataclasses.is_dataclass(current):
+            changes[key] = apply_params(current, value, f"{where}.{key}")
+        else:
+            changes[key] = _coerce(value, current, f"{where}.{key}")
+    try:
+        return dataclasses.replace(config, **changes)
+    except (ValueError, TypeError) as error:
+        raise ParamsError(f"{where}: {error}") from None
+
+
+def _coerce(value: Any, current: Any, where: str) -> Any:
+    """``value`` as the type of the field's current value; a mismatch names the key, the value and the type."""
+    if isinstance(current, bool):
+        if isinstance(value, bool):
+            return value
+    elif isinstance(current, (int, np.integer)):
+        if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+            return int(value)
+        if isinstance(value, float) and value.is_integer():
+            return int(value)
+    elif isinstance(current, (float, np.floating)):
+        if isinstance(value, (int, float, np.number)) and not isinstance(value, bool):
+            return float(value)
+    elif isinstance(current, str):
+        if isinstance(value, str):
+            return value
+    elif isinstance(current, tuple):
+        if isinstance(value, (list, tuple)):
+            return tuple(value)
+    elif current is None:
+        return value
+    raise ParamsError(f"{where}: expected a {type(current).__name__}, got {value!r}")
+
+
+def merge_params(base: Mapping[str, Any], extra: Mapping[str, Any]) -> Params:
+    """``base`` with ``extra`` laid over it, nested mappings merged key by key."""
+    out: Params = dict(base)
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = merge_params(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def read_params_file(path: Path) -> dict[str, Params]:
+    """A params file: ``{localizer name: section}``; errors name the file and the section."""
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise ParamsError(f"params file {path} does not exist")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as error:
+        raise ParamsError(f"{path}: not valid YAML: {error}") from None
+    if data is None:
+        return {}
+    if not isinstance(data, Mapping):
+        raise ParamsError(f"{path}: expected a mapping of localizer name -> settings, got {type(data).__name__}")
+    for name, section in data.items():
+        if not isinstance(section, Mapping) and section is not None:
+            raise ParamsError(f"{path}: section {name!r}: expected a mapping of settings, got {section!r}")
+    return {str(name): dict(section or {}) for name, section in data.items()}
+
+
+def write_params_file(path: Path, params: Mapping[str, Params]) -> Path:
+    """Write ``{localizer name: section}`` as YAML that :func:`read_params_file` reads back unchanged."""
+    import yaml
+
+    Path(path).write_text(yaml.safe_dump(dict(params), sort_keys=False, default_flow_style=False))
+    return Path(path)
+
+
+def parse_settings(settings: Iterable[str], localizers: Iterable[str]) -> dict[str, Params]:
+    """``NAME.KEY[.KEY...]=VALUE`` strings as params sections; NAME is one of ``localizers``.
+
+    Values are read as YAML scalars (``500``, ``0.2``, ``true``, ``open3d``).
+    """
+    import yaml
+
+    names = sorted(localizers, key=len, reverse=True)  # "amcl-recovery" before "amcl"
+    out: dict[str, Params] = {}
+    for item in settings:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise ParamsError(f"--set {item!r}: expected NAME.KEY=VALUE, e.g. amcl.max_particles=500")
+        name = next((n for n in names if key.startswith(n + ".")), None)
+        if name is None:
+            raise ParamsError(
+                f"--set {item!r}: the key must start with a localizer being run and a dot; "
+                f"localizers: {', '.join(sorted(names))}"
+            )
+        path = key[len(name) + 1 :].split(".")
+        if not all(path):
+            raise ParamsError(f"--set {item!r}: empty key in {key!r}")
+        try:
+            value = yaml.safe_load(raw)
+        except yaml.YAMLError:
+            value = raw
+        nested: Any = value
+        for part in reversed(path):
+            nested = {part: nested}
+        out[name] = merge_params(out.get(name, {}), nested)
+    return out
