@@ -22,7 +22,7 @@ format:
 	$(PY) -m ruff format .
 
 type:
-	$(PY) -m mypy pimm_env
+	$(PY) -m mypy pimm_env pimm_agents training
 
 maps:
 	$(PY) -m pimm_env.mapping.derived_maps iilab

@@ -8,7 +8,6 @@ Three kinds of names:
 
 from __future__ import annotations
 
-import dataclasses
 import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -37,7 +36,7 @@ def _amcl_config(preset: str) -> Callable[[], Any]:
         from pimm_agents.amcl.localizer import AMCL_RECOVERY, AMCL_RECOVERY_NAV2, AmclConfig
 
         extra = {"amcl": {}, "amcl-recovery": AMCL_RECOVERY, "amcl-recovery-nav2": AMCL_RECOVERY_NAV2}[preset]
-        return dataclasses.replace(AmclConfig(), **extra)
+        return apply_params(AmclConfig(), extra, preset)
 
     return make
 

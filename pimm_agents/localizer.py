@@ -44,7 +44,11 @@ class Localizer(Protocol):
     """
 
     name: str
-    sensors: tuple[str, ...]
+
+    @property
+    def sensors(self) -> tuple[str, ...]:
+        """Observation keys it reads (a read-only property or a class attribute)."""
+        ...
 
     def reset(
         self, seed: int | None = None, initial_pose: np.ndarray | None = None, initial_cov: np.ndarray | None = None

@@ -103,3 +103,23 @@ def test_perception_reports_segmentation_retrieval_and_corners(tmp_path):
     retrieval = report["retrieval"]
     assert {"recall_at_3_2m", "mean_error_m", "mean_min_error_m", "mean_max_error_m"} <= set(retrieval)
     assert retrieval["mean_min_error_m"] <= retrieval["mean_error_m"] <= retrieval["mean_max_error_m"]
+
+
+@pytest.mark.expensive
+def test_a_runs_config_yaml_repeats_it_exactly(tmp_path):
+    def run(*extra: str) -> dict:
+        args = ["run", "--scenarios", "area_b", "--trials", "1", "--workers", "1", "--seed", "3", "--json"]
+        result = CliRunner().invoke(evaluate.app, [*args, *extra])
+        assert result.exit_code == 0, result.output
+        return json.loads(result.output.strip().splitlines()[-1])
+
+    first = run("--localizers", "amcl", "--set", "amcl.max_particles=400", "--set", "amcl.min_particles=100",
+                "--out", str(tmp_path / "a"))  # fmt: skip
+    config = Path(first["folder"]) / "config.yaml"
+    assert yaml.safe_load(config.read_text())["amcl"]["max_particles"] == 400
+    again = run("--params", str(config), "--out", str(tmp_path / "b"))
+    drop_timings = [
+        {k: v for k, v in s["scenarios"]["area_b"]["amcl"].items() if k != "timings_ms"} for s in (first, again)
+    ]
+    assert drop_timings[0] == drop_timings[1]
+    assert (Path(again["folder"]) / "config.yaml").read_text() == config.read_text()

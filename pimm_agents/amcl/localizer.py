@@ -74,10 +74,10 @@ class AmclConfig:
 
 
 #: nav2's recovery with the averages its documentation recommends, and nav2's reset after each injection.
-AMCL_RECOVERY_NAV2 = {"recovery_alpha_slow": 0.001, "recovery_alpha_fast": 0.1}
+AMCL_RECOVERY_NAV2: dict[str, float | bool] = {"recovery_alpha_slow": 0.001, "recovery_alpha_fast": 0.1}
 #: The recovery as the issue specifies it and the textbook's Augmented MCL runs it: the same averages, kept
 #: after an injection, so that particles keep coming while the scans fit badly.
-AMCL_RECOVERY = {**AMCL_RECOVERY_NAV2, "reset_recovery_averages": False}
+AMCL_RECOVERY: dict[str, float | bool] = {**AMCL_RECOVERY_NAV2, "reset_recovery_averages": False}
 
 
 def subsample_beams(count: int, max_beams: int) -> np.ndarray:

@@ -180,7 +180,8 @@ def extract_planes(points: np.ndarray, params: PlaneParams, seed: int = 0, orien
             )
         else:
             cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(remaining))
-            _, index = cloud.segment_plane(params.distance_threshold, 3, params.iterations)
+            _, inlier_list = cloud.segment_plane(params.distance_threshold, 3, params.iterations)
+            index = np.asarray(inlier_list, dtype=np.int64)
         if len(index) < params.min_inliers:
             break
         normal, d, rms, inliers = robust_refit(remaining[index])

@@ -30,7 +30,8 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     figures: dict[str, float] = {}
     env = IILabEnv(terminate_on_collision=False)
     env.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
-    stepped_plain, stepped_scan = [], []
+    stepped_plain: list[float] = []
+    stepped_scan: list[float] = []
     action = np.array([0.2, 0.0], dtype=np.float32)
     while min(len(stepped_plain), len(stepped_scan)) < repeats:
         start = time.perf_counter()
@@ -87,7 +88,7 @@ def pimm_benchmarks(repeats: int) -> dict[str, float]:
     env = IILabEnv(terminate_on_collision=False)
     obs, _ = env.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
     pimm.reset(seed=0)
-    totals = []
+    totals: list[float] = []
     action = np.array([0.3, 0.0], dtype=np.float32)
     while len(totals) < repeats:
         estimate = pimm.update(obs)
@@ -125,7 +126,11 @@ def corners_benchmark(repeats: int) -> float:
     times = []
     for scan in scans:
         points, labels, _, _ = scan.corner_input()
-        times.append(median_ms(lambda p=points, lab=labels: detect_corners(p, lab), 1))
+
+        def detect(p: np.ndarray = points, lab: np.ndarray = labels) -> object:
+            return detect_corners(p, lab)
+
+        times.append(median_ms(detect, 1))
     return float(np.median(times))
 
 

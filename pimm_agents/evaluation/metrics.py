@@ -53,7 +53,8 @@ def summarize(trials: list[TrialMetrics]) -> dict[str, float | int | None]:
     done = [t for t in trials if t.converged]
 
     def mean(values: list[float | None]) -> float | None:
-        return float(np.mean(values)) if values else None
+        known = [v for v in values if v is not None]  # every converged trial has all three
+        return float(np.mean(known)) if known else None
 
     return {
         "trials": len(trials),
@@ -64,16 +65,21 @@ def summarize(trials: list[TrialMetrics]) -> dict[str, float | int | None]:
     }
 
 
+def _or_inf(value: float | None) -> float:
+    return float("inf") if value is None else value
+
+
 def best_and_worst(trials: list[TrialMetrics]) -> tuple[int | None, int | None]:
     """Indices of the best trial (lowest convergence time) and the worst (highest mean position error)
     among the trials that converged; a trial that never converged is the worst if there is one."""
     done = [i for i, t in enumerate(trials) if t.converged]
     never = [i for i, t in enumerate(trials) if not t.converged]
-    best = min(done, key=lambda i: trials[i].convergence_time_s) if done else None
+    best = min(done, key=lambda i: _or_inf(trials[i].convergence_time_s)) if done else None
+    worst: int | None
     if never:
         worst = never[0]
     else:
-        worst = max(done, key=lambda i: trials[i].position_error_m) if done else None
+        worst = max(done, key=lambda i: _or_inf(trials[i].position_error_m)) if done else None
     return best, worst
 
 

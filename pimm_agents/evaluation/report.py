@@ -94,6 +94,11 @@ def format_timings(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def file_safe(name: str) -> str:
+    """A localizer name fit for a file name: ``my_pkg.mod:make`` becomes ``my_pkg.mod-make``."""
+    return "".join(c if c.isalnum() or c in "._-" else "-" for c in name)
+
+
 def write_results(
     folder: Path, results: Sequence[TrialResult], run_record: dict[str, Any], occupancy: OccupancyGrid
 ) -> dict[str, Any]:
@@ -107,7 +112,7 @@ def write_results(
     logs.mkdir(exist_ok=True)
     for result in results:
         s = result.spec
-        result.log.write_csv(logs / f"{s.scenario}_{s.localizer}_trial{s.trial:02d}.csv")
+        result.log.write_csv(logs / f"{s.scenario}_{file_safe(s.localizer)}_trial{s.trial:02d}.csv")
     groups: dict[tuple[str, str], list[TrialResult]] = {}
     for result in results:
         groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
@@ -117,7 +122,7 @@ def write_results(
         best, worst = best_and_worst([t.metrics for t in trials])
         for label, index in (("best", best), ("worst", worst)):
             if index is not None:
-                plot_trial(occupancy, trials[index], figures / f"{scenario}_{localizer}_{label}.png", label)
+                plot_trial(occupancy, trials[index], figures / f"{scenario}_{file_safe(localizer)}_{label}.png", label)
     return summary
 
 

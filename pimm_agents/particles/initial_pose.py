@@ -10,9 +10,7 @@ from pimm_env.geometry import wrap_angle
 NAV2_INITIAL_COV = np.diag([0.25, 0.25, (np.pi / 12) ** 2])
 
 
-def gaussian_poses(
-    mean: np.ndarray, cov: np.ndarray | None, n: int, rng: np.random.Generator
-) -> np.ndarray:
+def gaussian_poses(mean: np.ndarray, cov: np.ndarray | None, n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` poses (x, y, theta) drawn from N(mean, cov); ``cov`` None means nav2's default."""
     mean = np.asarray(mean, dtype=float)
     cov = NAV2_INITIAL_COV if cov is None else np.asarray(cov, dtype=float)

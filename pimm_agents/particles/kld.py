@@ -24,7 +24,7 @@ def kld_limit(k: np.ndarray | int, epsilon: float, z: float, min_particles: int,
     return np.where(np.isinf(bound), max_particles, np.clip(bound, min_particles, max_particles)).astype(int)
 
 
-def bin_indices(poses: np.ndarray, xy_size: float, theta_size: float) -> tuple[np.ndarray, ...]:
+def bin_indices(poses: np.ndarray, xy_size: float, theta_size: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Integer (x, y, theta) bin of each pose (N, 3), and the number of theta bins; theta wraps around."""
     n_theta = int(np.ceil(2 * np.pi / theta_size))
     ix = np.floor(poses[:, 0] / xy_size).astype(np.int64)

@@ -31,8 +31,8 @@ def sample_differential(
     """
     rot1, trans, rot2 = delta
     a1, a2, a3, a4 = alphas
-    rot1_size = min(abs(rot1), abs(wrap_angle(rot1 - np.pi)))
-    rot2_size = min(abs(rot2), abs(wrap_angle(rot2 - np.pi)))
+    rot1_size = min(abs(rot1), abs(float(wrap_angle(rot1 - np.pi))))
+    rot2_size = min(abs(rot2), abs(float(wrap_angle(rot2 - np.pi))))
     n = len(poses)
     rot1_hat = rot1 - rng.normal(0.0, np.sqrt(a1 * rot1_size**2 + a2 * trans**2), n)
     trans_hat = trans - rng.normal(0.0, np.sqrt(a3 * trans**2 + a4 * rot1_size**2 + a4 * rot2_size**2), n)

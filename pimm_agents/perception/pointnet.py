@@ -60,7 +60,7 @@ class PointNetConfig:
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
         if "context_offsets" in values:
             values["context_offsets"] = tuple(tuple(o) for o in values["context_offsets"])
-        return cls(**values)
+        return cls(**values)  # type: ignore[arg-type]  # field types were checked by name above
 
 
 def _mlp(widths: list[int]) -> nn.Sequential:
@@ -75,6 +75,8 @@ class PointNetSegmenter(nn.Module):
 
     Output: per-point logits (B, classes, N) and unit descriptors (B, descriptor_dim).
     """
+
+    feature_scale: torch.Tensor  # a buffer: (1, channels, 1)
 
     def __init__(self, config: PointNetConfig = PointNetConfig()) -> None:
         super().__init__()
@@ -105,6 +107,8 @@ class PointNetSegmenter(nn.Module):
 
 def _fold(conv_weight: torch.Tensor, bn: nn.BatchNorm1d) -> tuple[torch.Tensor, torch.Tensor]:
     """A bias-free layer followed by eval-mode batch norm, as one affine map (W, b)."""
+    if bn.running_var is None or bn.running_mean is None:
+        raise ValueError("batch norm without running statistics cannot be folded")
     scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
     return conv_weight * scale[:, None], bn.bias - bn.running_mean * scale
 
@@ -126,13 +130,14 @@ class FusedPointNet:
             w0, b0 = self.local[0]
             self.local[0] = (w0 * model.feature_scale.view(1, -1), b0)
             self.globe = _folded_mlp(model.globe)
-            head_norm = model.head[0]
-            scale = head_norm.weight / torch.sqrt(head_norm.running_var + head_norm.eps)
-            self.head_local = model.head_local.weight[:, :, 0] * scale[:, None]
-            self.head_global = model.head_global.weight * scale[:, None]
-            self.head_bias = head_norm.bias - head_norm.running_mean * scale
-            self.head = _folded_mlp(model.head[2])
-            self.classify = (model.head[3].weight[:, :, 0], model.head[3].bias)
+            head_norm, _, head_mlp, classify = model.head
+            assert isinstance(head_norm, nn.BatchNorm1d) and isinstance(head_mlp, nn.Sequential)
+            assert isinstance(classify, nn.Conv1d) and classify.bias is not None
+            head_local, self.head_bias = _fold(model.head_local.weight[:, :, 0], head_norm)
+            self.head_local = head_local
+            self.head_global, _ = _fold(model.head_global.weight, head_norm)
+            self.head = _folded_mlp(head_mlp)
+            self.classify = (classify.weight[:, :, 0], classify.bias)
             self.descriptor = (model.descriptor.weight, model.descriptor.bias)
             for name in ("local", "globe", "head"):
                 setattr(self, name, [(w.T.contiguous(), b) for w, b in getattr(self, name)])

@@ -88,8 +88,10 @@ class FeatureFilter:
         reference."""
         self.rng = rng
         n = self.config.num_particles
-        self.particles = self.free_space.sample(n, rng) if initial_pose is None else gaussian_poses(
-            initial_pose, initial_cov, n, rng
+        self.particles = (
+            self.free_space.sample(n, rng)
+            if initial_pose is None
+            else gaussian_poses(initial_pose, initial_cov, n, rng)
         )
         self.weights = np.full(self.config.num_particles, 1.0 / self.config.num_particles)
         self.ess = float(self.config.num_particles)

@@ -184,7 +184,7 @@ class PimmLocalizer:
             timings["measurement_update"] = 1000 * (time.perf_counter() - start)
             if estimate is not None:
                 self._estimate, self._estimate_odom = estimate, odom.copy()
-        if self._estimate is None:
+        if self._estimate is None or self._estimate_odom is None:
             self._estimate, self._estimate_odom = self.filter.best_mean(), odom.copy()
         pose = carry(self._estimate, self._estimate_odom, odom)
         timings["total"] = 1000 * (time.perf_counter() - began)

@@ -41,6 +41,13 @@ def odom_to_map(odom: np.ndarray, start: np.ndarray) -> np.ndarray:
     return compose(start, odom)
 
 
+def _simulator(env: LidarRobotEnv | gym.Wrapper) -> LidarRobotEnv:
+    base = env.unwrapped
+    if not isinstance(base, LidarRobotEnv):
+        raise TypeError(f"rollouts drive a PIMM simulator env, got {type(base).__name__}")
+    return base
+
+
 def drive(
     env: LidarRobotEnv | gym.Wrapper,
     waypoints: np.ndarray,
@@ -51,7 +58,7 @@ def drive(
     """Follow ``waypoints`` from the env's current pose; returns (completed, collided, true poses, odometry)."""
     controller = PurePursuit(waypoints, PursuitConfig(speed=speed))
     true_poses, odoms = [], []
-    pose = env.unwrapped.robot.pose
+    pose = _simulator(env).robot.pose
     for _ in range(max_steps):
         obs, _, terminated, truncated, info = env.step(np.array(controller.command(pose), dtype=np.float32))
         pose = info["true_pose"]
@@ -100,8 +107,8 @@ def run(
             completed, collided, more_true, more_odom = drive(env, scenario.waypoints, scenario.speed, on_step)
             true_poses += more_true
             odoms += more_odom
-        duration = float(env.unwrapped.sim_time)
-        travelled = float(env.unwrapped.robot.travelled)
+        duration = float(_simulator(env).sim_time)
+        travelled = float(_simulator(env).robot.travelled)
     finally:
         if own_env:
             env.close()

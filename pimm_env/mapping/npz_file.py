@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 
 
-def write_npz(path: Path, file_format: str, **arrays: np.ndarray) -> None:
+def write_npz(path: Path, file_format: str, **arrays: np.ndarray | np.generic) -> None:
     """Write ``arrays`` compressed to ``path`` (making its folder), tagged ``format = file_format``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, format=file_format, **arrays)
+    np.savez_compressed(path, **{"format": np.str_(file_format), **arrays})  # type: ignore[arg-type]
 
 
 def read_npz(path: Path, what: str, fields: tuple[str, ...], file_format: str, make_hint: str) -> dict[str, np.ndarray]:

@@ -63,13 +63,16 @@ class PrismRayCaster:
         cylinders = [e for e in world.elements if isinstance(e.shape, Cylinder)]
         if len(boxes) + len(cylinders) != len(world.elements):
             raise ValueError(f"world {world.name!r} has shapes other than boxes and cylinders")
-        self.box_center = np.array([b.shape.center[:2] for b in boxes]).reshape(-1, 2)
-        self.box_half = np.array([b.shape.half_extents[:2] for b in boxes]).reshape(-1, 2)
-        yaw = np.array([b.shape.yaw for b in boxes])
+        box_shapes = [b.shape for b in boxes if isinstance(b.shape, Box)]
+        cylinder_shapes = [c.shape for c in cylinders if isinstance(c.shape, Cylinder)]
+        self.box_center = np.array([b.center[:2] for b in box_shapes]).reshape(-1, 2)
+        self.box_half = np.array([b.half_extents[:2] for b in box_shapes]).reshape(-1, 2)
+        yaw = np.array([b.yaw for b in box_shapes])
         self.box_cos, self.box_sin = np.cos(yaw), np.sin(yaw)
-        self.cyl_center = np.array([c.shape.center for c in cylinders]).reshape(-1, 2)
-        self.cyl_radius = np.array([c.shape.radius for c in cylinders])
-        self.z_range = np.array([e.shape.z_range for e in boxes + cylinders]).reshape(-1, 2)
+        self.cyl_center = np.array([c.center for c in cylinder_shapes]).reshape(-1, 2)
+        self.cyl_radius = np.array([c.radius for c in cylinder_shapes])
+        z_ranges = [s.z_range for s in box_shapes] + [s.z_range for s in cylinder_shapes]
+        self.z_range = np.array(z_ranges).reshape(-1, 2)
         self.labels = np.array([int(e.semantic) for e in boxes + cylinders], dtype=np.int8)
 
     @staticmethod

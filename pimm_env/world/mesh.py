@@ -111,7 +111,9 @@ def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
         reader = FieldReader(path)
         areas = {str(k): reader.polygon(v, f"areas.{k}") for k, v in areas_raw.items()}
     else:
-        floors = [e.shape.vertices[:, :2] for e in elements if e.semantic == SemanticClass.FLOOR]
+        floors = [
+            e.shape.vertices[:, :2] for e in elements if e.semantic == SemanticClass.FLOOR and isinstance(e.shape, Mesh)
+        ]
         if not floors:
             raise WorldFileError(path, "areas", "no areas given and no floor object to take them from")
         pts = np.concatenate(floors)

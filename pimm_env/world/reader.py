@@ -63,7 +63,7 @@ class FieldReader:
         if kind == "cylinder":
             center = self.vector(spec.get("center"), 2, f"{where}.center")
             radius = self.positive(spec.get("radius"), f"{where}.radius")
-            return [Cylinder(center, radius, self.z_range(spec.get("z"), f"{where}.z"))]
+            return [Cylinder((center[0], center[1]), radius, self.z_range(spec.get("z"), f"{where}.z"))]
         return self.wall(spec, where)
 
     def box(self, spec: Mapping[str, Any], where: str) -> Box:
@@ -78,7 +78,7 @@ class FieldReader:
         if min(size) <= 0:
             raise self.fail(f"{where}.size", f"expected positive sizes, got {list(size)}")
         yaw = self.number(spec.get("yaw", 0.0), f"{where}.yaw")
-        return Box(center, tuple(s / 2 for s in size), yaw)
+        return Box((center[0], center[1], center[2]), (size[0] / 2, size[1] / 2, size[2] / 2), yaw)
 
     def wall(self, spec: Mapping[str, Any], where: str) -> list[Shape]:
         path = spec.get("path")
