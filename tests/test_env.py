@@ -1,11 +1,13 @@
 import pickle
 import warnings
+from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import pimm_env  # noqa: F401  (registers the env)
+from pimm_env import SimConfig
 
 ENV_IDS = ["pimm/IILab-v0"]
 # Warnings the checkers raise that do not apply to this env (anything else fails the test):
@@ -146,4 +148,17 @@ def test_render_and_idempotent_close():
     assert image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3
     assert (image == [30, 60, 230]).all(axis=2).any(), "the robot is drawn"
     e.close()
+    e.close()
+
+
+def test_a_switched_off_lidar_casts_nothing():
+    config = SimConfig()
+    config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))
+    e = gym.make("pimm/IILab-v0", config=config).unwrapped
+    obs, info = e.reset(seed=0)
+    for _ in range(10):
+        obs, *_, info = e.step([0.2, 0.0])
+        assert not info["fresh_cloud"] and not obs["cloud_mask"].any() and (info["labels"] == -1).all()
+    assert info["fresh_scan"] or obs["scan_time"][0] > 0, "the 2D LiDAR still scans"
+    assert (obs["scan"] < config.lidar2d.max_range).any()
     e.close()

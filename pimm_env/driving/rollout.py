@@ -89,8 +89,8 @@ def run(
     own_env = env is None
     if env is None:
         config = SimConfig()
-        if not lidar3d:  # effectively never scan in 3D: for fast odometry and path checks
-            config = replace(config, lidar3d=replace(config.lidar3d, rate_hz=1e-6))
+        if not lidar3d:  # for fast odometry and path checks
+            config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))
         from pimm_env.envs.iilab_env import IILabEnv
 
         env = IILabEnv(world=world, config=config, terminate_on_collision=False)

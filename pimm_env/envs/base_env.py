@@ -260,7 +260,7 @@ class LidarRobotEnv(gym.Env):
         x, y, theta = self.robot.pose
         fresh_cloud = fresh_scan = False
         eps = 1e-9
-        if self._time + eps >= self._next_cloud:
+        if l3.enabled and self._time + eps >= self._next_cloud:
             origin = np.array([x, y, self.world.floor_z + l3.height])
             ranges, labels = self.caster.cast(origin, self._azimuths3d + theta, self._elevations, l3.max_range)
             ranges, labels = ranges.reshape(-1), labels.reshape(-1)
@@ -275,7 +275,7 @@ class LidarRobotEnv(gym.Env):
             self._cloud_time = self._time
             self._next_cloud = self._next_cloud + 1.0 / l3.rate_hz
             fresh_cloud = True
-        if self._time + eps >= self._next_scan:
+        if l2.enabled and self._time + eps >= self._next_scan:
             origin = np.array([x, y, self.world.floor_z + l2.height])
             ranges, _ = self.caster.cast(origin, self._azimuths2d + theta, np.zeros(1), l2.max_range)
             ranges = ranges.reshape(-1)

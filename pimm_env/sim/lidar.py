@@ -22,6 +22,7 @@ class Lidar3DConfig:
     noise_std: float = 0.01
     rate_hz: float = 10.0
     height: float = 0.50  # above the floor
+    enabled: bool = True  # off: no rays are cast, the cloud stays empty (for localizers that do not read it)
 
     @property
     def num_points(self) -> int:
@@ -38,6 +39,7 @@ class Lidar2DConfig:
     noise_std: float = 0.01
     rate_hz: float = 10.0
     height: float = 0.30  # above the floor; the occupancy grid is cut at this height
+    enabled: bool = True  # off: no rays are cast, every beam reads max_range
 
 
 def elevations_3d(config: Lidar3DConfig) -> np.ndarray:
