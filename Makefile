@@ -25,7 +25,7 @@ type:
 	$(PY) -m mypy pimm_env pimm_agents training
 
 maps:
-	$(PY) -m pimm_env.mapping.derived_maps iilab
+	$(PY) -m pimm_env.mapping iilab
 
 perception:
 	$(PY) -m training rebuild --world iilab

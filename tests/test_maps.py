@@ -75,7 +75,7 @@ def test_no_ceiling_no_corner(room_file):
 
 
 def test_derived_maps_are_read_only_and_rebuilt_by_the_ensure_step(room_file):
-    with pytest.raises(StaleMapsError, match="missing or older.*python -m pimm_env.mapping.derived_maps"):
+    with pytest.raises(StaleMapsError, match="missing or older.*python -m pimm_env.mapping"):
         load_derived_maps(load_world(room_file))
     assert not (room_file.parent / "occupancy.pgm").exists(), "reading must never write"
     build_derived_maps(load_world(room_file))

@@ -24,7 +24,7 @@ from pimm_env.sim.lidar import (
     elevations_3d,
     noisy_ranges,
 )
-from pimm_env.sim.raycast import BulletRayCaster, PrismRayCaster, RayCaster
+from pimm_env.sim.raycast import BulletRayCaster, EmbreeRayCaster, PrismRayCaster, RayCaster
 from pimm_env.sim.robot import DiffDriveRobot, RobotConfig
 from pimm_env.sim.scene import BulletScene
 from pimm_env.world.files import World, load_world
@@ -33,6 +33,7 @@ from pimm_env.world.semantics import SemanticClass
 MAX_TIME = 1.0e6  # s; bound of the time fields of the observation
 MAX_ODOM = 1.0e4  # m; bound of the odometry position
 RESET_OPTIONS = frozenset({"pose", "kidnap"})
+RAY_CASTERS = ("auto", "prism", "embree", "bullet")
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,8 @@ class SimConfig:
     lidar3d: Lidar3DConfig = field(default_factory=Lidar3DConfig)
     lidar2d: Lidar2DConfig = field(default_factory=Lidar2DConfig)
     start_clearance: float = 0.15  # extra free space around random start poses (m)
-    ray_caster: str = "auto"  # "auto" (fast prism caster where the world allows), "prism" or "bullet"
+    #: "auto": the exact prism caster for worlds of boxes and cylinders, Embree for any other; or one by name
+    ray_caster: str = "auto"
 
 
 class LidarRobotEnv(gym.Env):
@@ -111,11 +113,13 @@ class LidarRobotEnv(gym.Env):
     # ------------------------------------------------------------------ set-up helpers
     def _make_caster(self) -> RayCaster:
         choice = self.config.ray_caster
-        if choice not in ("auto", "prism", "bullet"):
-            raise ValueError(f"ray_caster {choice!r}: expected 'auto', 'prism' or 'bullet'")
+        if choice not in RAY_CASTERS:
+            raise ValueError(f"ray_caster {choice!r}: expected one of {', '.join(RAY_CASTERS)}")
         if choice == "prism" or (choice == "auto" and PrismRayCaster.supports(self.world)):
             return PrismRayCaster(self.world)
-        return BulletRayCaster(self.scene.client, self.scene.body_classes)
+        if choice == "bullet":
+            return BulletRayCaster(self.scene.client, self.scene.body_classes)
+        return EmbreeRayCaster(self.world)
 
     def _clearance_maps(self) -> tuple[np.ndarray, np.ndarray]:
         """Distance to anything the robot's body could touch, and the cells where a random start may be."""

@@ -19,6 +19,7 @@ from scipy import ndimage
 from pimm_env.world.files import World
 from pimm_env.world.grid import GridSpec
 from pimm_env.world.semantics import SemanticClass
+from pimm_env.world.shapes import Box, Cylinder, Mesh, Prism
 
 FORMAT = "pimm-corners/1"
 
@@ -29,6 +30,7 @@ class CornerMapConfig:
     below_ceiling: float = 0.10  # height below the ceiling's underside at which walls are cut
     min_face: float = 0.30  # both faces must run straight this far from the corner
     area_margin: float = 0.30  # how far outside a named area a corner may lie
+    min_turn_deg: float = 30.0  # outlines (not rasters): the walls turn by at least this much at a corner
 
 
 @dataclass(frozen=True)
@@ -44,7 +46,81 @@ class CornerMap:
 
 
 def derive_corner_map(world: World, config: CornerMapConfig | None = None) -> CornerMap:
+    """Corners from a fine raster of the walls where every wall lies along the grid (axis-aligned boxes,
+    cylinders) or is a mesh; from the walls' outlines where some wall is a prism or a box at another angle,
+    whose raster would be a staircase of false corners."""
     config = config or CornerMapConfig()
+    walls = [e.shape for e in world.elements if e.semantic == SemanticClass.WALL]
+    slanted = any(isinstance(s, Prism) or (isinstance(s, Box) and not _on_grid(s.yaw)) for s in walls)
+    if slanted and not any(isinstance(s, Mesh) for s in walls):
+        return _vector_corner_map(world, config)
+    return _raster_corner_map(world, config)
+
+
+def _on_grid(yaw: float) -> bool:
+    return abs((yaw + np.pi / 4) % (np.pi / 2) - np.pi / 4) < 1e-6
+
+
+def _as_map(found: list[tuple[float, float, float, float]]) -> CornerMap:
+    if not found:
+        return CornerMap(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
+    arr = np.array(found)
+    return CornerMap(arr[:, :2], arr[:, 2], arr[:, 3])
+
+
+def _vector_corner_map(world: World, config: CornerMapConfig) -> CornerMap:
+    """Vertices of the walls' cross-section just under each ceiling where the outline turns by at least
+    ``min_turn_deg``, both edges run ``min_face``, and the free side is under that ceiling and in an area."""
+    import shapely
+    from shapely.geometry import Point, Polygon
+
+    areas = shapely.unary_union([Polygon(p) for p in world.areas.values()]).buffer(config.area_margin)
+    found: list[tuple[float, float, float, float]] = []
+    straight = np.cos(np.radians(180.0 - config.min_turn_deg))
+    for height in world.ceiling_heights():
+        walls = shapely.simplify(_section(world, SemanticClass.WALL, height - config.below_ceiling), 1e-3)
+        ceiling = _section(world, SemanticClass.CEILING, height + 0.01)
+        for ring in _rings(walls):
+            coords = np.asarray(ring.coords)[:-1]
+            for i, vertex in enumerate(coords):
+                e1, e2 = coords[i - 1] - vertex, coords[(i + 1) % len(coords)] - vertex
+                l1, l2 = float(np.hypot(*e1)), float(np.hypot(*e2))
+                if min(l1, l2) < config.min_face or np.dot(e1, e2) / (l1 * l2) < straight:
+                    continue
+                bisector = e1 / l1 + e2 / l2
+                bisector /= np.hypot(*bisector)
+                probes = [Point(vertex + s * config.resolution * bisector) for s in (1.0, -1.0)]
+                free = [p for p in probes if not walls.covers(p)]
+                if free and ceiling.covers(free[0]) and areas.covers(free[0]):
+                    found.append((float(vertex[0]), float(vertex[1]), height, float(np.arctan2(*bisector[::-1]))))
+    return _as_map(found)
+
+
+def _section(world: World, semantic: SemanticClass, z: float):
+    """The union of the horizontal cross-sections at height ``z`` of the elements of one class."""
+    import shapely
+    from shapely.geometry import Point, Polygon
+
+    pieces = []
+    for element in world.elements:
+        shape = element.shape
+        if element.semantic != semantic or not shape.z_range[0] <= z <= shape.z_range[1]:
+            continue
+        if isinstance(shape, Box):
+            pieces.append(Polygon(shape.corners_xy()))
+        elif isinstance(shape, Cylinder):
+            pieces.append(Point(shape.center).buffer(shape.radius, quad_segs=16))
+        elif isinstance(shape, Prism):
+            pieces.append(Polygon(shape.outline, list(shape.holes)))
+    return shapely.unary_union(pieces)
+
+
+def _rings(geometry) -> list:
+    polygons = getattr(geometry, "geoms", [geometry])
+    return [ring for p in polygons if not p.is_empty for ring in (p.exterior, *p.interiors)]
+
+
+def _raster_corner_map(world: World, config: CornerMapConfig) -> CornerMap:
     grid = world.grid(config.resolution)
     in_area = ndimage.distance_transform_edt(~world.area_mask(grid)) * grid.resolution <= config.area_margin
     found: list[tuple[float, float, float, float]] = []
@@ -53,10 +129,7 @@ def derive_corner_map(world: World, config: CornerMapConfig | None = None) -> Co
         ceiling = world.footprint(grid, height + 0.01, classes=[SemanticClass.CEILING])
         for x, y, theta in _corners_of_mask(walls, ceiling & in_area, grid, config):
             found.append((x, y, height, theta))
-    if not found:
-        return CornerMap(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
-    arr = np.array(found)
-    return CornerMap(arr[:, :2], arr[:, 2], arr[:, 3])
+    return _as_map(found)
 
 
 def _corners_of_mask(

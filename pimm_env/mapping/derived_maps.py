@@ -3,12 +3,11 @@
 Each map records a hash of the world file and of the settings that made it. Reading them
 (:func:`load_derived_maps`, what the env and the localizers do) never writes: missing or stale maps are an
 error that says how to rebuild them. The commands that prepare a world call :func:`ensure_derived_maps`, and
-``python -m pimm_env.mapping.derived_maps iilab`` (``make maps``) rebuilds them by hand.
+``python -m pimm_env.mapping iilab`` (``make maps``) rebuilds them by hand.
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +24,7 @@ from pimm_env.mapping.occupancy import (
     save_map_server,
     tolerant_iou,
 )
-from pimm_env.world.files import World, load_world, world_dir
+from pimm_env.world.files import World, world_dir
 
 OCCUPANCY_RESOLUTION = 0.05
 #: Height of the 2D LiDAR above the floor; the occupancy grid is cut there.
@@ -89,7 +88,7 @@ def load_derived_maps(world: World) -> DerivedMaps:
         source = world.source or world.name
         raise StaleMapsError(
             f"the derived maps of world {world.name!r} in {occ_yaml.parent} are missing or older than {source}; "
-            f"rebuild them with `python -m pimm_env.mapping.derived_maps {source}` (or `make maps`)"
+            f"rebuild them with `python -m pimm_env.mapping {source}` (or `make maps`)"
         )
     return DerivedMaps(load_map_server(occ_yaml), load_corner_map(corners_yaml))
 
@@ -135,22 +134,3 @@ def corner_matches(
         best = int(np.argmin(np.where(ok, dist, np.inf)))
         out.append((float(dist[best]), float(dtheta[best])))
     return out
-
-
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description="Rebuild a world's occupancy grid and corner map.")
-    parser.add_argument("worlds", nargs="*", default=["iilab"], help="world names or world files")
-    args = parser.parse_args(argv)
-    for name in args.worlds:
-        world = load_world(name)
-        maps = build_derived_maps(world)
-        occ = maps.occupancy
-        print(
-            f"{world.name}: occupancy {occ.grid.shape[1]}x{occ.grid.shape[0]} cells at {occ.grid.resolution} m "
-            f"({occ.occupied.sum()} occupied, {occ.free.sum()} free), {len(maps.corners)} corners "
-            f"-> {world_dir(world)}"
-        )
-
-
-if __name__ == "__main__":
-    main()

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from pimm_env.sim.triangles import prism_mesh
 from pimm_env.world.files import World
-from pimm_env.world.shapes import Box, Cylinder, Mesh
+from pimm_env.world.shapes import Box, Cylinder, Mesh, Shape
 
 
 class BulletScene:
@@ -32,7 +33,7 @@ class BulletScene:
         self.robot_height = robot_height
         self.floor_z = world.floor_z
 
-    def _add(self, shape: Box | Cylinder | Mesh) -> int:
+    def _add(self, shape: Shape) -> int:
         import pybullet
 
         c = self.client
@@ -44,10 +45,11 @@ class BulletScene:
             z0, z1 = shape.z_range
             col = c.createCollisionShape(pybullet.GEOM_CYLINDER, radius=shape.radius, height=z1 - z0)
             return c.createMultiBody(0, col, -1, [shape.center[0], shape.center[1], (z0 + z1) / 2])
+        vertices, triangles = (shape.vertices, shape.triangles) if isinstance(shape, Mesh) else prism_mesh(shape)
         col = c.createCollisionShape(
             pybullet.GEOM_MESH,
-            vertices=shape.vertices.tolist(),
-            indices=shape.triangles.reshape(-1).tolist(),
+            vertices=vertices.tolist(),
+            indices=triangles.reshape(-1).tolist(),
             flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH,
         )
         return c.createMultiBody(0, col, -1, [0.0, 0.0, 0.0])

@@ -34,6 +34,8 @@ from pimm_env.world.reader import FieldReader
 from pimm_env.world.semantics import SemanticClass, parse_class
 
 FORMAT = "pimm-world/1"
+SHAPE_KEYS = ("box", "cylinder", "wall", "prism")
+ELEMENT_KEYS = frozenset({"name", "class", "occupancy"})
 MAPS_DIR = Path(__file__).resolve().parents[2] / "maps"
 
 
@@ -109,9 +111,15 @@ def world_from_spec(data: Mapping[str, Any], path: Path | str = "<dict>") -> Wor
         occupancy = raw.get("occupancy", semantic in (SemanticClass.WALL, SemanticClass.CLUTTER))
         if not isinstance(occupancy, bool):
             raise WorldFileError(path, f"{where}.occupancy", f"expected true or false, got {occupancy!r}")
-        shapes = [key for key in ("box", "cylinder", "wall") if key in raw]
+        shapes = [key for key in SHAPE_KEYS if key in raw]
         if len(shapes) != 1:
-            raise WorldFileError(path, where, f"expected exactly one of box, cylinder, wall; got {shapes or 'none'}")
+            raise WorldFileError(
+                path, where, f"expected exactly one of {', '.join(SHAPE_KEYS)}; got {shapes or 'none'}"
+            )
+        unknown = sorted(set(raw) - set(SHAPE_KEYS) - ELEMENT_KEYS)
+        if unknown:
+            valid = ", ".join(sorted(ELEMENT_KEYS | set(SHAPE_KEYS)))
+            raise WorldFileError(path, f"{where}.{unknown[0]}", f"unknown key; valid keys: {valid}")
         kind = shapes[0]
         for j, shape in enumerate(reader.shapes(kind, raw[kind], f"{where}.{kind}")):
             suffix = f"#{j}" if kind == "wall" and j else ""

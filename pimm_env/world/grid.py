@@ -58,14 +58,7 @@ class GridSpec:
 
     def points_in_polygon(self, polygon: np.ndarray) -> np.ndarray:
         """Mask of the cells whose centre lies inside ``polygon`` (K, 2), by the even-odd rule."""
+        from pimm_env.world.shapes import points_in_ring
+
         gx, gy = self.cell_centers()
-        inside = np.zeros(self.shape, dtype=bool)
-        x0, y0 = polygon[:, 0], polygon[:, 1]
-        x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
-        for ax, ay, bx, by in zip(x0, y0, x1, y1, strict=True):
-            if ay == by:
-                continue
-            crosses = (ay > gy) != (by > gy)
-            x_cross = ax + (gy - ay) * (bx - ax) / (by - ay)
-            inside ^= crosses & (gx < x_cross)
-        return inside
+        return points_in_ring(gx, gy, polygon)

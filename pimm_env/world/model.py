@@ -11,7 +11,7 @@ import numpy as np
 
 from pimm_env.world.grid import GridSpec
 from pimm_env.world.semantics import SemanticClass
-from pimm_env.world.shapes import Box, Cylinder, Shape
+from pimm_env.world.shapes import Box, Cylinder, Prism, Shape
 
 
 class WorldFileError(ValueError):
@@ -54,6 +54,8 @@ class World:
             elif isinstance(shape, Cylinder):
                 c = np.asarray(shape.center)
                 points.append(np.stack([c - shape.radius, c + shape.radius]))
+            elif isinstance(shape, Prism):
+                points.append(shape.outline)
             else:
                 points.append(shape.vertices[:, :2])
         stacked = np.concatenate(points, axis=0)

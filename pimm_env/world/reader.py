@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from pimm_env.world.model import WorldFileError
-from pimm_env.world.shapes import Box, Cylinder, Shape
+from pimm_env.world.shapes import Box, Cylinder, Prism, Shape
 
 
 class FieldReader:
@@ -64,7 +64,17 @@ class FieldReader:
             center = self.vector(spec.get("center"), 2, f"{where}.center")
             radius = self.positive(spec.get("radius"), f"{where}.radius")
             return [Cylinder((center[0], center[1]), radius, self.z_range(spec.get("z"), f"{where}.z"))]
+        if kind == "prism":
+            return [self.prism(spec, where)]
         return self.wall(spec, where)
+
+    def prism(self, spec: Mapping[str, Any], where: str) -> Prism:
+        outline = self.polygon(spec.get("outline"), f"{where}.outline")
+        holes_raw = spec.get("holes", [])
+        if not isinstance(holes_raw, Sequence) or isinstance(holes_raw, str):
+            raise self.fail(f"{where}.holes", f"expected a list of polygons, got {holes_raw!r}")
+        holes = tuple(self.polygon(h, f"{where}.holes[{k}]") for k, h in enumerate(holes_raw))
+        return Prism(outline, holes, self.z_range(spec.get("z"), f"{where}.z"))
 
     def box(self, spec: Mapping[str, Any], where: str) -> Box:
         if "min" in spec or "max" in spec:

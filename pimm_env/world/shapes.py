@@ -1,4 +1,5 @@
-"""Solid shapes that make up a world: boxes, vertical cylinders and triangle meshes.
+"""Solid shapes that make up a world: boxes, vertical cylinders, vertical prisms over a polygon, and
+triangle meshes.
 
 Every shape answers the two questions the rest of the project asks of geometry: its vertical extent,
 and which cells of a horizontal grid it covers at a given height (its footprint, used for the occupancy
@@ -119,4 +120,51 @@ class Mesh:
         return mask
 
 
-Shape = Box | Cylinder | Mesh
+@dataclass(frozen=True)
+class Prism:
+    """A vertical prism over a polygon with holes: the walls of a floor plan as one solid piece.
+
+    ``outline`` (K, 2) and each hole (K_i, 2) are rings of (x, y) vertices, not repeated at the end.
+    """
+
+    outline: np.ndarray
+    holes: tuple[np.ndarray, ...]
+    z_range: tuple[float, float]
+
+    def rings(self) -> list[np.ndarray]:
+        return [self.outline, *self.holes]
+
+    def corners_xy(self) -> np.ndarray:
+        return self.outline
+
+    def footprint(self, grid: GridSpec, z: float) -> np.ndarray:
+        """Cells whose centre lies inside the outline and outside every hole (even-odd over all rings)."""
+        mask = grid.empty_mask()
+        if not self.z_range[0] <= z <= self.z_range[1]:
+            return mask
+        window = grid.window(self.outline, pad=grid.resolution)
+        if window is None:
+            return mask
+        rows, cols, xs, ys = window
+        inside = np.zeros(xs.shape, dtype=bool)
+        for ring in self.rings():
+            inside ^= points_in_ring(xs, ys, ring)
+        mask[rows, cols] = inside
+        return mask
+
+
+def points_in_ring(xs: np.ndarray, ys: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """Which points (xs, ys), any shape, lie inside the closed ring (K, 2), by the even-odd rule."""
+    inside = np.zeros(np.shape(xs), dtype=bool)
+    x0, y0 = ring[:, 0], ring[:, 1]
+    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+    for ax, ay, bx, by in zip(x0, y0, x1, y1, strict=True):
+        if ay == by:
+            continue
+        crosses = (ay > ys) != (by > ys)
+        x_cross = ax + (ys - ay) * (bx - ax) / (by - ay)
+        inside ^= crosses & (xs < x_cross)
+    return inside
+
+
+Shape = Box | Cylinder | Prism | Mesh
