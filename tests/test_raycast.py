@@ -2,9 +2,11 @@ import numpy as np
 import pytest
 
 from pimm_env.sim.lidar import Lidar3DConfig, cast_rays, directions_3d
-from pimm_env.sim.raycast import BulletRayCaster, PrismRayCaster
+from pimm_env.sim.raycast import BulletRayCaster, EmbreeRayCaster, PrismRayCaster
 from pimm_env.sim.scene import BulletScene
 from pimm_env.world.files import load_world
+from pimm_env.world.model import Element
+from pimm_env.world.semantics import SemanticClass
 
 
 @pytest.fixture(scope="module")
@@ -38,19 +40,37 @@ def test_ray_batches_are_chunked(iilab):
     assert 0.5 < np.mean(bodies >= 0) < 1.0  # some rays run down the corridor beyond 10 m
 
 
-@pytest.mark.parametrize("origin", [[-10.0, 4.2, 0.8], [-24.0, 11.0, 0.8], [-20.0, 16.0, 0.8], [-26.0, 5.0, 0.8]])
-def test_prism_caster_agrees_with_pybullet(iilab, origin):
-    world, scene = iilab
+def assert_agree(reference, other, origin):
     elevations = np.linspace(-np.pi / 3, np.pi / 3, 40)
     azimuths = -np.pi + 2 * np.pi * np.arange(360) / 360 + 0.3
-    r_bullet, l_bullet = BulletRayCaster(scene.client, scene.body_classes).cast(
-        np.array(origin), azimuths, elevations, 10.0
-    )
-    r_prism, l_prism = PrismRayCaster(world).cast(np.array(origin), azimuths, elevations, 10.0)
+    r_bullet, l_bullet = reference.cast(np.array(origin), azimuths, elevations, 10.0)
+    r_prism, l_prism = other.cast(np.array(origin), azimuths, elevations, 10.0)
     assert np.mean(np.isfinite(r_bullet) == np.isfinite(r_prism)) > 0.999
     assert np.mean(l_bullet == l_prism) > 0.99
     both = np.isfinite(r_bullet) & np.isfinite(r_prism)
     assert np.percentile(np.abs(r_bullet[both] - r_prism[both]), 99) < 0.01
+
+
+@pytest.mark.parametrize("origin", [[-10.0, 4.2, 0.8], [-24.0, 11.0, 0.8], [-20.0, 16.0, 0.8], [-26.0, 5.0, 0.8]])
+@pytest.mark.parametrize("caster", [PrismRayCaster, EmbreeRayCaster])
+def test_fast_casters_agree_with_pybullet(iilab, origin, caster):
+    world, scene = iilab
+    assert_agree(BulletRayCaster(scene.client, scene.body_classes), caster(world), origin)
+
+
+def test_embree_agrees_with_pybullet_on_prisms_and_meshes(room_file):
+    """A floor-plan world: walls as one prism with holes, a round post, a box; and the iilab's OBJ if present."""
+    from pimm_env.world.shapes import Prism
+
+    world = load_world(room_file)
+    walls = Prism(np.array([[-1, -1], [7, -1], [7, 5], [-1, 5]]), (np.array([[0, 0], [6, 0], [6, 4], [0, 4]]),), (0, 3))
+    world.elements[2:6] = [Element("walls", SemanticClass.WALL, walls, True)]
+    scene = BulletScene(world, 0.25)
+    try:
+        for origin in ([1.0, 1.0, 0.5], [5.0, 3.0, 1.5]):
+            assert_agree(BulletRayCaster(scene.client, scene.body_classes), EmbreeRayCaster(world), origin)
+    finally:
+        scene.close()
 
 
 def test_prism_caster_single_box_range(room_file):

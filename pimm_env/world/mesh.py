@@ -1,10 +1,14 @@
-"""Worlds made of triangle meshes: an OBJ file plus rules that map object names to semantic classes.
+"""Worlds made of triangle meshes: a mesh file plus rules that map object names to semantic classes.
+
+OBJ files are read by our own reader, which keeps every ``o``/``g`` name exactly as written (trimesh renames
+the iilab's objects, ``Cealing_004`` to ``Cealing_4``, and splits 99 objects into 101); PLY, STL, glTF/GLB
+and the other formats trimesh knows are read with trimesh, one object per node of the scene.
 
 Mesh world file::
 
     format: pimm-mesh-world/1
     name: iilab-mesh
-    mesh: ../../../shared/data/iilab/iilab.obj   # relative to this file
+    mesh: ../../../shared/data/iilab/iilab.obj   # relative to this file: .obj, .ply, .stl, .glb, .gltf, ...
     up_axis: y                 # y: a vertex (x, y, z) of the file is the map point (x, -z, y); or z
     floor_z: 0.30
     rules:                     # first match wins; fnmatch patterns on the OBJ object names
@@ -66,6 +70,36 @@ def read_obj(path: Path, up_axis: str = "z") -> dict[str, Mesh]:
     return meshes
 
 
+def read_mesh(path: Path, up_axis: str = "z") -> dict[str, Mesh]:
+    """Named triangle meshes of a mesh file in the map frame (see the module docstring for the formats)."""
+    path = Path(path)
+    if path.suffix.lower() == ".obj":
+        return read_obj(path, up_axis)
+    if not path.is_file():
+        raise FileNotFoundError(f"mesh file {path} does not exist")
+    import trimesh
+
+    try:
+        scene = trimesh.load(path, force="scene")
+    except Exception as error:  # trimesh raises many kinds for unreadable files
+        raise ValueError(f"{path}: cannot read the mesh: {error}") from None
+    if not isinstance(scene, trimesh.Scene):
+        raise ValueError(f"{path}: expected a mesh scene, got {type(scene).__name__}")
+    meshes: dict[str, Mesh] = {}
+    for node in scene.graph.nodes_geometry:
+        transform, geometry_name = scene.graph[node]
+        geometry = scene.geometry[geometry_name]
+        if not hasattr(geometry, "faces") or len(geometry.faces) == 0:
+            continue
+        vertices = trimesh.transform_points(np.asarray(geometry.vertices, dtype=float), transform)
+        if up_axis == "y":
+            vertices = np.column_stack([vertices[:, 0], -vertices[:, 2], vertices[:, 1]])
+        meshes[str(node)] = Mesh(vertices, np.asarray(geometry.faces, dtype=np.int64))
+    if not meshes:
+        raise ValueError(f"{path}: the file holds no triangles")
+    return meshes
+
+
 def classify(name: str, rules: list[tuple[str, SemanticClass]]) -> SemanticClass | None:
     for pattern, semantic in rules:
         if fnmatchcase(name, pattern):
@@ -77,7 +111,7 @@ def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
     """Build a world from a parsed mesh world file (see the module docstring)."""
     mesh_ref = data.get("mesh")
     if not isinstance(mesh_ref, str):
-        raise WorldFileError(path, "mesh", f"expected the path of an OBJ file, got {mesh_ref!r}")
+        raise WorldFileError(path, "mesh", f"expected the path of a mesh file, got {mesh_ref!r}")
     mesh_path = (Path(path).parent / mesh_ref).resolve()
     if not mesh_path.is_file():
         raise WorldFileError(path, "mesh", f"file {mesh_path} does not exist")
@@ -99,8 +133,12 @@ def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
         occupancy_classes = {parse_class(c) for c in data.get("occupancy", ["wall", "clutter"])}
     except ValueError as exc:
         raise WorldFileError(path, "occupancy", str(exc)) from None
+    try:
+        meshes = read_mesh(mesh_path, up_axis)
+    except ValueError as exc:
+        raise WorldFileError(path, "mesh", str(exc)) from None
     elements = []
-    for name, mesh in read_obj(mesh_path, up_axis).items():
+    for name, mesh in meshes.items():
         semantic = classify(name, rules)
         if semantic is None:
             raise WorldFileError(path, "rules", f"no rule matches object {name!r} of {mesh_path.name}")
