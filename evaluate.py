@@ -288,6 +288,68 @@ def perception(
     typer.echo(json.dumps(result) if json_out else format_perception(result))
 
 
+world_app = typer.Typer(add_completion=False, help="Bring your own building: import a ROS map or a mesh, prepare it.")
+app.add_typer(world_app, name="world")
+
+
+@world_app.command("import")
+def world_import(
+    source: Path = typer.Argument(..., help="a map_server .yaml (+ .pgm/.png) or a mesh (.obj .ply .stl .glb ...)"),
+    name: str = typer.Option(..., help="the world's name: it is written to maps/NAME/"),
+    ceiling_height: float = typer.Option(3.0, help="ceiling height (m) of a floor plan"),
+    ceilings: Path | None = typer.Option(None, help="YAML of areas with other ceiling heights"),
+    furnish: int = typer.Option(0, min=0, help="mapped furniture pieces to add to a floor plan"),
+    seed: int = typer.Option(0, help="seed of the furniture, the routes and the fingerprint headings"),
+    up_axis: str = typer.Option("z", help="a mesh's up axis: z, or y (the map point of (x, y, z) is (x, -z, y))"),
+    routes: int = typer.Option(4, min=1, help="routes to generate"),
+    maps_dir: Path | None = typer.Option(None, help="where worlds live (default: the project's maps/)"),
+    prepare: bool = typer.Option(True, help="also prepare the world (maps, fingerprints, routes)"),
+) -> None:
+    """Write maps/NAME/world.yaml from a ROS map or a mesh, then prepare it."""
+    from pimm_env.importers.ros_map import MapImportError
+    from pimm_env.importers.world_import import import_world
+    from pimm_env.world.files import MAPS_DIR
+    from pimm_env.world.model import WorldFileError
+
+    try:
+        path = import_world(
+            source, name, maps_dir or MAPS_DIR, ceiling_height, ceilings, furnish, seed, up_axis=up_axis
+        )
+    except (MapImportError, WorldFileError) as error:
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(1) from None
+    typer.echo(f"wrote {path}")
+    if prepare:
+        world_prepare(name=str(path), routes=routes, seed=seed, spacing=0.5, new_routes=True)
+
+
+@world_app.command("prepare")
+def world_prepare(
+    name: str = typer.Argument(..., help="world name under maps/ or a world file"),
+    routes: int = typer.Option(4, min=1, help="routes to generate when the world has no scenarios.yaml"),
+    seed: int = typer.Option(0, help="seed of the routes and the fingerprint headings"),
+    spacing: float = typer.Option(0.5, min=0.1, help="fingerprint grid spacing (m)"),
+    new_routes: bool = typer.Option(False, help="replace an existing scenarios.yaml with generated routes"),
+) -> None:
+    """Rebuild a world's derived maps and fingerprint map; generate routes if it has no scenarios."""
+    from pimm_env.driving.routes import RouteConfig, RoutePlanningError
+    from training.prepare import prepare_world
+
+    try:
+        done = prepare_world(name, RouteConfig(count=routes), seed, spacing, new_routes)
+    except RoutePlanningError as error:
+        typer.echo(f"error: {name}: {error}", err=True)
+        raise typer.Exit(1) from None
+    total = sum(done.seconds.values())
+    steps = ", ".join(f"{k} {v:.1f} s" for k, v in done.seconds.items())
+    typer.echo(
+        f"{done.world}: {done.free_m2:.0f} m^2 free, {done.corners} corners, {done.fingerprints} fingerprints, "
+        f"scenarios {', '.join(done.scenarios)}{' (generated)' if done.routes_written else ''}; "
+        f"prepared in {total:.1f} s ({steps}) -> {done.folder}"
+    )
+    typer.echo(f"next: python evaluate.py run --world {done.folder / 'world.yaml'}")
+
+
 #: Options that take several values after one flag (``--scenarios a b c``), as ARCHITECTURE.md writes them.
 LIST_OPTIONS = ("--scenarios", "--localizers")
 

@@ -1,5 +1,6 @@
 """World import: ROS maps (straight walls at any angle, negate, origin yaw, doorways) and meshes."""
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -166,3 +167,43 @@ def test_a_mesh_becomes_a_world_the_env_runs_in(tmp_path):
     no_floor.export(tmp_path / "bare.ply")
     with pytest.raises(WorldFileError, match="no floor object"):
         import_world(tmp_path / "bare.ply", "bare", tmp_path / "maps")
+
+
+def test_generated_routes_keep_their_clearance_and_repeat_per_seed(tmp_path):
+    from pimm_env.driving.routes import RouteConfig, plan_routes
+
+    source, _ = write_map(tmp_path / "src", 30.0)
+    occupancy = ensure_derived_maps(load_world(import_world(source, "plan", tmp_path / "maps"))).occupancy
+    config = RouteConfig(count=2)
+    routes = plan_routes(occupancy, config, seed=5)
+    assert all(np.array_equal(a, b) for a, b in zip(routes, plan_routes(occupancy, config, seed=5), strict=True))
+    clearance = occupancy.distance_to_occupied()
+    free = occupancy.free
+    for waypoints in routes:
+        length = float(np.hypot(*np.diff(waypoints, axis=0).T).sum())
+        assert config.min_length_m <= length <= config.max_length_m
+        for a, b in itertools.pairwise(waypoints):
+            samples = a + np.linspace(0, 1, 50)[:, None] * (b - a)
+            rows, cols, valid = occupancy.grid.cells_of(samples)
+            assert valid.all() and free[rows, cols].all()
+            assert clearance[rows, cols].min() >= config.clearance_m - config.step_m
+
+
+def test_world_import_command_prepares_a_world_to_run_in(tmp_path):
+    from typer.testing import CliRunner
+
+    import evaluate
+
+    source, _ = write_map(tmp_path / "src", 30.0)
+    args = ["world", "import", str(source), "--name", "plan", "--maps-dir", str(tmp_path / "maps"), "--furnish", "2"]
+    result = CliRunner().invoke(evaluate.app, [*args, "--routes", "2"])
+    assert result.exit_code == 0, result.output
+    folder = tmp_path / "maps" / "plan"
+    assert {"world.yaml", "occupancy.pgm", "corners.yaml", "fingerprints.npz", "scenarios.yaml"} <= {
+        p.name for p in folder.iterdir()
+    }
+    from pimm_env.driving.scenarios import load_scenarios
+
+    assert list(load_scenarios(load_world(folder / "world.yaml"))) == ["route_1", "route_2", "route_1_kidnap"]
+    bad = CliRunner().invoke(evaluate.app, ["world", "import", str(tmp_path / "nope.yaml"), "--name", "x"])
+    assert bad.exit_code != 0 and "nope.yaml: no such file" in bad.output

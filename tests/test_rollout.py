@@ -15,15 +15,27 @@ def test_scenarios_are_available_by_name():
         get_scenario("area_z")
 
 
-def test_pure_pursuit_reaches_the_goal_kinematically():
-    controller = PurePursuit(np.array([[0, 0], [3, 0], [3, 2]]))
-    pose = np.array([0.0, 0.0, 0.0])
-    for _ in range(2000):
+def drive_kinematically(waypoints: list, steps: int = 4000) -> tuple[PurePursuit, np.ndarray, float]:
+    controller = PurePursuit(np.array(waypoints, dtype=float))
+    pose, travelled = np.array([0.0, 0.0, 0.0]), 0.0
+    for _ in range(steps):
         v, w = controller.command(pose)
         if controller.done:
             break
         pose = pose + 0.032 * np.array([v * np.cos(pose[2]), v * np.sin(pose[2]), w])
+        travelled += 0.032 * abs(v)
+    return controller, pose, travelled
+
+
+def test_pure_pursuit_reaches_the_goal_kinematically():
+    controller, pose, _ = drive_kinematically([[0, 0], [3, 0], [3, 2]])
     assert controller.done and np.hypot(pose[0] - 3, pose[1] - 2) < 0.15
+
+
+def test_a_route_that_turns_back_on_itself_is_driven_to_its_end():
+    controller, pose, travelled = drive_kinematically([[0, 0], [3, 0], [0, 0.05], [2, 0.1]])
+    assert controller.done and np.hypot(pose[0] - 2, pose[1] - 0.1) < 0.15
+    assert travelled == pytest.approx(3 + 3 + 2, abs=1.0)  # it turns within 0.2 m of each end
 
 
 def test_odom_to_map():

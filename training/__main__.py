@@ -1,7 +1,7 @@
 """Perception training for a world: ``python -m training rebuild --world iilab`` makes everything.
 
 python -m training dataset --world iilab --scans 2300 --seed 0      # build/datasets/iilab/*.npz
-python -m training train --world iilab --epochs 40                  # maps/iilab/pointnet.pt (+ .json)
+python -m training train --world iilab --epochs 40                  # maps/iilab/pointnet.pt (+ .json), the world's own
 python -m training validate --world iilab                           # IoU on the validation set
 python -m training fingerprints --world iilab                       # maps/iilab/fingerprints.npz
 python -m training rebuild --world iilab                            # all of it, in order
@@ -58,12 +58,12 @@ def train(
     epochs: int = typer.Option(40, min=1),
     points: int = typer.Option(2048, min=64, help="points per scan the network looks at"),
     seed: int = typer.Option(0),
-    out: Path | None = typer.Option(None, help="checkpoint path (default maps/<world>/pointnet.pt)"),
+    out: Path | None = typer.Option(None, help="checkpoint path (default maps/<world>/pointnet.pt, the world's own)"),
 ) -> None:
     """Train the segmenter and descriptor on the world's dataset (80/20 split), report per-epoch metrics."""
     import numpy as np
 
-    from pimm_agents.perception.files import checkpoint_path
+    from pimm_agents.perception.files import own_checkpoint_path
     from pimm_agents.perception.pointnet import PointNetConfig, save_checkpoint
     from training.dataset import load, split
     from training.train import TrainConfig, describe
@@ -83,7 +83,7 @@ def train(
         )
 
     model, history = fit(train_set, test_set, config, network, on_epoch=report)
-    target = out or checkpoint_path(world)
+    target = out or own_checkpoint_path(world)
     record = {
         "command": "python -m training " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "python -m training",
         "dataset": {"path": str(main_path), "scans": len(scans), "train": len(train_set), "test": len(test_set)},
@@ -99,7 +99,7 @@ def train(
 @app.command()
 def validate(
     world: str = typer.Option("iilab", help="world name or world file"),
-    checkpoint: Path | None = typer.Option(None, help="weights to score (default maps/<world>/pointnet.pt)"),
+    checkpoint: Path | None = typer.Option(None, help="weights to score (default: the weights the world uses)"),
 ) -> None:
     """Per-class IoU on the separate validation set, every return labelled as the localizer does; the result
     is also written into the checkpoint's .json record."""

@@ -6,10 +6,11 @@ import numpy as np
 
 from pimm_agents.perception.fingerprint_map import FingerprintMap
 from pimm_agents.perception.segmenter import Segmenter
+from pimm_env.world.model import World
 
 
 def build_fingerprint_map(
-    world: str, segmenter: Segmenter, spacing: float = 0.5, seed: int = 0, progress: bool = True
+    world: str | World, segmenter: Segmenter, spacing: float = 0.5, seed: int = 0, progress: bool = True
 ) -> FingerprintMap:
     """Scan at every ``spacing`` grid position where the robot fits, with a random heading (seeded)."""
     from tqdm import tqdm
@@ -31,4 +32,4 @@ def build_fingerprint_map(
             descriptors[i] = segmenter.segment(obs["cloud"], obs["cloud_mask"]).descriptor
     finally:
         env.close()
-    return FingerprintMap(descriptors, positions, headings, source=f"fingerprint map of {world}")
+    return FingerprintMap(descriptors, positions, headings, source=f"fingerprint map of {env.world.name}")

@@ -1,4 +1,9 @@
-"""Where a world's trained perception lives: ``maps/<world>/pointnet.pt`` and ``maps/<world>/fingerprints.npz``."""
+"""Where a world's perception lives: the network's weights and the world's fingerprint map.
+
+Every world uses the shipped weights (``pimm_agents/perception/weights/pointnet.pt``, with ``pointnet.json``
+saying how they were made) unless it has its own ``maps/<world>/pointnet.pt``; the fingerprint map is always
+the world's own, ``maps/<world>/fingerprints.npz``, built by ``evaluate.py world prepare``.
+"""
 
 from __future__ import annotations
 
@@ -13,8 +18,18 @@ def _world(world: str | World) -> World:
     return world if isinstance(world, World) else load_world(world)
 
 
-def checkpoint_path(world: str | World) -> Path:
+SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "pointnet.pt"
+
+
+def own_checkpoint_path(world: str | World) -> Path:
+    """Where weights trained for this world go (``python -m training train``)."""
     return world_dir(_world(world)) / "pointnet.pt"
+
+
+def checkpoint_path(world: str | World) -> Path:
+    """The weights the world uses: its own if it has them, else the shipped ones."""
+    own = own_checkpoint_path(world)
+    return own if own.is_file() else SHIPPED_WEIGHTS
 
 
 def fingerprint_path(world: str | World) -> Path:

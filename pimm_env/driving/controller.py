@@ -16,6 +16,9 @@ class PursuitConfig:
     max_angular: float = 1.0  # rad/s
     turn_in_place: float = 0.8  # rad: heading errors above this are turned on the spot
     goal_tolerance: float = 0.10  # m
+    #: where the path turns back by more than this (rad), the next segment is taken up within half the
+    #: lookahead of the turn: otherwise the lookahead point wraps behind the robot and it stalls there
+    turn_back: float = np.radians(100.0)
 
 
 class PurePursuit:
@@ -35,10 +38,18 @@ class PurePursuit:
             a, b = self.path[self.segment], self.path[self.segment + 1]
             ab = b - a
             t = float(np.dot(position - a, ab) / max(np.dot(ab, ab), 1e-12))
-            if t >= 1.0 and self.segment < len(self.path) - 2:
+            last = self.segment == len(self.path) - 2
+            if not last and (t >= 1.0 or self._turning_back(position)):
                 self.segment += 1
                 continue
             return self.segment, min(max(t, 0.0), 1.0)
+
+    def _turning_back(self, position: np.ndarray) -> bool:
+        a, b, c = self.path[self.segment : self.segment + 3]
+        u, v = b - a, c - b
+        cosine = float(np.dot(u, v) / max(np.linalg.norm(u) * np.linalg.norm(v), 1e-12))
+        near = float(np.linalg.norm(b - position)) < self.config.lookahead / 2
+        return near and cosine < np.cos(self.config.turn_back)
 
     def _lookahead_point(self, position: np.ndarray) -> np.ndarray:
         segment, t = self._progress(position)

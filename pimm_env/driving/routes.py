@@ -1,0 +1,194 @@
+"""Generated evaluation routes for any world: shortest paths through free space that keep their clearance.
+
+A route starts at a random place of the largest region the robot can reach with ``clearance_m`` to every
+obstacle, and strings together shortest paths (Dijkstra on a coarse 8-connected grid, each step's cost
+raised near obstacles so that paths keep to the middle of corridors) to goals drawn far from the places
+visited so far, so that it crosses the building rather than circling one room, until it is
+``min_length_m``-``max_length_m`` long. The path is then thinned to waypoints whose straight segments keep
+the clearance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from pimm_env.mapping.occupancy import OccupancyGrid
+
+
+@dataclass(frozen=True)
+class RouteConfig:
+    count: int = 4
+    clearance_m: float = 0.5  # from every obstacle and unknown cell, along the whole route
+    min_length_m: float = 30.0
+    max_length_m: float = 80.0
+    step_m: float = 0.2  # planning grid
+    min_leg_m: float = 6.0  # goals lie at least this far (along paths) from the current place
+    speed: float = 0.5  # m/s, as the thesis's area_a
+
+
+class RoutePlanningError(ValueError):
+    """The world has no room for a route of the asked length and clearance."""
+
+
+@dataclass(frozen=True)
+class _Graph:
+    xy: np.ndarray  # (N, 2) node positions
+    clearance: np.ndarray  # (N,) metres
+    matrix: object  # sparse (N, N) step costs
+
+
+def _graph(occupancy: OccupancyGrid, config: RouteConfig) -> _Graph:
+    grid = occupancy.grid
+    clearance = ndimage.distance_transform_edt(occupancy.free) * grid.resolution
+    stride = max(1, round(config.step_m / grid.resolution))
+    sub = clearance[::stride, ::stride]
+    ok = sub >= config.clearance_m
+    labels, count = ndimage.label(ok, structure=np.ones((3, 3)))
+    if count == 0:
+        raise RoutePlanningError(f"no free place keeps {config.clearance_m} m from every obstacle")
+    largest = np.argmax(np.bincount(labels.ravel())[1:]) + 1
+    rows, cols = np.nonzero(labels == largest)
+    index = -np.ones(sub.shape, dtype=np.int64)
+    index[rows, cols] = np.arange(len(rows))
+    xy = np.column_stack(
+        [
+            grid.origin[0] + (cols * stride + 0.5) * grid.resolution,
+            grid.origin[1] + (rows * stride + 0.5) * grid.resolution,
+        ]
+    )
+    node_clearance = sub[rows, cols]
+    sources, targets, costs = [], [], []
+    step = stride * grid.resolution
+    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        r2, c2 = rows + dr, cols + dc
+        inside = (r2 >= 0) & (r2 < sub.shape[0]) & (c2 >= 0) & (c2 < sub.shape[1])
+        j = np.full(len(rows), -1)
+        j[inside] = index[r2[inside], c2[inside]]
+        linked = j >= 0
+        i = np.nonzero(linked)[0]
+        length = step * np.hypot(dr, dc)
+        cost = length * (1 + 1.0 / np.minimum(node_clearance[i], node_clearance[j[linked]]))
+        sources += [i, j[linked]]
+        targets += [j[linked], i]
+        costs += [cost, cost]
+    n = len(rows)
+    matrix = coo_matrix((np.concatenate(costs), (np.concatenate(sources), np.concatenate(targets))), shape=(n, n))
+    return _Graph(xy, node_clearance, matrix.tocsr())
+
+
+def _path(predecessors: np.ndarray, goal: int) -> list[int]:
+    path = [goal]
+    while predecessors[path[-1]] >= 0:
+        path.append(int(predecessors[path[-1]]))
+    return path[::-1]
+
+
+def _length(xy: np.ndarray) -> float:
+    return float(np.hypot(*np.diff(xy, axis=0).T).sum()) if len(xy) > 1 else 0.0
+
+
+def _clear(occupancy_clearance, grid, a: np.ndarray, b: np.ndarray, least: float) -> bool:
+    samples = a + np.linspace(0, 1, max(2, int(np.hypot(*(b - a)) / (grid.resolution / 2)) + 1))[:, None] * (b - a)
+    rows, cols, valid = grid.cells_of(samples)
+    return bool(valid.all() and (occupancy_clearance[rows, cols] >= least).all())
+
+
+def thin(points: np.ndarray, occupancy: OccupancyGrid, least: float, tolerance: float = 0.25) -> np.ndarray:
+    """Douglas-Peucker on the path: a stretch becomes one segment when no point of it lies farther than
+    ``tolerance`` from that segment and the segment keeps ``least`` clearance."""
+    grid = occupancy.grid
+    clearance = ndimage.distance_transform_edt(occupancy.free) * grid.resolution
+    keep = {0, len(points) - 1}
+    stack = [(0, len(points) - 1)]
+    while stack:
+        i, j = stack.pop()
+        if j <= i + 1:
+            continue
+        a, b = points[i], points[j]
+        ab = b - a
+        length = float(np.hypot(*ab))
+        rel = points[i + 1 : j] - a
+        dist = np.abs(ab[0] * rel[:, 1] - ab[1] * rel[:, 0]) / length if length > 0 else np.hypot(*rel.T)
+        if dist.max() <= tolerance and _clear(clearance, grid, a, b, least):
+            continue
+        k = i + 1 + int(np.argmax(dist))
+        keep.add(k)
+        stack += [(i, k), (k, j)]
+    return points[sorted(keep)]
+
+
+def plan_route(occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator) -> np.ndarray:
+    """Waypoints (K, 2) of one route (see the module docstring)."""
+    graph = _graph(occupancy, config)
+    target = rng.uniform(config.min_length_m, config.max_length_m)
+    current = int(rng.integers(len(graph.xy)))
+    visited = [current]
+    route = [current]
+    length = 0.0
+    for _ in range(100):
+        if length >= target:
+            waypoints = _waypoints(graph.xy[route], occupancy, config)
+            if _length(waypoints) >= config.min_length_m:
+                return waypoints
+            target = length + 1.5 * (config.min_length_m - _length(waypoints))  # thinning cut corners: go on
+        costs, predecessors = dijkstra(graph.matrix, indices=current, return_predecessors=True)
+        far = np.min(np.hypot(*(graph.xy[:, None, :] - graph.xy[visited][None, :, :]).transpose(2, 0, 1)), axis=1)
+        reachable = np.isfinite(costs) & (costs >= config.min_leg_m)
+        if not reachable.any():
+            reachable = np.isfinite(costs) & (costs > 0)
+        if not reachable.any():
+            raise RoutePlanningError(f"the free region around {graph.xy[current].round(2)} is too small for a route")
+        weights = np.where(reachable, far + 1e-3, 0.0) ** 2
+        goal = int(rng.choice(len(weights), p=weights / weights.sum()))
+        leg = _path(predecessors, goal)[1:]
+        route += leg
+        length += _length(graph.xy[[current, *leg]])
+        visited.append(goal)
+        current = goal
+    raise RoutePlanningError(f"no route of {config.min_length_m} m found in 100 legs")
+
+
+def _waypoints(xy: np.ndarray, occupancy: OccupancyGrid, config: RouteConfig) -> np.ndarray:
+    along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    return thin(xy[along <= config.max_length_m], occupancy, config.clearance_m - 0.5 * config.step_m)
+
+
+def plan_routes(occupancy: OccupancyGrid, config: RouteConfig, seed: int) -> list[np.ndarray]:
+    """``config.count`` routes, reproducible for one seed."""
+    rng = np.random.default_rng(seed)
+    return [plan_route(occupancy, config, rng) for _ in range(config.count)]
+
+
+def scenarios_document(world_name: str, routes: list[np.ndarray], config: RouteConfig, seed: int) -> str:
+    """``scenarios.yaml`` text: ``route_1`` ... and ``route_1_kidnap`` (route 1, then kidnapped to its start)."""
+    lines = [
+        f"# Generated by `evaluate.py world prepare` (seed {seed}): {len(routes)} routes of "
+        f"{config.min_length_m:.0f}-{config.max_length_m:.0f} m keeping {config.clearance_m} m clearance.",
+        "format: pimm-scenarios/1",
+        f"world: {world_name}",
+        "scenarios:",
+    ]
+    for k, waypoints in enumerate(routes, start=1):
+        heading = float(np.arctan2(*(waypoints[1] - waypoints[0])[::-1]))
+        points = ", ".join(f"[{x:.2f}, {y:.2f}]" for x, y in waypoints)
+        lines += [
+            f"  route_{k}:",
+            f"    description: generated route {k}, {_length(waypoints):.1f} m",
+            f"    start: [{waypoints[0][0]:.2f}, {waypoints[0][1]:.2f}, {heading:.4f}]",
+            f"    waypoints: [{points}]",
+            f"    speed: {config.speed}",
+        ]
+    start = routes[0][0]
+    heading = float(np.arctan2(*(routes[0][1] - routes[0][0])[::-1]))
+    lines += [
+        "  route_1_kidnap:",
+        "    description: route 1, then kidnapped back to its start and driven again (as a_c_b_kidnap)",
+        "    base: route_1",
+        f"    kidnap_to: [{start[0]:.2f}, {start[1]:.2f}, {heading:.4f}]",
+    ]
+    return "\n".join(lines) + "\n"

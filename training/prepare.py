@@ -1,0 +1,70 @@
+"""Preparing a world for localization: derived maps, the fingerprint map made with the world's weights (the
+shipped ones unless it has its own), and generated routes in ``scenarios.yaml`` when it has none."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pimm_env.driving.routes import RouteConfig
+from pimm_env.world.model import World
+
+
+@dataclass
+class Preparation:
+    world: str
+    folder: Path
+    corners: int
+    free_m2: float
+    fingerprints: int
+    scenarios: list[str]
+    routes_written: bool
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def prepare_world(
+    world: str | Path | World,
+    routes: RouteConfig | None = None,
+    seed: int = 0,
+    spacing: float = 0.5,
+    new_routes: bool = False,
+    progress: bool = True,
+) -> Preparation:
+    """Rebuild everything a world needs to be localized in (see the module docstring)."""
+    from pimm_agents.perception.files import checkpoint_path, fingerprint_path
+    from pimm_agents.perception.segmenter import Segmenter
+    from pimm_env.driving.routes import plan_routes, scenarios_document
+    from pimm_env.driving.scenarios import load_scenarios, scenarios_path
+    from pimm_env.mapping.derived_maps import build_derived_maps
+    from pimm_env.world.files import load_world, world_dir
+    from training.fingerprints import build_fingerprint_map
+
+    loaded = world if isinstance(world, World) else load_world(world)
+    routes = routes or RouteConfig()
+    seconds: dict[str, float] = {}
+    start = time.perf_counter()
+    maps = build_derived_maps(loaded)
+    seconds["maps"] = time.perf_counter() - start
+    start = time.perf_counter()
+    written = new_routes or not scenarios_path(loaded).is_file()
+    if written:
+        planned = plan_routes(maps.occupancy, routes, seed)
+        scenarios_path(loaded).write_text(scenarios_document(loaded.name, planned, routes, seed))
+    seconds["routes"] = time.perf_counter() - start
+    start = time.perf_counter()
+    weights = checkpoint_path(loaded)
+    fmap = build_fingerprint_map(loaded, Segmenter(weights), spacing, seed, progress=progress)
+    fmap.save(fingerprint_path(loaded), {"spacing_m": str(spacing), "seed": str(seed), "weights": str(weights)})
+    seconds["fingerprints"] = time.perf_counter() - start
+    occupancy = maps.occupancy
+    return Preparation(
+        world=loaded.name,
+        folder=world_dir(loaded),
+        corners=len(maps.corners),
+        free_m2=float(occupancy.free.sum() * occupancy.grid.resolution**2),
+        fingerprints=len(fmap),
+        scenarios=list(load_scenarios(loaded)),
+        routes_written=written,
+        seconds=seconds,
+    )
