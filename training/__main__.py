@@ -54,25 +54,34 @@ def dataset(
 
 @app.command()
 def train(
-    world: str = typer.Option("iilab", help="world name or world file"),
+    worlds: list[str] = typer.Option(["iilab"], "--world", help="world name or file; repeat to pool several"),
     epochs: int = typer.Option(40, min=1),
     points: int = typer.Option(2048, min=64, help="points per scan the network looks at"),
     seed: int = typer.Option(0),
-    out: Path | None = typer.Option(None, help="checkpoint path (default maps/<world>/pointnet.pt, the world's own)"),
+    learning_rate: float = typer.Option(1e-3, help="Adam's learning rate (thesis: 1e-3)"),
+    init: Path | None = typer.Option(None, help="go on from these weights instead of from scratch"),
+    out: Path | None = typer.Option(None, help="checkpoint path (default with one world: its own pointnet.pt)"),
 ) -> None:
-    """Train the segmenter and descriptor on the world's dataset (80/20 split), report per-epoch metrics."""
+    """Train the segmenter and descriptor on the worlds' datasets (80/20 split), report per-epoch metrics."""
     import numpy as np
 
     from pimm_agents.perception.files import own_checkpoint_path
-    from pimm_agents.perception.pointnet import PointNetConfig, save_checkpoint
-    from training.dataset import load, split
+    from pimm_agents.perception.pointnet import PointNetConfig, load_checkpoint, save_checkpoint
+    from training.dataset import load, pool, split
     from training.train import TrainConfig, describe
     from training.train import train as fit
 
-    main_path, _ = _dataset_paths(world)
-    scans = load(main_path)
+    if out is None and len(worlds) > 1:
+        raise typer.BadParameter("pooling several worlds: say where the weights go", param_hint="--out")
+    paths = [_dataset_paths(world)[0] for world in worlds]
+    scans = pool([load(path) for path in paths])
+    main_path = paths[0]
     train_set, test_set = split(scans, 0.8, np.random.default_rng(seed))
-    config, network = TrainConfig(epochs=epochs, seed=seed), PointNetConfig(points=points)
+    config = TrainConfig(epochs=epochs, seed=seed, learning_rate=learning_rate)
+    network = PointNetConfig(points=points)
+    initial = load_checkpoint(init)[0] if init is not None else None
+    if initial is not None:
+        network = initial.config
 
     def report(record: dict) -> None:
         ious = " ".join(f"{k} {v:.3f}" for k, v in record["test_iou"].items())
@@ -82,11 +91,18 @@ def train(
             f"train acc {record['train_accuracy']:.3f}  test mIoU {record['test_miou']:.3f} ({ious})"
         )
 
-    model, history = fit(train_set, test_set, config, network, on_epoch=report)
-    target = out or own_checkpoint_path(world)
+    model, history = fit(train_set, test_set, config, network, on_epoch=report, initial=initial)
+    target = out or own_checkpoint_path(worlds[0])
     record = {
         "command": "python -m training " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "python -m training",
-        "dataset": {"path": str(main_path), "scans": len(scans), "train": len(train_set), "test": len(test_set)},
+        "dataset": {
+            "path": str(main_path),
+            "worlds": worlds,
+            "scans": len(scans),
+            "train": len(train_set),
+            "test": len(test_set),
+        },
+        "initial_weights": str(init) if init is not None else None,
         **describe(config, network, model),
         "history": history,
     }
@@ -142,6 +158,39 @@ def fingerprints(
 
 
 @app.command()
+def buildings(
+    seeds: str = typer.Option(
+        "100-129", help="building seeds: 'A-B' or 'A,B,C' (held out: 900-909, never train on them)"
+    ),
+    out: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
+) -> None:
+    """Write procedural buildings (training/buildings.py) as worlds out/gen-SEED/, with their derived maps."""
+    from tqdm import tqdm
+
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+    from training.buildings import HELD_OUT_SEEDS, write_building
+
+    chosen = _seed_list(seeds)
+    held = sorted(set(chosen) & set(HELD_OUT_SEEDS))
+    if held:
+        typer.echo(f"note: seeds {held} are the held-out buildings: evaluate on them, never train on them", err=True)
+    for seed in tqdm(chosen, desc="buildings", unit="building"):
+        ensure_derived_maps(load_world(write_building(seed, out)))
+    typer.echo(f"wrote {len(chosen)} buildings to {out}/gen-<seed>/")
+
+
+def _seed_list(text: str) -> list[int]:
+    try:
+        if "-" in text:
+            first, last = (int(v) for v in text.split("-"))
+            return list(range(first, last + 1))
+        return [int(v) for v in text.split(",")]
+    except ValueError:
+        raise typer.BadParameter(f"expected 'A-B' or 'A,B,C', got {text!r}", param_hint="--seeds") from None
+
+
+@app.command()
 def rebuild(
     world: str = typer.Option("iilab", help="world name or world file"),
     scans: int = typer.Option(2300, min=10),
@@ -154,7 +203,15 @@ def rebuild(
     from pimm_agents.perception.pointnet import PointNetConfig
 
     dataset(world=world, scans=scans, validation=validation, seed=seed)
-    train(world=world, epochs=epochs, points=PointNetConfig().points, seed=seed, out=None)
+    train(
+        worlds=[world],
+        epochs=epochs,
+        points=PointNetConfig().points,
+        seed=seed,
+        learning_rate=1e-3,
+        init=None,
+        out=None,
+    )
     validate(world=world, checkpoint=None)
     fingerprints(world=world, spacing=spacing, seed=seed)
 

@@ -94,6 +94,25 @@ def load(path: Path) -> ScanSet:
     return scans
 
 
+#: Positions of the n-th world's scans are shifted by n times this (m) when worlds are pooled, so that scans
+#: of different buildings are never within the contrastive loss's positive radius of each other.
+WORLD_OFFSET_M = 10_000.0
+
+
+def pool(sets: list[ScanSet]) -> ScanSet:
+    """Scans of several worlds as one set; each world's positions moved apart by ``WORLD_OFFSET_M``."""
+    if not sets:
+        raise ValueError("no scan sets to pool")
+    poses = [s.poses + np.array([k * WORLD_OFFSET_M, 0.0, 0.0]) for k, s in enumerate(sets)]
+    return ScanSet(
+        np.concatenate([s.ranges for s in sets]),
+        np.concatenate([s.labels for s in sets]),
+        np.concatenate(poses),
+        np.concatenate([s.areas for s in sets]),
+        "+".join(s.world for s in sets) if len(sets) < 4 else f"{len(sets)} worlds",
+    )
+
+
 def split(scans: ScanSet, train_fraction: float, rng: np.random.Generator) -> tuple[ScanSet, ScanSet]:
     """A random split (the thesis's 80/20 with ``train_fraction`` 0.8)."""
     if not 0 < train_fraction < 1:

@@ -129,13 +129,17 @@ def train(
     network: PointNetConfig = PointNetConfig(),
     on_epoch: Callable[[dict], None] | None = None,
     progress: bool = True,
+    initial: PointNetSegmenter | None = None,
 ) -> tuple[PointNetSegmenter, list[dict]]:
-    """Train from scratch; returns the model (eval mode) and one record of metrics per epoch."""
+    """Train from scratch (or go on from ``initial``); returns the model (eval mode) and one record of metrics
+    per epoch."""
     from tqdm import tqdm
 
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     model = PointNetSegmenter(network)
+    if initial is not None:
+        model.load_state_dict(initial.state_dict())
     weights = torch.tensor(class_weights(train_set.labels), dtype=torch.float32)
     criterion = nn.CrossEntropyLoss(weight=weights)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)

@@ -125,5 +125,16 @@ def write_world(spec: Mapping[str, Any], path: Path) -> Path:
     _Dumper.add_representer(list, short_lists)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(yaml.dump(dict(spec), Dumper=_Dumper, sort_keys=False, width=120))
+    path.write_text(yaml.dump(_plain(spec), Dumper=_Dumper, sort_keys=False, width=120))
     return path
+
+
+def _plain(value: Any) -> Any:
+    """Nested data with numpy scalars and tuples turned into Python numbers and lists."""
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
