@@ -8,6 +8,11 @@ from dataclasses import replace
 
 import numpy as np
 
+from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.world.model import Element, World
+from pimm_env.world.semantics import SemanticClass
+from pimm_env.world.shapes import Box, Cylinder
+
 
 def median_ms(fn: Callable[[], object], repeats: int) -> float:
     times = []
@@ -25,7 +30,7 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     from pimm_env.envs.base_env import SimConfig
     from pimm_env.envs.iilab_env import IILabEnv
     from pimm_env.sim.lidar import azimuths_3d, elevations_3d
-    from pimm_env.sim.raycast import BulletRayCaster, PrismRayCaster
+    from pimm_env.sim.raycast import BulletRayCaster
 
     figures: dict[str, float] = {}
     env = IILabEnv(terminate_on_collision=False)
@@ -44,13 +49,12 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     figures["env_step_scan_ms"] = 1000 * float(np.median(stepped_scan))
     l3 = env.config.lidar3d
     origin = np.array([-10.0, 4.2, env.world.floor_z + l3.height])
-    prism = PrismRayCaster(env.world)
     bullet = BulletRayCaster(env.scene.client, env.scene.body_classes)
     azimuths, elevations = azimuths_3d(l3), elevations_3d(l3)
-    figures["lidar3d_prism_ms"] = median_ms(lambda: prism.cast(origin, azimuths, elevations, l3.max_range), repeats)
     figures["lidar3d_bullet_ms"] = median_ms(
         lambda: bullet.cast(origin, azimuths, elevations, l3.max_range), max(3, repeats // 5)
     )
+    figures.update(big_world_benchmarks(env, origin, repeats))
     env.close()
     config = replace(SimConfig(), lidar3d=replace(SimConfig().lidar3d, rate_hz=10.0))
     rollout_env = IILabEnv(config=config, terminate_on_collision=False)
@@ -61,6 +65,43 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     figures["corners_ms"] = corners_benchmark(repeats)
     figures.update(perception_benchmarks(repeats))
     figures.update(pimm_benchmarks(repeats))
+    return figures
+
+
+def cluttered(world: World, occupancy: OccupancyGrid, pieces: int, seed: int = 0) -> World:
+    """``world`` with ``pieces`` more boxes and posts at random free places: a world of many elements."""
+    rng = np.random.default_rng(seed)
+    free = np.argwhere(occupancy.free)
+    elements = list(world.elements)
+    for k in range(pieces):
+        row, col = free[rng.integers(len(free))]
+        x, y = occupancy.grid.origin + (np.array([col, row]) + 0.5) * occupancy.grid.resolution
+        shape = (
+            Box((x, y, 0.5), (0.3, 0.2, 0.5), float(rng.uniform(0, np.pi)))
+            if k % 2
+            else Cylinder((x, y), 0.15, (0, 1.8))
+        )
+        elements.append(Element(f"bench_{k}", SemanticClass.CLUTTER, shape, True))
+    return World(f"{world.name}+{pieces}", elements, world.areas, world.floor_z, world.source)
+
+
+def big_world_benchmarks(env, origin: np.ndarray, repeats: int) -> dict[str, float]:
+    """One 3D scan by Embree (the default) and by the prism caster in the iilab and in the iilab with 400
+    pieces more (529 elements)."""
+    from pimm_env.sim.lidar import azimuths_3d, elevations_3d
+    from pimm_env.sim.raycast import EmbreeRayCaster, PrismRayCaster, RayCaster
+
+    l3 = env.config.lidar3d
+    azimuths, elevations = azimuths_3d(l3), elevations_3d(l3)
+    figures = {}
+    for label, world in (("", env.world), ("_529_elements", cluttered(env.world, env.maps.occupancy, 400))):
+        casters: dict[str, RayCaster] = {"embree": EmbreeRayCaster(world), "prism": PrismRayCaster(world)}
+        for name, caster in casters.items():
+
+            def scan(c: RayCaster = caster) -> object:
+                return c.cast(origin, azimuths, elevations, l3.max_range)
+
+            figures[f"lidar3d_{name}{label}_ms"] = median_ms(scan, repeats)
     return figures
 
 

@@ -5,8 +5,9 @@ Every LiDAR ray of one scan leaves the same origin. A vertical plane through the
 cuts each prism in a rectangle: the stretch ``[s_in, s_out]`` of horizontal distance where the 2D ray is
 inside the prism's footprint, times the prism's height range ``[z0, z1]``. A ray at elevation ``e`` is the
 line ``z = z_origin + s tan(e)`` in that plane, so its first hit is a closed-form test against a handful
-of rectangles per azimuth. This is about ten times faster than pybullet on the iilab (see
-``evaluate.py bench``) and gives the same ranges, which a test checks.
+of rectangles per azimuth. This is about ten times faster than pybullet on the iilab and gives the
+same ranges, which a test checks. Embree (Open3D) is faster still and its cost does not grow with the number
+of elements (``evaluate.py bench``: ``lidar3d_*_ms``), so it is the default for every world.
 """
 
 from __future__ import annotations

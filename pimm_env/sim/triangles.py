@@ -48,13 +48,27 @@ def cylinder_mesh(cylinder: Cylinder) -> tuple[np.ndarray, np.ndarray]:
 
 def prism_mesh(prism: Prism) -> tuple[np.ndarray, np.ndarray]:
     """Side walls along the outline and the holes, and both caps (constrained Delaunay of the polygon)."""
+    return _extrude(prism.rings(), _cap_triangles(prism), *prism.z_range)
+
+
+def _cap_triangles(prism: Prism) -> np.ndarray:
+    """Triangles (T, 3, 2) covering the prism's polygon: constrained Delaunay of each valid part, or, where
+    GEOS refuses a part (rings that touch themselves), Delaunay triangles whose centroid lies inside it."""
     import shapely
+    from shapely.errors import GEOSException
     from shapely.geometry import Polygon
 
-    polygon = Polygon(prism.outline, list(prism.holes))
-    pieces = shapely.constrained_delaunay_triangles(polygon).geoms
-    caps = np.array([np.asarray(t.exterior.coords)[:3] for t in pieces]).reshape(-1, 3, 2)
-    return _extrude(prism.rings(), caps, *prism.z_range)
+    valid = shapely.make_valid(Polygon(prism.outline, list(prism.holes)))
+    triangles = []
+    for part in getattr(valid, "geoms", [valid]):
+        if part.geom_type != "Polygon" or part.is_empty:
+            continue
+        try:
+            pieces = list(shapely.constrained_delaunay_triangles(part).geoms)
+        except GEOSException:
+            pieces = [t for t in shapely.delaunay_triangles(part).geoms if part.contains(t.centroid)]
+        triangles += [np.asarray(t.exterior.coords)[:3] for t in pieces]
+    return np.array(triangles, dtype=float).reshape(-1, 3, 2)
 
 
 def shape_mesh(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
