@@ -1,0 +1,99 @@
+"""The generalization benchmark: perception and localization on buildings no training or tuning used.
+
+For each held-out seed (``training.buildings.HELD_OUT_SEEDS``) the building is written and prepared with the
+weights under test (fingerprints made with them), then measured as a user would: ``evaluate.py perception``
+on fresh scans and ``evaluate.py run`` on its generated routes. The table has one row per building and one
+for all of them; ``heldout.json`` keeps every figure.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _evaluate(args: list[str]) -> dict[str, Any]:
+    """Run ``evaluate.py ARGS --json`` in a fresh process and return its JSON line."""
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "evaluate.py"), *args, "--json"], capture_output=True, text=True, cwd=ROOT
+    )
+    lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
+    if done.returncode != 0 or not lines:
+        raise RuntimeError(f"evaluate.py {' '.join(args)} failed:\n{done.stderr[-2000:]}")
+    return json.loads(lines[-1])
+
+
+def measure_building(
+    world_file: Path, localizers: list[str], trials: int, scans: int, workers: int, out: Path
+) -> dict[str, Any]:
+    perception = _evaluate(["perception", "--world", str(world_file), "--scans", str(scans), "--seed", "1"])
+    run_args = ["run", "--world", str(world_file), "--trials", str(trials), "--out", str(out)]
+    run = _evaluate([*run_args, "--workers", str(workers), "--localizers", *localizers])
+    return {"perception": perception, "run": run}
+
+
+def building_row(result: dict[str, Any], localizer: str) -> dict[str, float | None]:
+    """Segmentation, retrieval and one localizer's figures over all routes of one building."""
+    perception, scenarios = result["perception"], result["run"]["scenarios"]
+    rows = [by[localizer] for name, by in scenarios.items() if localizer in by]
+    routes = [by[localizer] for name, by in scenarios.items() if localizer in by and not name.endswith("_kidnap")]
+    kidnaps = [by[localizer] for name, by in scenarios.items() if localizer in by and name.endswith("_kidnap")]
+
+    def pooled(items: list[dict], key: str) -> float | None:
+        weights = [r["trials"] * r["convergence_rate"] for r in items if r[key] is not None]
+        values = [r[key] for r in items if r[key] is not None]
+        return float(np.average(values, weights=weights)) if values and sum(weights) > 0 else None
+
+    return {
+        "miou": perception["segmentation"]["miou"],
+        "recall_at_3": perception["retrieval"]["recall_at_3_2m"],
+        "corner_recall": perception["corners"]["predicted_labels"]["recall"],
+        "convergence_rate": float(
+            np.average([r["convergence_rate"] for r in routes], weights=[r["trials"] for r in routes])
+        ),
+        "convergence_time_s": pooled(routes, "convergence_time_s"),
+        "position_error_m": pooled(rows, "position_error_m"),
+        "kidnap_recovery": float(np.mean([r["convergence_rate"] for r in kidnaps])) if kidnaps else None,
+    }
+
+
+def format_table(rows: dict[str, dict[str, dict[str, float | None]]], localizers: list[str]) -> str:
+    def cell(value: float | None, fmt: str, scale: float = 1.0) -> str:
+        return "-" if value is None else format(scale * value, fmt)
+
+    lines = [
+        "| building | localizer | mIoU | recall@3 (2 m) | corner recall | conv. rate | conv. time s | pos. err m "
+        "| kidnap |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for building, by_localizer in rows.items():
+        for localizer in localizers:
+            r = by_localizer[localizer]
+            lines.append(
+                f"| {building} | {localizer} | {cell(r['miou'], '.2f')} | {cell(r['recall_at_3'], '.2f')} | "
+                f"{cell(r['corner_recall'], '.2f')} | {cell(r['convergence_rate'], '.0f', 100)} % | "
+                f"{cell(r['convergence_time_s'], '.1f')} | {cell(r['position_error_m'], '.2f')} | "
+                f"{cell(r['kidnap_recovery'], '.0f', 100)} % |"
+            )
+    return "\n".join(lines)
+
+
+def summarize(rows: dict[str, dict[str, dict[str, float | None]]], localizer: str) -> dict[str, float | None]:
+    """Means over buildings (median for the convergence time)."""
+    items = [by[localizer] for by in rows.values()]
+
+    def mean(key: str) -> float | None:
+        values = [v for v in (r[key] for r in items) if v is not None]
+        return float(np.mean(values)) if values else None
+
+    times = [t for t in (r["convergence_time_s"] for r in items) if t is not None]
+    summary = {key: mean(key) for key in items[0]}
+    summary["convergence_time_s"] = float(np.median(times)) if times else None
+    return summary
