@@ -88,3 +88,15 @@ def test_csv_round_trip_and_malformed_files_name_the_line(tmp_path):
     path.write_text(",".join(CSV_COLUMNS) + "\n1,2,3\n")
     with pytest.raises(ValueError, match="line 2: 3 fields"):
         read_csv(path)
+
+
+def test_excursions_count_leaving_after_first_convergence():
+    from pimm_agents.evaluation.metrics import excursions
+    from pimm_agents.evaluation.trial_log import TrialLog
+
+    t = np.arange(10.0)
+    errors = np.array([9, 9, 0.5, 0.5, 6, 7, 0.5, 0.5, 5, 0.5])  # far, then found, lost twice
+    true = np.zeros((10, 3))
+    estimate = np.column_stack([errors, np.zeros(10), np.zeros(10)])
+    log = TrialLog(t, t, true, estimate, np.zeros((10, 3)), None, [])
+    assert excursions(log) == (2, 3.0)

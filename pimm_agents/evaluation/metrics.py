@@ -29,6 +29,23 @@ def angle_errors_deg(log: TrialLog) -> np.ndarray:
     return np.degrees(np.abs(wrap_angle(log.estimate[:, 2] - log.true[:, 2])))
 
 
+def excursions(
+    log: TrialLog, position_threshold: float = POSITION_THRESHOLD_M, angle_threshold_deg: float = ANGLE_THRESHOLD_DEG
+) -> tuple[int, float]:
+    """How often, after the estimate first came within both thresholds, it left them again, and for how
+    long in all (s): the jumps to a look-alike place that the convergence metric only sees as a late time."""
+    if len(log) == 0:
+        return 0, 0.0
+    bad = (position_errors(log) >= position_threshold) | (angle_errors_deg(log) >= angle_threshold_deg)
+    good = np.nonzero(~bad)[0]
+    if len(good) == 0:
+        return 0, 0.0
+    after = bad[good[0] :]
+    starts = np.count_nonzero(after[1:] & ~after[:-1])
+    dt = np.diff(log.time[good[0] :], append=log.time[-1])
+    return int(starts), float(dt[after].sum())
+
+
 def trial_metrics(
     log: TrialLog, position_threshold: float = POSITION_THRESHOLD_M, angle_threshold_deg: float = ANGLE_THRESHOLD_DEG
 ) -> TrialMetrics:
