@@ -58,7 +58,19 @@ class GridSpec:
 
     def points_in_polygon(self, polygon: np.ndarray) -> np.ndarray:
         """Mask of the cells whose centre lies inside ``polygon`` (K, 2), by the even-odd rule."""
-        from pimm_env.world.shapes import points_in_ring
-
         gx, gy = self.cell_centers()
         return points_in_ring(gx, gy, polygon)
+
+
+def points_in_ring(xs: np.ndarray, ys: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """Which points (xs, ys), any shape, lie inside the closed ring (K, 2), by the even-odd rule."""
+    inside = np.zeros(np.shape(xs), dtype=bool)
+    x0, y0 = ring[:, 0], ring[:, 1]
+    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+    for ax, ay, bx, by in zip(x0, y0, x1, y1, strict=True):
+        if ay == by:
+            continue
+        crosses = (ay > ys) != (by > ys)
+        x_cross = ax + (ys - ay) * (bx - ax) / (by - ay)
+        inside ^= crosses & (xs < x_cross)
+    return inside

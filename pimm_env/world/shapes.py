@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pimm_env.world.grid import GridSpec
+from pimm_env.world.grid import GridSpec, points_in_ring
 
 
 @dataclass(frozen=True)
@@ -151,20 +151,6 @@ class Prism:
             inside ^= points_in_ring(xs, ys, ring)
         mask[rows, cols] = inside
         return mask
-
-
-def points_in_ring(xs: np.ndarray, ys: np.ndarray, ring: np.ndarray) -> np.ndarray:
-    """Which points (xs, ys), any shape, lie inside the closed ring (K, 2), by the even-odd rule."""
-    inside = np.zeros(np.shape(xs), dtype=bool)
-    x0, y0 = ring[:, 0], ring[:, 1]
-    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
-    for ax, ay, bx, by in zip(x0, y0, x1, y1, strict=True):
-        if ay == by:
-            continue
-        crosses = (ay > ys) != (by > ys)
-        x_cross = ax + (ys - ay) * (bx - ax) / (by - ay)
-        inside ^= crosses & (xs < x_cross)
-    return inside
 
 
 Shape = Box | Cylinder | Prism | Mesh
