@@ -18,6 +18,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.world.polyline import douglas_peucker
 
 
 @dataclass(frozen=True)
@@ -103,23 +104,8 @@ def thin(points: np.ndarray, occupancy: OccupancyGrid, least: float, tolerance: 
     ``tolerance`` from that segment and the segment keeps ``least`` clearance."""
     grid = occupancy.grid
     clearance = ndimage.distance_transform_edt(occupancy.free) * grid.resolution
-    keep = {0, len(points) - 1}
-    stack = [(0, len(points) - 1)]
-    while stack:
-        i, j = stack.pop()
-        if j <= i + 1:
-            continue
-        a, b = points[i], points[j]
-        ab = b - a
-        length = float(np.hypot(*ab))
-        rel = points[i + 1 : j] - a
-        dist = np.abs(ab[0] * rel[:, 1] - ab[1] * rel[:, 0]) / length if length > 0 else np.hypot(*rel.T)
-        if dist.max() <= tolerance and _clear(clearance, grid, a, b, least):
-            continue
-        k = i + 1 + int(np.argmax(dist))
-        keep.add(k)
-        stack += [(i, k), (k, j)]
-    return points[sorted(keep)]
+    kept = douglas_peucker(points, tolerance, lambda i, j: _clear(clearance, grid, points[i], points[j], least))
+    return points[kept]
 
 
 def plan_route(occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator) -> np.ndarray:

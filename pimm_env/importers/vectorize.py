@@ -19,6 +19,7 @@ import numpy as np
 from scipy import ndimage
 
 from pimm_env.importers.ros_map import MapImportError, RasterMap
+from pimm_env.world.polyline import douglas_peucker
 
 
 @dataclass(frozen=True)
@@ -55,26 +56,6 @@ def free_space(raster: RasterMap, config: VectorizeConfig) -> np.ndarray:
     return keep[labels]
 
 
-def _douglas_peucker(points: np.ndarray, tolerance: float) -> list[int]:
-    """Indices kept by Douglas-Peucker on an open polyline (both ends kept)."""
-    keep = [0, len(points) - 1]
-    stack = [(0, len(points) - 1)]
-    while stack:
-        i, j = stack.pop()
-        if j <= i + 1:
-            continue
-        a, b = points[i], points[j]
-        ab = b - a
-        length = np.hypot(*ab)
-        rel = points[i + 1 : j] - a
-        dist = np.abs(ab[0] * rel[:, 1] - ab[1] * rel[:, 0]) / length if length > 0 else np.hypot(*rel.T)
-        k = int(np.argmax(dist))
-        if dist[k] > tolerance:
-            keep.append(i + 1 + k)
-            stack += [(i, i + 1 + k), (i + 1 + k, j)]
-    return sorted(set(keep))
-
-
 def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     centre = points.mean(axis=0)
     _, _, vt = np.linalg.svd(points - centre)
@@ -87,7 +68,7 @@ def straighten(ring: np.ndarray, tolerance: float, end_margin: float, min_turn_d
     start = int(np.argmax(np.hypot(*(ring - ring.mean(axis=0)).T)))
     ring = np.roll(ring, -start, axis=0)
     closed = np.vstack([ring, ring[:1]])
-    kept = _douglas_peucker(closed, tolerance)[:-1]  # the last index is the first point again
+    kept = douglas_peucker(closed, tolerance)[:-1]  # the last index is the first point again
     if len(kept) < 3:
         return ring[kept]
     lines, lengths = [], []
