@@ -152,3 +152,27 @@ def test_bad_settings_and_features_are_named():
         filt.measurement_update(np.array([[1.0, 1.0, 0.0, 0.0, 0.1]]))
     with pytest.raises(ValueError, match="finite"):
         filt.measurement_update(np.array([[np.nan, 1.0, 0.0, 0.1, 0.1]]))
+
+
+def test_a_heavier_few_elsewhere_do_not_move_a_held_estimate():
+    """The 100 heaviest particles sit in a look-alike place, but most of the weight is at the held pose."""
+    filt = make_filter(n=1000, replace_worst_fraction=0.0)
+    held, elsewhere = np.array([2.0, 1.5, 0.0]), np.array([8.0, 1.5, 0.0])
+    filt.particles = np.vstack(
+        [np.tile(held, (200, 1)), np.tile(elsewhere, (100, 1)), np.tile([4.0, 4.0, 1.0], (700, 1))]
+    )
+    filt.weights = np.concatenate([np.full(200, 3.0), np.full(100, 5.0), np.full(700, 1e-3)])
+    filt.weights /= filt.weights.sum()
+    weights = filt.weights.copy()
+    assert np.allclose(filt.correct(np.zeros((0, 5)), np.zeros((0, 2)))[:2], elsewhere[:2]), "no held pose: moves"
+    filt.particles[:] = np.vstack(
+        [np.tile(held, (200, 1)), np.tile(elsewhere, (100, 1)), np.tile([4.0, 4.0, 1.0], (700, 1))]
+    )
+    filt.weights = weights.copy()
+    assert filt.correct(np.zeros((0, 5)), np.zeros((0, 2)), previous=held) is None, "the held pose weighs more"
+    filt.particles[:] = np.vstack(
+        [np.tile(held, (200, 1)), np.tile(elsewhere, (100, 1)), np.tile([4.0, 4.0, 1.0], (700, 1))]
+    )
+    filt.weights = np.concatenate([np.full(200, 1.0), np.full(100, 5.0), np.full(700, 1e-3)])
+    filt.weights /= filt.weights.sum()
+    assert np.allclose(filt.correct(np.zeros((0, 5)), np.zeros((0, 2)), previous=held)[:2], elsewhere[:2])

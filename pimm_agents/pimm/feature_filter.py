@@ -40,6 +40,11 @@ class FeatureFilterConfig:
     estimate_bin_xy: float = 0.5
     estimate_bin_theta: float = float(np.radians(10.0))
     occupied_penalty: float = 0.1  # ours: weight factor for a particle in an occupied or unknown cell
+    #: ours: a converged estimate more than this (m) from the last one, carried by odometry, replaces it only
+    #: if the particles within this distance (and 30 deg) of it weigh more than those about the last one: a
+    #: handful injected in a look-alike room cannot pull the estimate there, while after a kidnap the weight
+    #: moves, and the estimate with it. 0 turns the test off (the thesis's behaviour).
+    switch_radius_m: float = 1.0
     lookup_resolution_m: float = 0.25  # ours: cell size of the nearest-corner grid
 
     def __post_init__(self) -> None:
@@ -214,17 +219,30 @@ class FeatureFilter:
         self.weights /= self.weights.sum()
         return worst
 
-    def correct(self, features: np.ndarray, suggestions: np.ndarray) -> np.ndarray | None:
+    def correct(
+        self, features: np.ndarray, suggestions: np.ndarray, previous: np.ndarray | None = None
+    ) -> np.ndarray | None:
         """One measurement step after a motion update: weigh, then read the estimate while the weights still
         say something, then resample if degenerate and inject. Returns the best-particles mean if the filter
-        has converged by the ESS test, else None (the caller carries its last estimate by odometry)."""
+        has converged by the ESS test and, when it lies away from ``previous`` (the last estimate carried to
+        now), holds more weight than it; else None (the caller carries its last estimate by odometry)."""
         self.measurement_update(features)
         estimate = self.best_mean() if self.converged() else None
+        r = self.config.switch_radius_m
+        if estimate is not None and previous is not None and r > 0 and np.hypot(*(estimate[:2] - previous[:2])) > r:
+            if self.weight_near(estimate, r) <= self.weight_near(previous, r):
+                estimate = None
         self.resample_if_degenerate()
         self.inject(suggestions)
         return estimate
 
     # ------------------------------------------------------------------ estimate
+    def weight_near(self, pose: np.ndarray, radius: float, max_angle: float = np.radians(30.0)) -> float:
+        """Total weight of the particles within ``radius`` and ``max_angle`` of ``pose``."""
+        d = self.particles - pose
+        near = (d[:, 0] ** 2 + d[:, 1] ** 2 <= radius**2) & (np.abs(wrap_angle(d[:, 2])) <= max_angle)
+        return float(self.weights[near].sum())
+
     def converged(self) -> bool:
         """The thesis's test for the dual-mode estimate: the last measurement left ESS <= tau * N."""
         return self.ess <= self.config.resample_ess_threshold * len(self.particles)

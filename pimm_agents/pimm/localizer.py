@@ -180,7 +180,10 @@ class PimmLocalizer:
             if self.config.latency_compensation:
                 features = compensate(features, self.history.at(self._features_stamp), odom)
             start = time.perf_counter()
-            estimate = self.filter.correct(features, self._suggestions)
+            previous = None
+            if self._estimate is not None and self._estimate_odom is not None:
+                previous = carry(self._estimate, self._estimate_odom, odom)
+            estimate = self.filter.correct(features, self._suggestions, previous)
             timings["measurement_update"] = 1000 * (time.perf_counter() - start)
             if estimate is not None:
                 self._estimate, self._estimate_odom = estimate, odom.copy()
