@@ -21,6 +21,11 @@ World file, version 1::
       - name: north_wall         # a wall along a polyline: one box per segment
         class: wall
         wall: {path: [[0, 4], [6, 4]], thickness: 0.2, z: [0, 3]}
+      - name: walls              # a vertical prism over a polygon with holes (what map import writes)
+        class: wall
+        prism: {outline: [[-1, -1], [7, -1], [7, 5], [-1, 5]], holes: [[[0, 0], [6, 0], [6, 4], [0, 4]]], z: [0, 3]}
+
+An element takes exactly one shape key and only the keys name, class and occupancy besides.
 """
 
 from __future__ import annotations
