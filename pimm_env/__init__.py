@@ -1,4 +1,5 @@
-"""PIMM's simulated world: the iiLab building, a diff-drive robot with a 3D and a 2D LiDAR, as a Gymnasium env.
+"""PIMM's simulated world: any building (the iiLab, an imported map or mesh, a generated one), a diff-drive
+robot with a 3D and a 2D LiDAR, as a Gymnasium env.
 
 ``import pimm_env`` registers ``pimm/IILab-v0``.
 """
