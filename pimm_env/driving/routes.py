@@ -18,6 +18,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.world.grid import GridSpec
 from pimm_env.world.polyline import douglas_peucker
 
 
@@ -41,6 +42,7 @@ class _Graph:
     xy: np.ndarray  # (N, 2) node positions
     clearance: np.ndarray  # (N,) metres
     matrix: object  # sparse (N, N) step costs
+    cell_clearance: np.ndarray  # metres, every cell of the occupancy grid
 
 
 def _graph(occupancy: OccupancyGrid, config: RouteConfig) -> _Graph:
@@ -79,7 +81,7 @@ def _graph(occupancy: OccupancyGrid, config: RouteConfig) -> _Graph:
         costs += [cost, cost]
     n = len(rows)
     matrix = coo_matrix((np.concatenate(costs), (np.concatenate(sources), np.concatenate(targets))), shape=(n, n))
-    return _Graph(xy, node_clearance, matrix.tocsr())
+    return _Graph(xy, node_clearance, matrix.tocsr(), clearance)
 
 
 def _path(predecessors: np.ndarray, goal: int) -> list[int]:
@@ -99,18 +101,17 @@ def _clear(occupancy_clearance, grid, a: np.ndarray, b: np.ndarray, least: float
     return bool(valid.all() and (occupancy_clearance[rows, cols] >= least).all())
 
 
-def thin(points: np.ndarray, occupancy: OccupancyGrid, least: float, tolerance: float = 0.25) -> np.ndarray:
+def thin(
+    points: np.ndarray, grid: GridSpec, clearance: np.ndarray, least: float, tolerance: float = 0.25
+) -> np.ndarray:
     """Douglas-Peucker on the path: a stretch becomes one segment when no point of it lies farther than
-    ``tolerance`` from that segment and the segment keeps ``least`` clearance."""
-    grid = occupancy.grid
-    clearance = ndimage.distance_transform_edt(occupancy.free) * grid.resolution
+    ``tolerance`` from that segment and the segment keeps ``least`` clearance (``clearance``: metres per cell)."""
     kept = douglas_peucker(points, tolerance, lambda i, j: _clear(clearance, grid, points[i], points[j], least))
     return points[kept]
 
 
-def plan_route(occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator) -> np.ndarray:
+def _plan_route(graph: _Graph, occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator) -> np.ndarray:
     """Waypoints (K, 2) of one route (see the module docstring)."""
-    graph = _graph(occupancy, config)
     target = rng.uniform(config.min_length_m, config.max_length_m)
     current = int(rng.integers(len(graph.xy)))
     visited = [current]
@@ -118,7 +119,7 @@ def plan_route(occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Gen
     length = 0.0
     for _ in range(100):
         if length >= target:
-            waypoints = _waypoints(graph.xy[route], occupancy, config)
+            waypoints = _waypoints(graph.xy[route], graph, occupancy, config)
             if _length(waypoints) >= config.min_length_m:
                 return waypoints
             target = length + 1.5 * (config.min_length_m - _length(waypoints))  # thinning cut corners: go on
@@ -139,15 +140,17 @@ def plan_route(occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Gen
     raise RoutePlanningError(f"no route of {config.min_length_m} m found in 100 legs")
 
 
-def _waypoints(xy: np.ndarray, occupancy: OccupancyGrid, config: RouteConfig) -> np.ndarray:
+def _waypoints(xy: np.ndarray, graph: _Graph, occupancy: OccupancyGrid, config: RouteConfig) -> np.ndarray:
     along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    return thin(xy[along <= config.max_length_m], occupancy, config.clearance_m - 0.5 * config.step_m)
+    least = config.clearance_m - 0.5 * config.step_m
+    return thin(xy[along <= config.max_length_m], occupancy.grid, graph.cell_clearance, least)
 
 
 def plan_routes(occupancy: OccupancyGrid, config: RouteConfig, seed: int) -> list[np.ndarray]:
     """``config.count`` routes, reproducible for one seed."""
     rng = np.random.default_rng(seed)
-    return [plan_route(occupancy, config, rng) for _ in range(config.count)]
+    graph = _graph(occupancy, config)  # built once: the free space is the same for every route
+    return [_plan_route(graph, occupancy, config, rng) for _ in range(config.count)]
 
 
 def scenarios_document(world_name: str, routes: list[np.ndarray], config: RouteConfig, seed: int) -> str:
