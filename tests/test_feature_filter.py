@@ -2,12 +2,14 @@ import numpy as np
 import pytest
 
 from pimm_agents.corners.lookup import NearestCornerGrid
+from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
-from pimm_agents.pimm.localizer import OdometryHistory, compensate
-from pimm_env.geometry import carry, compose, relative_motion
+from pimm_agents.pimm.localizer import OdometryHistory, WallFieldConfig, compensate, wall_points
+from pimm_env.geometry import carry, compose, relative_motion, wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
+from pimm_env.world.semantics import SemanticClass
 
 # An L-shaped room: 10 m x 6 m without its 4 m x 3 m north-east block. Corners as (x, y, bisector heading).
 CORNERS = np.array(
@@ -176,3 +178,66 @@ def test_a_heavier_few_elsewhere_do_not_move_a_held_estimate():
     filt.weights = np.concatenate([np.full(200, 1.0), np.full(100, 5.0), np.full(700, 1e-3)])
     filt.weights /= filt.weights.sum()
     assert np.allclose(filt.correct(np.zeros((0, 5)), np.zeros((0, 2)), previous=held)[:2], elsewhere[:2])
+
+
+def wall_field_for(occupancy: OccupancyGrid) -> LikelihoodField:
+    return LikelihoodField(occupancy, LikelihoodFieldParams(0.5, 0.5, 0.2, 2.0, 10.0))
+
+
+def walls_seen_from(pose: np.ndarray, count: int = 60) -> np.ndarray:
+    """End points of ``count`` rays from ``pose`` to the L room's walls (its outline), in the robot frame."""
+    occupancy, _ = l_room()
+    directions = np.linspace(-np.pi, np.pi, count, endpoint=False)
+    steps = np.arange(0.05, 12.0, 0.02)
+    points = []
+    for a in directions:
+        ray = pose[:2] + steps[:, None] * [np.cos(pose[2] + a), np.sin(pose[2] + a)]
+        rows, cols, valid = occupancy.grid.cells_of(ray)
+        hit = np.nonzero(valid & occupancy.occupied[np.where(valid, rows, 0), np.where(valid, cols, 0)])[0]
+        if len(hit):
+            points.append(relative_motion(pose, np.array([*ray[hit[0]], 0.0]))[:2])
+    return np.array(points)
+
+
+def test_wall_points_alone_find_and_hold_the_pose():
+    """No corners at all (a corridor's case): the scan's walls against the occupancy map still localize."""
+    occupancy, corners = l_room()
+    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=3000), wall_field_for(occupancy))
+    filt.reset(np.random.default_rng(0))
+    poses = path()
+    for pose in poses:
+        if filt.motion_update(pose):
+            filt.correct(np.zeros((0, 5)), np.zeros((0, 2)), wall_points=walls_seen_from(pose))
+    estimate = filt.best_mean()
+    assert np.hypot(*(estimate[:2] - poses[-1, :2])) < 0.3
+    assert abs(np.degrees(wrap_angle(estimate[2] - poses[-1, 2]))) < 10
+
+
+def test_nothing_measured_replaces_no_particle():
+    """With no features and no wall points the weights say nothing about which particles are worst: injecting
+    then would wear away a tracked cluster by 5 % a step."""
+    filt = make_filter(n=1000)
+    before = filt.particles.copy()
+    filt.correct(np.zeros((0, 5)), np.array([[2.0, 4.0]]))
+    assert not filt.informed
+    assert np.array_equal(filt.particles, before)
+    filt.correct(features_from(np.array([2.0, 1.5, 0.0])), np.array([[2.0, 4.0]]))
+    assert filt.informed
+    assert np.count_nonzero(np.any(filt.particles != before, axis=1)) >= 45  # 5 %, some replaced by a look-alike
+
+
+def test_wall_points_are_the_wall_band_spread_over_bearings():
+    config = WallFieldConfig(points=4)
+    angles = np.linspace(-np.pi, np.pi, 40, endpoint=False)
+    cloud = np.column_stack([3 * np.cos(angles), 3 * np.sin(angles), np.zeros(40)])
+    cloud[::2, 2] = 1.8  # above the band (a lintel height): never used
+    labels = np.full(40, int(SemanticClass.WALL))
+    labels[1::4] = int(SemanticClass.CLUTTER)
+    points = wall_points(cloud, labels, config)
+    assert points.shape == (4, 2)
+    kept = np.arange(40)[(cloud[:, 2] < 1.0) & (labels == int(SemanticClass.WALL))]
+    assert all(np.any(np.all(np.isclose(cloud[kept, :2], p), axis=1)) for p in points)
+    bearings = np.sort(np.arctan2(points[:, 1], points[:, 0]))
+    assert np.min(np.diff(bearings)) > np.pi / 4  # spread round the scan, not bunched
+    with pytest.raises(ValueError, match="min_z_m"):
+        WallFieldConfig(min_z_m=1.0, max_z_m=0.0)

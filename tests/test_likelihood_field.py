@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.amcl.likelihood_field import LikelihoodField, LikelihoodFieldParams
+from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
 

@@ -1,2 +1,2 @@
 """Particle-filter parts shared by the localizers: resampling, KLD sampling, pose clusters, free space,
-odometry motion model."""
+the likelihood-field scan model, the odometry motion model."""

@@ -13,6 +13,7 @@ import numpy as np
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.particles.free_space import FreeSpace
 from pimm_agents.particles.initial_pose import gaussian_poses
+from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
 from pimm_env.geometry import relative_motion, wrap_angle
@@ -46,6 +47,9 @@ class FeatureFilterConfig:
     #: moves, and the estimate with it. 0 turns the test off (the thesis's behaviour).
     switch_radius_m: float = 1.0
     lookup_resolution_m: float = 0.25  # ours: cell size of the nearest-corner grid
+    #: ours: heading bins of that grid; a feature is matched to the corner that best explains its position
+    #: and heading (8: 45 deg bins), not only the nearest (1: the thesis's); see corners/lookup.py
+    lookup_orientation_bins: int = 8
 
     def __post_init__(self) -> None:
         if self.num_particles < 1:
@@ -72,9 +76,11 @@ class FeatureFilter:
         occupancy: OccupancyGrid,
         corners: NearestCornerGrid,
         config: FeatureFilterConfig = FeatureFilterConfig(),
+        wall_field: LikelihoodField | None = None,
     ) -> None:
         self.config = config
         self.corners = corners
+        self.wall_field = wall_field
         self.free_space = FreeSpace(occupancy)
         grid = occupancy.grid
         self._grid = grid
@@ -83,6 +89,7 @@ class FeatureFilter:
         self.particles = np.zeros((config.num_particles, 3))
         self.weights = np.full(config.num_particles, 1.0 / config.num_particles)
         self.ess = float(config.num_particles)
+        self.informed = False  # whether the last measurement update had anything to weigh with
         self._odom_ref: np.ndarray | None = None
 
     # ------------------------------------------------------------------ life cycle
@@ -142,11 +149,11 @@ class FeatureFilter:
         my = fy * cos
         my += fx * sin
         my += y
-        cell = self.corners.cells(mx, my)
+        da = theta + f[:, 2:3]  # the feature's heading in the map
+        cell = self.corners.cells(mx, my, da)
         corner = np.take(self.corners.cell_xy, cell)
         mx -= corner.real
         my -= corner.imag
-        da = theta + f[:, 2:3]
         da -= np.take(self.corners.cell_theta, cell)
         da -= np.float32(2 * np.pi) * np.rint(da * np.float32(1 / (2 * np.pi)))
         # L^3 = exp(-3 (d^2 / 2 sigma_pos^2 + da^2 / 2 sigma_theta^2))
@@ -170,8 +177,10 @@ class FeatureFilter:
         flat = np.where(inside, row * grid.shape[1] + col, 0)
         return inside & self._allowed_flat[flat]
 
-    def measurement_update(self, features: np.ndarray) -> None:
-        """Weights by eq. 3.16 (with no features only the occupied-cell penalty applies), normalized; the ESS."""
+    def measurement_update(self, features: np.ndarray, wall_points: np.ndarray | None = None) -> None:
+        """Weights by eq. 3.16, then, given ``wall_points`` (M, 2; robot frame now) and a wall field, by the
+        likelihood field's factor (1 + sum of pz^3); with neither only the occupied-cell penalty applies.
+        Normalized; the ESS."""
         features = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_COLUMNS))
         if not np.isfinite(features).all() or np.any(features[:, 3:] <= 0):
             raise ValueError("features must be finite with positive sigma_pos and sigma_theta")
@@ -179,6 +188,13 @@ class FeatureFilter:
         if len(features):
             alpha = self.config.alpha
             w = alpha * (w * self.likelihoods(features)) + (1 - alpha) * w
+        use_walls = self.wall_field is not None and wall_points is not None and len(wall_points) > 0
+        if use_walls:
+            points = np.asarray(wall_points, dtype=float).reshape(-1, 2)
+            ranges, bearings = np.hypot(points[:, 0], points[:, 1]), np.arctan2(points[:, 1], points[:, 0])
+            factors = self.wall_field.weight_factors(self.particles, ranges, bearings)  # type: ignore[union-attr]
+            w = w * factors
+        self.informed = bool(len(features)) or use_walls
         w = np.where(self.in_free_space(), w, w * self.config.occupied_penalty)
         total = w.sum()
         if not np.isfinite(total) or total <= 0:
@@ -220,20 +236,29 @@ class FeatureFilter:
         return worst
 
     def correct(
-        self, features: np.ndarray, suggestions: np.ndarray, previous: np.ndarray | None = None
+        self,
+        features: np.ndarray,
+        suggestions: np.ndarray,
+        previous: np.ndarray | None = None,
+        wall_points: np.ndarray | None = None,
     ) -> np.ndarray | None:
         """One measurement step after a motion update: weigh, then read the estimate while the weights still
         say something, then resample if degenerate and inject. Returns the best-particles mean if the filter
         has converged by the ESS test and, when it lies away from ``previous`` (the last estimate carried to
-        now), holds more weight than it; else None (the caller carries its last estimate by odometry)."""
-        self.measurement_update(features)
+        now), holds more weight than it; else None (the caller carries its last estimate by odometry).
+
+        Injection follows only an update that weighed something: with nothing measured the weights say
+        nothing about which particles are worst, and replacing an arbitrary 5 % per step would wear the
+        tracked cluster away while the robot drives through a stretch with no corners."""
+        self.measurement_update(features, wall_points)
         estimate = self.best_mean() if self.converged() else None
         r = self.config.switch_radius_m
         if estimate is not None and previous is not None and r > 0 and np.hypot(*(estimate[:2] - previous[:2])) > r:
             if self.weight_near(estimate, r) <= self.weight_near(previous, r):
                 estimate = None
         self.resample_if_degenerate()
-        self.inject(suggestions)
+        if self.informed:
+            self.inject(suggestions)
         return estimate
 
     # ------------------------------------------------------------------ estimate
