@@ -144,3 +144,19 @@ def test_detection_is_reproducible():
 def test_a_negative_setting_is_refused_by_name(field: str) -> None:
     with pytest.raises(ValueError, match=f"CornerDetectorConfig.{field} must be at least 0, got -1"):
         CornerDetectorConfig(**{field: -1})
+
+
+def test_faces_that_end_either_side_of_a_doorway_make_no_corner_in_the_gap():
+    # a corridor wall y = 0 resumes at x = 0.6 after a doorway; a partition x = 0 starts 0.15 m past it (behind
+    # the corridor wall's thickness): their planes meet at (0, 0), in the doorway, 0.6 m from the corridor wall
+    rng = np.random.default_rng(8)
+    height = np.arange(-0.5, 2.5, 0.05)
+    partition = wall_x(0.0, np.arange(0.15, 3.0, 0.05), height)
+    resumed = wall_y(0.0, np.arange(0.6, 4.0, 0.05), height)
+    assert len(detect_corners(*scene([partition, resumed], rng))) == 0
+    found = detect_corners(*scene([partition, resumed], rng), config=CornerDetectorConfig(max_wall_gap=0.0))
+    assert len(found) == 1, "the test is that of max_wall_gap: without it the phantom is there"
+    # the same two walls meeting at (0, 0) make a corner
+    meeting = [wall_x(0.0, np.arange(0.0, 3.0, 0.05), height), wall_y(0.0, np.arange(0.0, 4.0, 0.05), height)]
+    found = detect_corners(*scene(meeting, rng))
+    assert len(found) == 1 and np.hypot(found.features[0].x, found.features[0].y) < 0.02

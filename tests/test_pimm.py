@@ -41,6 +41,23 @@ def test_pimm_survives_scans_with_no_returns(pimm):
     assert pimm.filter.weights.sum() == pytest.approx(1.0)
 
 
+def test_each_scan_weighs_the_particles_once(pimm, monkeypatch):
+    """Motion updates between two scans move the particles but do not weigh them with the same scan again."""
+    env = IILabEnv()
+    obs, _ = env.reset(seed=2, options={"pose": [-18.5, 14.0, 1.57]})
+    env.close()
+    pimm.reset(seed=2)
+    weighed = []
+    original = pimm.filter.correct
+    monkeypatch.setattr(pimm.filter, "correct", lambda *a, **k: weighed.append(1) or original(*a, **k))
+    for k in range(6):  # 0.2 m a step, well past the motion threshold; a new scan every third step
+        moved = dict(obs, odom=obs["odom"] + np.array([0.2 * k, 0.0, 0.0], dtype=np.float32))
+        moved["time"] = np.array([0.1 * k])
+        moved["cloud_time"] = np.array([0.1 * (k - k % 3)])
+        pimm.update(moved)
+    assert len(weighed) == 2  # steps 1 and 3 (step 0 only sets the odometry reference; 2, 4, 5 reuse a scan)
+
+
 def test_unknown_pimm_setting_lists_the_valid_ones():
     with pytest.raises(ValueError, match="pimm: unknown key 'particles'; valid keys: corners, filter"):
         make_localizer("pimm", particles=10)
