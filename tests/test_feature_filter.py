@@ -199,10 +199,12 @@ def walls_seen_from(pose: np.ndarray, count: int = 60) -> np.ndarray:
     return np.array(points)
 
 
-def test_wall_points_alone_find_and_hold_the_pose():
+@pytest.mark.parametrize("temperature", [None, 0.2])  # nav2's sum of cubes, the tempered product
+def test_wall_points_alone_find_and_hold_the_pose(temperature):
     """No corners at all (a corridor's case): the scan's walls against the occupancy map still localize."""
     occupancy, corners = l_room()
-    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=3000), wall_field_for(occupancy))
+    config = FeatureFilterConfig(num_particles=3000)
+    filt = FeatureFilter(occupancy, corners, config, wall_field_for(occupancy), temperature)
     filt.reset(np.random.default_rng(0))
     poses = path()
     for pose in poses:
@@ -241,3 +243,5 @@ def test_wall_points_are_the_wall_band_spread_over_bearings():
     assert np.min(np.diff(bearings)) > np.pi / 4  # spread round the scan, not bunched
     with pytest.raises(ValueError, match="min_z_m"):
         WallFieldConfig(min_z_m=1.0, max_z_m=0.0)
+    with pytest.raises(ValueError, match="'product' or 'sum_of_cubes'"):
+        WallFieldConfig(model="beam")

@@ -63,3 +63,19 @@ def test_no_beams_leaves_weights_alone_and_an_empty_map_is_rejected():
     empty = OccupancyGrid(occ.grid, np.zeros(occ.grid.shape, bool), np.ones(occ.grid.shape, bool))
     with pytest.raises(ValueError, match="no occupied cell"):
         LikelihoodField(empty, PARAMS)
+
+
+def test_log_likelihoods_are_the_sum_of_log_pz_and_rank_poses_as_the_cubes_do():
+    grid = GridSpec.covering(np.array([0.0, 0.0]), np.array([4.0, 4.0]), 0.1, margin=0.5)
+    gx, gy = grid.cell_centers()
+    occupied = (np.abs(gx - 3.0) < 0.05) & (gy > 0) & (gy < 4)  # one wall, x = 3
+    field = LikelihoodField(OccupancyGrid(grid, occupied, ~occupied), LikelihoodFieldParams(0.5, 0.5, 0.2, 2.0, 10.0))
+    poses = np.array([[1.0, 2.0, 0.0], [1.27, 2.0, 0.0]])  # the beams end on the wall from the first pose only
+    ranges, bearings = np.array([2.0, 2.0]), np.array([0.0, 0.0])
+    d = np.array([field.distance_at(np.array([[3.0, 2.0]]))[0], field.distance_at(np.array([[3.27, 2.0]]))[0]])
+    pz = 0.5 * np.exp(-(d**2) / (2 * 0.2**2)) + 0.05
+    assert field.log_likelihoods(poses, ranges, bearings) == pytest.approx(2 * np.log(pz), rel=1e-5)
+    assert np.argmax(field.log_likelihoods(poses, ranges, bearings)) == np.argmax(
+        field.weight_factors(poses, ranges, bearings)
+    )
+    assert np.array_equal(field.log_likelihoods(poses, np.zeros(0), np.zeros(0)), np.zeros(2))

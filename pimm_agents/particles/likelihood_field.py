@@ -51,6 +51,7 @@ class LikelihoodField:
         padded[1:-1, 1:-1] = self.distance
         pz = params.z_hit * np.exp(-(padded**2) / (2 * params.sigma_hit**2)) + params.z_rand / params.range_max
         self._cubes = (pz**3).astype(np.float32).ravel()
+        self._log_pz = np.log(pz).astype(np.float32).ravel()
         self._cols = cols + 2
         self._limits = (np.float32(cols + 1), np.float32(rows + 1))
 
@@ -63,11 +64,22 @@ class LikelihoodField:
 
     def weight_factors(self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
         """1 + sum of pz^3 over the beams, for each pose (N, 3) of the sensor; beams given in its frame."""
+        if np.size(ranges) == 0:
+            return np.ones(len(poses))
+        return 1.0 + np.take(self._cubes, self._cells(poses, ranges, bearings)).sum(axis=1, dtype=np.float64)
+
+    def log_likelihoods(self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
+        """Sum of log pz over the beams, for each pose (N, 3): the log of the beams' joint likelihood if they
+        were independent (the textbook likelihood field; nav2 sums cubes instead)."""
+        if np.size(ranges) == 0:
+            return np.zeros(len(poses))
+        return np.take(self._log_pz, self._cells(poses, ranges, bearings)).sum(axis=1, dtype=np.float64)
+
+    def _cells(self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
+        """(N, B) flat indices into the padded tables of the beams' end points seen from each pose."""
         poses = np.asarray(poses, dtype=np.float32)
         ranges = np.asarray(ranges, dtype=np.float32)
         bearings = np.asarray(bearings, dtype=np.float32)
-        if ranges.size == 0:
-            return np.ones(len(poses))
         res = np.float32(1.0 / self.grid.resolution)
         # Beam end points in cell units, shifted by the pad ring: a 2 x 2 rotation as one small matmul.
         beams = np.stack([ranges * np.cos(bearings), ranges * np.sin(bearings)]) * res  # (2, B)
@@ -81,4 +93,4 @@ class LikelihoodField:
         flat = row.astype(np.int32)
         flat *= np.int32(self._cols)
         flat += col.astype(np.int32)
-        return 1.0 + np.take(self._cubes, flat).sum(axis=1, dtype=np.float64)
+        return flat

@@ -77,10 +77,12 @@ class FeatureFilter:
         corners: NearestCornerGrid,
         config: FeatureFilterConfig = FeatureFilterConfig(),
         wall_field: LikelihoodField | None = None,
+        wall_temperature: float | None = None,
     ) -> None:
         self.config = config
         self.corners = corners
         self.wall_field = wall_field
+        self.wall_temperature = wall_temperature  # None: nav2's sum of cubes; else the tempered product
         self.free_space = FreeSpace(occupancy)
         grid = occupancy.grid
         self._grid = grid
@@ -179,8 +181,8 @@ class FeatureFilter:
 
     def measurement_update(self, features: np.ndarray, wall_points: np.ndarray | None = None) -> None:
         """Weights by eq. 3.16, then, given ``wall_points`` (M, 2; robot frame now) and a wall field, by the
-        likelihood field's factor (1 + sum of pz^3); with neither only the occupied-cell penalty applies.
-        Normalized; the ESS."""
+        likelihood field: exp(temperature x sum of log pz), or nav2's 1 + sum of pz^3 without a temperature;
+        with neither only the occupied-cell penalty applies. Normalized; the ESS."""
         features = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_COLUMNS))
         if not np.isfinite(features).all() or np.any(features[:, 3:] <= 0):
             raise ValueError("features must be finite with positive sigma_pos and sigma_theta")
@@ -192,8 +194,13 @@ class FeatureFilter:
         if use_walls:
             points = np.asarray(wall_points, dtype=float).reshape(-1, 2)
             ranges, bearings = np.hypot(points[:, 0], points[:, 1]), np.arctan2(points[:, 1], points[:, 0])
-            factors = self.wall_field.weight_factors(self.particles, ranges, bearings)  # type: ignore[union-attr]
-            w = w * factors
+            field = self.wall_field
+            assert field is not None
+            if self.wall_temperature is None:
+                w = w * field.weight_factors(self.particles, ranges, bearings)
+            else:
+                log_l = field.log_likelihoods(self.particles, ranges, bearings)
+                w = w * np.exp(self.wall_temperature * (log_l - log_l.max()))
         self.informed = bool(len(features)) or use_walls
         w = np.where(self.in_free_space(), w, w * self.config.occupied_penalty)
         total = w.sum()

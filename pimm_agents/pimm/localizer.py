@@ -39,6 +39,12 @@ class WallFieldConfig:
 
     enabled: bool = True
     points: int = 60  # nav2 max_beams, spread evenly over the points' bearings
+    # How the points' pz combine (ours): "product" weighs by exp(temperature x sum of log pz), the textbook
+    # likelihood field tempered because neighbouring points are not independent; "sum_of_cubes" by nav2's
+    # 1 + sum of pz^3, which in a corridor of identical offices told the truth from one office along by a
+    # factor of 1.017 a scan (gen-107, training building), where the product's log ratio is 2.1 a scan.
+    model: str = "product"
+    temperature: float = 0.2
     z_hit: float = 0.5  # nav2
     z_rand: float = 0.5  # nav2
     sigma_hit: float = 0.2  # nav2 (m)
@@ -52,6 +58,10 @@ class WallFieldConfig:
     def __post_init__(self) -> None:
         if self.points < 1:
             raise ValueError(f"wall_field.points must be at least 1, got {self.points}")
+        if self.model not in ("product", "sum_of_cubes"):
+            raise ValueError(f"wall_field.model must be 'product' or 'sum_of_cubes', got {self.model!r}")
+        if not self.temperature > 0:
+            raise ValueError(f"wall_field.temperature must be positive, got {self.temperature}")
         if self.min_z_m >= self.max_z_m:
             raise ValueError(f"wall_field.min_z_m ({self.min_z_m}) must be below max_z_m ({self.max_z_m})")
 
@@ -179,6 +189,7 @@ class PimmLocalizer:
             ),
             config.filter,
             LikelihoodField(occupancy, field_params) if walls.enabled else None,
+            wall_temperature=walls.temperature if walls.model == "product" else None,
         )
         self.history = OdometryHistory(config.odometry_history_s)
         self._warm_up()
