@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
 
 #: Corners considered per cell when the lookup also weighs orientation (the nearest this many by position).
@@ -61,8 +62,7 @@ class NearestCornerGrid:
             distance, near = cKDTree(self.xy).query(centres, k=k)
             distance, near = distance.reshape(len(centres), k), near.reshape(len(centres), k)
             headings = (np.arange(orientation_bins) + 0.5) * (2 * np.pi / orientation_bins)
-            turn = self.theta[near][:, :, None] - headings  # (cells, k, bins)
-            turn = (turn + np.pi) % (2 * np.pi) - np.pi
+            turn = np.asarray(wrap_angle(self.theta[near][:, :, None] - headings))  # (cells, k, bins)
             cost = (distance[:, :, None] / sigma_pos) ** 2 + (turn / sigma_theta) ** 2
             index = np.take_along_axis(near, cost.argmin(axis=1), axis=1).ravel()  # cell-major, then bin
         self.table = index.astype(np.int32).reshape(*self.shape, orientation_bins)
