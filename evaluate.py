@@ -29,6 +29,12 @@ def _results_dir(out: Path, kind: str) -> Path:
     return folder
 
 
+def _latest_run(out: Path) -> Path | None:
+    """The newest ``*_run`` folder under ``out`` (timestamped names sort by time), if any."""
+    runs = sorted(p for p in Path(out).glob("*_run") if p.is_dir())
+    return runs[-1] if runs else None
+
+
 @app.callback(invoke_without_command=True)
 def main(ctx: typer.Context) -> None:
     """With no command: the main job, 3 trials of every scenario with every localizer on the default world."""
@@ -44,6 +50,7 @@ def main(ctx: typer.Context) -> None:
             params=None,
             settings=[],
             json_out=False,
+            resume=False,
         )
 
 
@@ -61,15 +68,20 @@ def run(
     params: Path | None = typer.Option(None, "--params", help="params file: one section per localizer name"),
     settings: list[str] = typer.Option([], "--set", help="NAME.KEY=VALUE, e.g. amcl.max_particles=500"),
     json_out: bool = typer.Option(False, "--json", help="print the summary as one JSON object"),
+    resume: bool = typer.Option(
+        False, "--resume", help="continue the newest run folder under --out: run only the trials it lacks"
+    ),
 ) -> None:
-    """Run localizers on scenarios, trials in parallel; print the thesis's tables and write logs and figures."""
+    """Run localizers on scenarios: one simulation per trial feeds every localizer; trials in parallel. Prints
+    the thesis's tables and writes logs and figures; each trial is saved as it finishes (see --resume)."""
     import os
     import time
 
     from tqdm import tqdm
 
     from pimm_agents.evaluation.report import format_tables, format_timings, write_results
-    from pimm_agents.evaluation.trials import TrialSpec, run_trials
+    from pimm_agents.evaluation.trial_store import load_stored, save_trial
+    from pimm_agents.evaluation.trials import TrialResult, TrialSpec, run_trials
     from pimm_agents.factory import available_localizers, check_name, resolved_params
     from pimm_agents.params import ParamsError, merge_params, parse_settings, read_params_file, write_params_file
     from pimm_env.driving.scenarios import load_scenarios
@@ -100,17 +112,29 @@ def run(
         configs = {name: resolved_params(name, sections.get(name)) for name in localizers}
     except ParamsError as error:  # fail here, not in a worker, on a bad setting
         raise typer.BadParameter(str(error), param_hint="--params/--set") from None
-    specs = [
+    specs = [  # trial-major: a stopped run has every scenario's first trials
         TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer])
+        for trial in range(trials)
         for scenario in scenarios
         for localizer in localizers
-        for trial in range(trials)
     ]
     workers = workers or os.cpu_count() or 1
-    folder = _results_dir(out, "run")
+    earlier = _latest_run(out) if resume else None
+    folder = earlier or _results_dir(out, "run")
+    stored = load_stored(folder, specs) if earlier else {}
+    todo = [spec for i, spec in enumerate(specs) if i not in stored]
+    if resume and not json_out:
+        where = f"{len(stored)} of {len(specs)} trials already in {folder}" if earlier else f"no run under {out}"
+        typer.echo(f"resume: {where}; running {len(todo)}", err=True)
     start = time.perf_counter()
-    with tqdm(total=len(specs), desc="trials", unit="trial", disable=json_out) as bar:
-        results = run_trials(specs, workers=min(workers, len(specs)), on_done=lambda _: bar.update())
+
+    def done(result: TrialResult) -> None:
+        save_trial(folder, result)
+        bar.update()
+
+    with tqdm(total=len(todo), desc="trials", unit="trial", disable=json_out) as bar:
+        fresh = iter(run_trials(todo, workers=min(workers, max(1, len(todo))), on_done=done))
+    results = [stored[i] if i in stored else next(fresh) for i in range(len(specs))]
     write_params_file(folder / "config.yaml", configs)
     run_record = {
         "world": world,
@@ -120,6 +144,8 @@ def run(
         "seed": seed,
         "workers": workers,
         "wall_s": round(time.perf_counter() - start, 1),
+        "trials_run": len(todo),
+        "trials_reused": len(stored),
         "repeat": "python evaluate.py run --params config.yaml --world {} --scenarios {} --trials {} --seed {}".format(
             world, " ".join(scenarios), trials, seed
         ),
@@ -131,8 +157,9 @@ def run(
     typer.echo(format_tables(summary))
     typer.echo(format_timings(summary))
     typer.echo(
-        f"\n{len(specs)} trials in {run_record['wall_s']} s; results: {folder}/ "
-        "(summary.json, config.yaml, run.json, logs/, figures/)"
+        f"\n{len(todo)} trials in {run_record['wall_s']} s"
+        + (f" ({len(stored)} more from the earlier run)" if stored else "")
+        + f"; results: {folder}/ (summary.json, config.yaml, run.json, trials/, logs/, figures/)"
     )
 
 
@@ -156,14 +183,14 @@ def score(
     if json_out:
         typer.echo(json.dumps({"trials": {k: vars(v) for k, v in per_file.items()}, "summary": overall}))
         return
-    for path, m in per_file.items():
+    for name, m in per_file.items():
         verdict = (
             f"converged at {m.convergence_time_s:.2f} s, error {m.position_error_m:.2f} m / {m.angle_error_deg:.2f} deg"
             if m.converged
             else "did not converge"
         )
-        typer.echo(f"{path}: {verdict}")
-    rate = 100 * overall["convergence_rate"]
+        typer.echo(f"{name}: {verdict}")
+    rate = 100 * float(overall["convergence_rate"] or 0.0)
     typer.echo(
         f"\n{overall['trials']} trials: convergence rate {rate:.0f} %, time {overall['convergence_time_s']} s, "
         f"position error {overall['position_error_m']} m, angle error {overall['angle_error_deg']} deg"

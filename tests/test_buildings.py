@@ -1,12 +1,20 @@
 from pimm_env.world.files import world_from_spec
 from pimm_env.world.semantics import SemanticClass
-from training.buildings import FAMILIES, HELD_OUT_SEEDS, TRAINING_SEEDS, building_spec, draw_plan
+from training.buildings import (
+    DEVELOPMENT_SEEDS,
+    FAMILIES,
+    HELD_OUT_SEEDS,
+    TRAINING_SEEDS,
+    building_spec,
+    draw_plan,
+)
 
 
 def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart():
     assert building_spec(101) == building_spec(101)
     assert building_spec(101) != building_spec(102)
-    assert not set(TRAINING_SEEDS) & set(HELD_OUT_SEEDS)
+    assert not set(TRAINING_SEEDS) & set(HELD_OUT_SEEDS) and not set(TRAINING_SEEDS) & set(DEVELOPMENT_SEEDS)
+    assert not set(HELD_OUT_SEEDS) & set(DEVELOPMENT_SEEDS)
 
 
 def test_generated_buildings_cover_the_families_low_ceilings_and_look_alike_rooms():

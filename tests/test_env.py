@@ -162,3 +162,26 @@ def test_a_switched_off_lidar_casts_nothing():
     assert info["fresh_scan"] or obs["scan_time"][0] > 0, "the 2D LiDAR still scans"
     assert (obs["scan"] < config.lidar2d.max_range).any()
     e.close()
+
+
+def test_switching_off_the_3d_lidar_leaves_odometry_and_2d_scans_as_they_were():
+    """Each LiDAR draws noise from its own stream: a simulation that casts the cloud for one localizer feeds
+    the others exactly what a cloud-less simulation would."""
+    config = SimConfig()
+    without = replace(config, lidar3d=replace(config.lidar3d, enabled=False))
+
+    def trace(sim_config: SimConfig) -> list[np.ndarray]:
+        e = gym.make("pimm/IILab-v0", config=sim_config)
+        obs, _ = e.reset(seed=5)
+        out = [obs["odom"].copy(), obs["scan"].copy()]
+        for step in range(60):
+            if step == 30:
+                obs, _ = e.reset(options={"kidnap": True})
+            else:
+                obs, *_ = e.step(np.array([0.3, 0.4], dtype=np.float32))
+            out += [obs["odom"].copy(), obs["scan"].copy()]
+        e.close()
+        return out
+
+    with_cloud, without_cloud = trace(config), trace(without)
+    assert all(np.array_equal(a, b) for a, b in zip(with_cloud, without_cloud, strict=True))

@@ -30,11 +30,31 @@ def _evaluate(args: list[str]) -> dict[str, Any]:
     return json.loads(lines[-1])
 
 
+def needs_preparing(world_file: Path) -> bool:
+    """True unless the world's fingerprint map is newer than its world file and the weights it uses."""
+    from pimm_agents.perception.files import checkpoint_path, fingerprint_path
+
+    fingerprints, scenarios = fingerprint_path(str(world_file)), world_file.parent / "scenarios.yaml"
+    if not fingerprints.is_file() or not scenarios.is_file():
+        return True
+    made = fingerprints.stat().st_mtime
+    return made < world_file.stat().st_mtime or made < checkpoint_path(str(world_file)).stat().st_mtime
+
+
 def measure_building(
     world_file: Path, localizers: list[str], trials: int, scans: int, workers: int, out: Path
 ) -> dict[str, Any]:
-    perception = _evaluate(["perception", "--world", str(world_file), "--scans", str(scans), "--seed", "1"])
-    run_args = ["run", "--world", str(world_file), "--trials", str(trials), "--out", str(out)]
+    """Perception (once: kept in ``out/perception.json``) and ``trials`` trials per route, continuing the
+    run already in ``out`` (``evaluate.py run --resume``): a stopped benchmark loses no finished trial."""
+    out.mkdir(parents=True, exist_ok=True)
+    cached = out / "perception.json"
+    asked = {"world": str(world_file), "scans": scans, "seed": 1}
+    perception = json.loads(cached.read_text()) if cached.is_file() else None
+    if perception is None or perception.get("asked") != asked:
+        perception = _evaluate(["perception", "--world", str(world_file), "--scans", str(scans), "--seed", "1"])
+        perception["asked"] = asked
+        cached.write_text(json.dumps(perception, indent=1))
+    run_args = ["run", "--world", str(world_file), "--trials", str(trials), "--out", str(out), "--resume"]
     run = _evaluate([*run_args, "--workers", str(workers), "--localizers", *localizers])
     return {"perception": perception, "run": run}
 

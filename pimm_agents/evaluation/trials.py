@@ -1,4 +1,11 @@
-"""Run localizers on scenarios: one trial in one process, many trials across worker processes."""
+"""Run localizers on scenarios: one simulation per trial feeds every localizer asked for; trials run across
+worker processes.
+
+The robot's path does not depend on the localizer (the controller drives on the true pose), so a trial is
+simulated once and the same observations go to each localizer, each seeded with the trial's seed. The
+results equal separate runs with the same seeds: every LiDAR draws its noise from its own stream, so that
+a simulation that casts the 3D cloud for one localizer gives the others the same odometry and 2D scans.
+"""
 
 from __future__ import annotations
 
@@ -22,18 +29,34 @@ class TrialSpec:
     world: str = "iilab"
     params: dict[str, Any] = field(default_factory=dict)  # the localizer's params-file section
 
+    @property
+    def simulation(self) -> tuple[str, str, int, int]:
+        """What the simulated stream depends on; specs that share it share one simulation."""
+        return (self.world, self.scenario, self.trial, self.seed)
+
 
 @dataclass
 class TrialResult:
     spec: TrialSpec
     log: TrialLog
     metrics: TrialMetrics  # for kidnap scenarios: measured from the kidnap on
-    wall_s: float
+    wall_s: float  # the shared simulation's wall time, with every localizer it fed
     completed: bool
 
 
+def metrics_of(log: TrialLog) -> TrialMetrics:
+    """The thesis's metrics of one trial; a kidnap trial counts from the kidnap on."""
+    return trial_metrics(log.after_kidnap())
+
+
 def run_trial(spec: TrialSpec) -> TrialResult:
-    """Drive the scenario with the localizer attached; seeds the env and the localizer with ``spec.seed``."""
+    """One localizer on one trial (a simulation of its own)."""
+    return run_shared([spec])[0]
+
+
+def run_shared(specs: Sequence[TrialSpec]) -> list[TrialResult]:
+    """Simulate the trial once and feed it to every spec's localizer; seeds the env and each localizer with
+    the trial's seed. All specs must share ``TrialSpec.simulation``."""
     from pimm_agents.evaluation.recorder import LocalizationRecorder
     from pimm_agents.factory import make_localizer
     from pimm_env.driving.rollout import run
@@ -42,21 +65,41 @@ def run_trial(spec: TrialSpec) -> TrialResult:
     from pimm_env.envs.iilab_env import IILabEnv
     from pimm_env.world.files import load_world
 
+    if not specs:
+        return []
+    shared = {spec.simulation for spec in specs}
+    if len(shared) != 1:
+        raise ValueError(f"specs simulate different trials {sorted(shared)}: group them by TrialSpec.simulation")
+    first = specs[0]
     start = time.perf_counter()
-    world = load_world(spec.world)  # read once, passed to everything below
-    scenario = get_scenario(spec.scenario, world)
-    localizer = make_localizer(spec.localizer, world, params=spec.params)
+    world = load_world(first.world)  # read once, passed to everything below
+    scenario = get_scenario(first.scenario, world)
+    localizers = [make_localizer(spec.localizer, world, params=spec.params) for spec in specs]
     config = SimConfig()
-    if "cloud" not in getattr(localizer, "sensors", ("cloud",)):  # nobody reads it: do not cast 14 400 rays
-        config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))
-    env = LocalizationRecorder(IILabEnv(world=world, config=config, terminate_on_collision=False), localizer)
+    if not any("cloud" in getattr(loc, "sensors", ("cloud",)) for loc in localizers):
+        config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))  # nobody reads it: skip 14 400 rays
+    recorders = []
+    env: Any = IILabEnv(world=world, config=config, terminate_on_collision=False)
+    for localizer in localizers:
+        env = LocalizationRecorder(env, localizer)
+        recorders.append(env)
     try:
-        rollout = run(scenario, seed=spec.seed, env=env)
-        log = env.trial_log()
+        rollout = run(scenario, seed=first.seed, env=env)
+        logs = [recorder.trial_log() for recorder in recorders]
     finally:
         env.close()
-    metrics = trial_metrics(log.after_kidnap() if scenario.kidnap_to is not None else log)
-    return TrialResult(spec, log, metrics, time.perf_counter() - start, rollout.completed)
+    wall = time.perf_counter() - start
+    return [
+        TrialResult(spec, log, metrics_of(log), wall, rollout.completed) for spec, log in zip(specs, logs, strict=True)
+    ]
+
+
+def group_by_simulation(specs: Sequence[TrialSpec]) -> list[list[int]]:
+    """Indices of ``specs`` grouped by the simulation they share, in order of first appearance."""
+    groups: dict[tuple[str, str, int, int], list[int]] = {}
+    for i, spec in enumerate(specs):
+        groups.setdefault(spec.simulation, []).append(i)
+    return list(groups.values())
 
 
 def _limit_threads(threads: int) -> None:
@@ -69,19 +112,24 @@ def _limit_threads(threads: int) -> None:
 def run_trials(
     specs: Sequence[TrialSpec], workers: int = 1, on_done: Callable[[TrialResult], None] | None = None
 ) -> list[TrialResult]:
-    """All trials, in ``workers`` processes (1: in this one); results in the order of ``specs``."""
+    """All trials, one simulation per group of specs that share it, in ``workers`` processes (1: in this one);
+    ``on_done`` sees each result as its simulation finishes; results come back in the order of ``specs``."""
     results: dict[int, TrialResult] = {}
-    if workers <= 1:
-        for i, spec in enumerate(specs):
-            results[i] = run_trial(spec)
+    groups = group_by_simulation(specs)
+
+    def finish(indices: list[int], done: list[TrialResult]) -> None:
+        for i, result in zip(indices, done, strict=True):
+            results[i] = result
             if on_done:
-                on_done(results[i])
+                on_done(result)
+
+    if workers <= 1 or len(groups) <= 1:
+        for indices in groups:
+            finish(indices, run_shared([specs[i] for i in indices]))
     else:
         threads = max(1, (os.cpu_count() or 1) // workers)
         with ProcessPoolExecutor(max_workers=workers, initializer=_limit_threads, initargs=(threads,)) as pool:
-            futures = {pool.submit(run_trial, spec): i for i, spec in enumerate(specs)}
+            futures = {pool.submit(run_shared, [specs[i] for i in indices]): indices for indices in groups}
             for future in as_completed(futures):
-                results[futures[future]] = future.result()
-                if on_done:
-                    on_done(results[futures[future]])
+                finish(futures[future], future.result())
     return [results[i] for i in range(len(specs))]

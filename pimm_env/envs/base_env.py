@@ -110,6 +110,7 @@ class LidarRobotEnv(gym.Env):
         self._scan_time = 0.0
         self._collided = False
         self._fresh = (False, False)
+        self._noise: tuple[np.random.Generator, np.random.Generator] | None = None  # 3D, 2D LiDAR
 
     # ------------------------------------------------------------------ set-up helpers
     def _make_caster(self) -> RayCaster:
@@ -172,7 +173,13 @@ class LidarRobotEnv(gym.Env):
         if "pose" in options and "kidnap" in options:
             raise ValueError("reset options 'pose' and 'kidnap' exclude each other")
         kidnap = options.get("kidnap", False)
-        if kidnap is not False and kidnap is not None:
+        kidnapped = kidnap is not False and kidnap is not None
+        if not kidnapped or self._noise is None:
+            # Each LiDAR draws its noise from its own stream, so that switching one off (nobody reads it)
+            # leaves the motion, odometry and the other LiDAR exactly as they were.
+            lidar3d, lidar2d = self.np_random.spawn(2)
+            self._noise = (lidar3d, lidar2d)
+        if kidnapped:
             pose = self._random_pose() if kidnap is True else self._checked_pose(kidnap, "kidnap")
             self.robot.teleport(pose)
         else:
@@ -261,6 +268,8 @@ class LidarRobotEnv(gym.Env):
 
     def _sense(self) -> None:
         """Take the scans that are due at the current time."""
+        assert self._noise is not None, "reset() first"
+        noise3d, noise2d = self._noise
         l3, l2 = self.config.lidar3d, self.config.lidar2d
         x, y, theta = self.robot.pose
         fresh_cloud = fresh_scan = False
@@ -271,7 +280,7 @@ class LidarRobotEnv(gym.Env):
             ranges, labels = ranges.reshape(-1), labels.reshape(-1)
             hit = np.isfinite(ranges)
             noisy = noisy_ranges(
-                np.where(hit, ranges, 0) / l3.max_range, hit, l3.max_range, l3.min_range, l3.noise_std, self.np_random
+                np.where(hit, ranges, 0) / l3.max_range, hit, l3.max_range, l3.min_range, l3.noise_std, noise3d
             )
             returned = hit & (noisy < l3.max_range)
             self._cloud = np.where(returned[:, None], self._directions3d * noisy[:, None], 0.0).astype(np.float32)
@@ -286,7 +295,7 @@ class LidarRobotEnv(gym.Env):
             ranges = ranges.reshape(-1)
             hit = np.isfinite(ranges)
             scan = noisy_ranges(
-                np.where(hit, ranges, 0) / l2.max_range, hit, l2.max_range, l2.min_range, l2.noise_std, self.np_random
+                np.where(hit, ranges, 0) / l2.max_range, hit, l2.max_range, l2.min_range, l2.noise_std, noise2d
             )
             self._scan = scan.astype(np.float32)
             self._scan_time = self._time

@@ -31,3 +31,17 @@ class DeadReckoning:
 def make(world, spread: float = 1.0) -> DeadReckoning:
     """The factory ``--localizers tests.plugins.dead_reckoning:make`` calls, with the params section's keys."""
     return DeadReckoning(spread=spread)
+
+
+class CloudCounter(DeadReckoning):
+    """Dead reckoning that also reads the 3D cloud (it counts the returns), so a simulation feeding it casts one."""
+
+    sensors = ("odom", "cloud")
+
+    def update(self, obs) -> PoseEstimate:
+        self.returns = int(np.count_nonzero(obs["cloud_mask"]))
+        return super().update(obs)
+
+
+def make_cloud_reader(world) -> CloudCounter:
+    return CloudCounter(name="cloud-counter")

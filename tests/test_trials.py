@@ -1,0 +1,107 @@
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import evaluate
+from pimm_agents.evaluation.trial_store import load_stored, load_trial, save_trial, trial_key
+from pimm_agents.evaluation.trials import TrialSpec, group_by_simulation, run_shared, run_trials
+
+ROUTES = """
+format: pimm-scenarios/1
+scenarios:
+  there:
+    start: [1.0, 1.0, 0.0]
+    waypoints: [[1.0, 1.0], [3.5, 1.0], [3.5, 3.0]]
+    speed: 0.5
+  there_kidnap:
+    base: there
+    kidnap_to: [1.0, 3.0, 0.0]
+"""
+AMCL = {"max_particles": 300, "min_particles": 100}
+READER = "tests.plugins.dead_reckoning:make_cloud_reader"
+DEAD = "tests.plugins.dead_reckoning:make"
+
+
+@pytest.fixture
+def room_with_routes(room_file: Path) -> str:
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    (room_file.parent / "scenarios.yaml").write_text(ROUTES)
+    ensure_derived_maps(load_world(room_file))
+    return str(room_file)
+
+
+def _spec(world: str, localizer: str, scenario: str = "there", seed: int = 4, params=None) -> TrialSpec:
+    return TrialSpec(scenario, localizer, 0, seed, world, params if params is not None else {})
+
+
+def _same_log(a, b) -> bool:
+    return a.kidnap_index == b.kidnap_index and all(
+        np.array_equal(getattr(a, k), getattr(b, k)) for k in ("time", "estimate_time", "true", "estimate", "cov")
+    )
+
+
+@pytest.mark.parametrize("scenario", ["there", "there_kidnap"])
+def test_one_simulation_feeds_every_localizer_as_separate_runs_would(room_with_routes, scenario):
+    amcl, reader = _spec(room_with_routes, "amcl", scenario, params=AMCL), _spec(room_with_routes, READER, scenario)
+    alone = run_shared([amcl])[0]  # no localizer reads the cloud: the simulation casts none
+    shared = run_shared([amcl, reader])  # the reader needs the cloud: the same simulation now casts it
+    assert shared[0].spec == amcl and shared[1].spec == reader
+    assert _same_log(alone.log, shared[0].log) and alone.metrics == shared[0].metrics
+    assert len(alone.log) > 50 and (scenario != "there_kidnap" or alone.log.kidnap_index is not None)
+    assert shared[1].log.kidnap_index == alone.log.kidnap_index
+
+
+def test_specs_are_grouped_by_the_simulation_they_share(room_with_routes):
+    specs = [_spec(room_with_routes, name, seed=seed) for seed in (1, 2) for name in ("amcl", DEAD)]
+    assert group_by_simulation(specs) == [[0, 1], [2, 3]]
+    with pytest.raises(ValueError, match="simulate different trials"):
+        run_shared(specs)
+    seen = []
+    results = run_trials(specs, workers=1, on_done=lambda r: seen.append(r.spec))
+    assert [r.spec for r in results] == specs and sorted(seen, key=specs.index) == specs
+
+
+def test_a_saved_trial_loads_back_whole(room_with_routes, tmp_path):
+    result = run_shared([_spec(room_with_routes, "amcl", "there_kidnap", params=AMCL)])[0]
+    path = save_trial(tmp_path, result)
+    assert path.name == f"{trial_key(result.spec)}.npz" and path.stem.startswith("room__there_kidnap__amcl__")
+    back = load_trial(path)
+    assert back.spec == result.spec and back.metrics == result.metrics and _same_log(back.log, result.log)
+    assert back.log.timings == result.log.timings and back.completed == result.completed
+    other = _spec(room_with_routes, "amcl", "there_kidnap", params={**AMCL, "max_particles": 301})
+    assert trial_key(other) != trial_key(result.spec)  # a changed setting is a different trial
+    assert list(load_stored(tmp_path, [other, result.spec])) == [1]
+    (tmp_path / "trials" / "broken.npz").write_text("no")
+    with pytest.raises(ValueError, match="broken.npz"):
+        load_trial(tmp_path / "trials" / "broken.npz")
+
+
+def test_resume_runs_only_the_missing_trials_and_gives_the_full_runs_metrics(room_with_routes, tmp_path):
+    def run(out: Path, trials: int, *extra: str) -> dict:
+        args = ["run", "--world", room_with_routes, "--scenarios", "there", "--localizers", DEAD, "amcl"]
+        args += ["--set", "amcl.max_particles=300", "--set", "amcl.min_particles=100", "--workers", "1"]
+        args += ["--trials", str(trials), "--out", str(out), "--json", *extra]
+        result = CliRunner().invoke(evaluate.app, evaluate.expand_list_options(args))
+        assert result.exit_code == 0, result.output
+        return json.loads(result.output.strip().splitlines()[-1])
+
+    first = run(tmp_path / "a", 1)
+    extended = run(tmp_path / "a", 2, "--resume")
+    assert extended["folder"] == first["folder"]  # continued in place
+    record = json.loads((Path(extended["folder"]) / "run.json").read_text())
+    assert (record["trials_run"], record["trials_reused"]) == (2, 2)  # 2 localizers x 1 new trial
+    assert len(list((Path(extended["folder"]) / "trials").glob("*.npz"))) == 4
+    whole = run(tmp_path / "b", 2)
+
+    def no_timings(summary: dict) -> dict:
+        rows = summary["scenarios"]["there"]
+        return {name: {k: v for k, v in row.items() if k != "timings_ms"} for name, row in rows.items()}
+
+    assert no_timings(extended) == no_timings(whole)
+    assert run(tmp_path / "a", 2, "--resume")["folder"] == first["folder"]
+    assert json.loads((Path(first["folder"]) / "run.json").read_text())["trials_run"] == 0
