@@ -5,6 +5,7 @@ import pytest
 
 from pimm_agents import available_localizers, make_localizer
 from pimm_agents.amcl.localizer import Amcl, AmclConfig, subsample_beams
+from pimm_agents.evaluation.metrics import position_errors
 from pimm_agents.evaluation.trials import TrialSpec, run_trial
 from pimm_env.driving.rollout import drive
 from pimm_env.driving.scenarios import get_scenario
@@ -146,10 +147,12 @@ def test_plain_amcl_never_recovers_from_the_kidnap():
 
 @pytest.mark.expensive
 def test_recovery_recovers_from_the_kidnap():
-    # amcl-recovery recovered in 7 of 10 kidnap trials (seeds 0-9), amcl-recovery-nav2 in 1; seed 3 is one
+    # amcl-recovery recovered in 10 of 10 kidnap trials (seeds 0-9, 2026-11-23), 20-61 s after the kidnap;
+    # seed 3 is the slowest (61 s), so the mean error since convergence still holds the last metres of the search
     result = run_trial(TrialSpec("a_c_b_kidnap", "amcl-recovery", 3, 3))
     assert result.log.kidnap_index is not None and result.metrics.converged
-    assert result.metrics.position_error_m < 0.5
+    last = result.log.time >= result.log.time[-1] - 5.0
+    assert np.median(position_errors(result.log)[last]) < 0.3  # and it has the pose at the end
 
 
 def test_recovery_injects_uniform_particles_once_the_scan_stops_fitting():

@@ -100,3 +100,8 @@ def test_excursions_count_leaving_after_first_convergence():
     estimate = np.column_stack([errors, np.zeros(10), np.zeros(10)])
     log = TrialLog(t, t, true, estimate, np.zeros((10, 3)), None, [])
     assert excursions(log) == (2, 3.0)
+    assert excursions(log, held_s=1.0) == (2, 3.0)  # found at t=2 and held to t=3
+    assert excursions(log, held_s=2.0) == (0, 0.0)  # never held 2 s: nothing found, nothing lost
+    flash = TrialLog(t, t, true, np.column_stack([[0.5, 9, 9, 0.5, 0.5, 0.5, 4, 0.5, 0.5, 0.5], t * 0, t * 0]),
+                     np.zeros((10, 3)), None, [])  # fmt: skip
+    assert excursions(flash) == (2, 3.0) and excursions(flash, held_s=2.0) == (1, 1.0)

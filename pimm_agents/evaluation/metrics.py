@@ -30,20 +30,38 @@ def angle_errors_deg(log: TrialLog) -> np.ndarray:
 
 
 def excursions(
-    log: TrialLog, position_threshold: float = POSITION_THRESHOLD_M, angle_threshold_deg: float = ANGLE_THRESHOLD_DEG
+    log: TrialLog,
+    position_threshold: float = POSITION_THRESHOLD_M,
+    angle_threshold_deg: float = ANGLE_THRESHOLD_DEG,
+    held_s: float = 0.0,
 ) -> tuple[int, float]:
-    """How often, after the estimate first came within both thresholds, it left them again, and for how
-    long in all (s): the jumps to a look-alike place that the convergence metric only sees as a late time."""
+    """How often, after the estimate first stayed within both thresholds for ``held_s`` seconds (0: after it
+    first came within them), it left them again, and for how long in all (s): the jumps to a look-alike place
+    that the convergence metric only sees as a late time. With ``held_s`` > 0, a global start's first estimate
+    that lands near the truth by chance for a moment does not count as a pose the filter had found."""
     if len(log) == 0:
         return 0, 0.0
     bad = (position_errors(log) >= position_threshold) | (angle_errors_deg(log) >= angle_threshold_deg)
-    good = np.nonzero(~bad)[0]
-    if len(good) == 0:
+    start = _first_held(log.time, ~bad, held_s)
+    if start is None:
         return 0, 0.0
-    after = bad[good[0] :]
+    after = bad[start:]
     starts = np.count_nonzero(after[1:] & ~after[:-1])
-    dt = np.diff(log.time[good[0] :], append=log.time[-1])
+    dt = np.diff(log.time[start:], append=log.time[-1])
     return int(starts), float(dt[after].sum())
+
+
+def _first_held(time: np.ndarray, good: np.ndarray, held_s: float) -> int | None:
+    """The first index of a run of ``good`` rows spanning at least ``held_s`` seconds."""
+    run_start = None
+    for i in range(len(good)):
+        if not good[i]:
+            run_start = None
+            continue
+        run_start = i if run_start is None else run_start
+        if time[i] - time[run_start] >= held_s:
+            return run_start
+    return None
 
 
 def trial_metrics(
