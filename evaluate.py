@@ -3,7 +3,7 @@
 
     python evaluate.py                 # the main job on the default world: 3 trials of every scenario
     python evaluate.py run --scenarios area_b a_c_b --localizers amcl --trials 10 --seed 0 --out results/
-    python evaluate.py score results/*/logs/*.csv
+    python evaluate.py score results/<run>/logs/   # files or folders
     python evaluate.py rollout --scenarios area_a area_b --seed 0 --out results/
     python evaluate.py bench [--json]
 
@@ -165,36 +165,55 @@ def run(
 
 @app.command()
 def score(
-    files: list[Path] = typer.Argument(..., help="trial logs in the thesis's CSV format"),
+    paths: list[Path] = typer.Argument(..., help="trial logs (thesis CSV format) or folders holding them"),
+    drop_repeated: bool = typer.Option(False, "--drop-repeated", help="drop rows that repeat the previous stamp"),
+    drop_uninitialised: bool = typer.Option(
+        False, "--drop-uninitialised", help="drop leading rows whose estimate is still (0, 0)"
+    ),
     json_out: bool = typer.Option(False, "--json", help="print one JSON object"),
 ) -> None:
-    """The thesis's metrics from trial logs made anywhere (columns timestamp_real ... cov_theta)."""
-    from pimm_agents.evaluation.metrics import summarize, trial_metrics
-    from pimm_agents.evaluation.trial_log import read_csv
+    """The thesis's metrics from trial logs made anywhere (columns timestamp_real ... cov_theta), grouped by
+    scenario and localizer where the sidecars or file names say so; reports faults a recorded log may have."""
+    from pimm_agents.evaluation.scoring import find_logs, group_summaries, score_log
 
-    per_file = {}
-    for path in files:
-        try:
-            per_file[str(path)] = trial_metrics(read_csv(path))
-        except (ValueError, FileNotFoundError) as error:  # the message names the file and line: print it whole
-            typer.echo(f"error: {error}", err=True)
-            raise typer.Exit(1) from None
-    overall = summarize(list(per_file.values()))
+    try:
+        scored = [score_log(p, drop_repeated, drop_uninitialised) for p in find_logs(paths)]
+    except (ValueError, FileNotFoundError) as error:  # the message names the file and line: print it whole
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(1) from None
+    groups = group_summaries(scored)
     if json_out:
-        typer.echo(json.dumps({"trials": {k: vars(v) for k, v in per_file.items()}, "summary": overall}))
+        trials = {
+            str(item.path): {**vars(item.metrics), "group": item.group, "faults": vars(item.faults)} for item in scored
+        }
+        typer.echo(json.dumps({"trials": trials, "groups": groups}))
         return
-    for name, m in per_file.items():
+    for item in scored:
+        m = item.metrics
         verdict = (
-            f"converged at {m.convergence_time_s:.2f} s, error {m.position_error_m:.2f} m / {m.angle_error_deg:.2f} deg"
+            f"converged at {m.convergence_time_s:.2f} s, error {m.position_error_m:.2f} m / {m.angle_error_deg:.1f} deg"
             if m.converged
             else "did not converge"
         )
-        typer.echo(f"{name}: {verdict}")
-    rate = 100 * float(overall["convergence_rate"] or 0.0)
-    typer.echo(
-        f"\n{overall['trials']} trials: convergence rate {rate:.0f} %, time {overall['convergence_time_s']} s, "
-        f"position error {overall['position_error_m']} m, angle error {overall['angle_error_deg']} deg"
-    )
+        kidnap = " (from the kidnap)" if item.log.kidnap_index is not None else ""
+        typer.echo(f"{item.path}: {verdict}{kidnap}")
+        if item.faults.any:
+            typer.echo(f"  warning: {item.faults.describe()}", err=True)
+
+    def cell(value: float | None, fmt: str) -> str:
+        return "-" if value is None else format(value, fmt)
+
+    width = max(12, *(len(name) + 2 for name in groups))
+    typer.echo(f"\n{'group':<{width}}{'trials':>7}{'conv. rate %':>14}{'conv. time s':>14}{'pos. err m':>12}"
+               f"{'ang. err deg':>14}")  # fmt: skip
+    for name, row in groups.items():
+        typer.echo(
+            f"{name:<{width}}{row['trials']:>7}{100 * float(row['convergence_rate']):>14.0f}"
+            f"{cell(row['convergence_time_s'], '.2f'):>14}{cell(row['position_error_m'], '.2f'):>12}"
+            f"{cell(row['angle_error_deg'], '.2f'):>14}"
+        )
+    if any(item.faults.any for item in scored) and not (drop_repeated and drop_uninitialised):
+        typer.echo("(faults reported above: --drop-repeated / --drop-uninitialised leave those rows out)", err=True)
 
 
 @app.command()

@@ -28,17 +28,77 @@ THESIS_RESULTS: dict[str, dict[str, tuple[float, float | None, float | None, flo
 }
 
 
-def summary_of(results: Sequence[TrialResult]) -> dict[str, Any]:
-    """``{"scenarios": {scenario: {localizer: {...}}}}`` in the schema of ARCHITECTURE.md."""
-    groups: dict[tuple[str, str], list[TrialResult]] = {}
-    for result in results:
-        groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
+def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] | None = None) -> dict[str, Any]:
+    """``{"scenarios": {scenario: {localizer: {...}}}}`` in the schema of ARCHITECTURE.md; each entry also has
+    ``per_trial`` rows (seed, metrics, APE/RPE when ``errors`` gives them, wall time), the ``spread`` (std, min,
+    max) of each metric over the trials that converged, and the mean of the trials' APE and RPE statistics."""
+    groups: dict[tuple[str, str], list[int]] = {}
+    for i, result in enumerate(results):
+        groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(i)
     scenarios: dict[str, dict[str, Any]] = {}
-    for (scenario, localizer), trials in groups.items():
+    for (scenario, localizer), indices in groups.items():
+        trials = [results[i] for i in indices]
         entry: dict[str, Any] = summarize([t.metrics for t in trials])
         entry["timings_ms"] = timing_summary([timing for t in trials for timing in t.log.timings])
+        rows = [_trial_row(results[i], errors[i] if errors else None) for i in indices]
+        entry["per_trial"] = rows
+        entry["spread"] = _spread(rows)
+        for kind in ("ape", "rpe"):
+            stats = [r[kind] for r in rows if r.get(kind)]
+            entry[f"{kind}_m"] = {k: float(np.mean([s[k] for s in stats])) for k in stats[0]} if stats else None
         scenarios.setdefault(scenario, {})[localizer] = entry
     return {"scenarios": scenarios}
+
+
+def _trial_row(result: TrialResult, errors: dict[str, Any] | None) -> dict[str, Any]:
+    m = result.metrics
+    row: dict[str, Any] = {
+        "trial": result.spec.trial,
+        "seed": result.spec.seed,
+        "converged": m.converged,
+        "convergence_time_s": m.convergence_time_s,
+        "position_error_m": m.position_error_m,
+        "angle_error_deg": m.angle_error_deg,
+        "completed": result.completed,
+        "wall_s": round(result.wall_s, 2),
+    }
+    if errors is not None:
+        row.update(errors)
+    return row
+
+
+def _spread(rows: list[dict[str, Any]]) -> dict[str, dict[str, float] | None]:
+    out: dict[str, dict[str, float] | None] = {}
+    for key in ("convergence_time_s", "position_error_m", "angle_error_deg"):
+        values = [r[key] for r in rows if r[key] is not None]
+        out[key] = (
+            {"std": float(np.std(values)), "min": float(np.min(values)), "max": float(np.max(values))}
+            if values
+            else None
+        )
+    return out
+
+
+def provenance() -> dict[str, str | None]:
+    """The package version and the git commit (with ``+dirty`` when the tree has changes) results were made with."""
+    import subprocess
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        package = version("pimm")
+    except PackageNotFoundError:
+        package = None
+    root = Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
+        commit += "+dirty" if dirty else ""
+    except (OSError, subprocess.CalledProcessError):
+        commit = None
+    return {"version": package, "commit": commit}
 
 
 def _cell(value: float | None, fmt: str) -> str:
@@ -99,20 +159,32 @@ def file_safe(name: str) -> str:
     return "".join(c if c.isalnum() or c in "._-" else "-" for c in name)
 
 
+def trial_stem(result: TrialResult) -> str:
+    s = result.spec
+    return f"{s.scenario}_{file_safe(s.localizer)}_trial{s.trial:02d}"
+
+
 def write_results(
     folder: Path, results: Sequence[TrialResult], run_record: dict[str, Any], occupancy: OccupancyGrid
 ) -> dict[str, Any]:
-    """summary.json, run.json (what was run: world, scenarios, seeds), one CSV per trial and the best/worst
-    figures on ``occupancy``; returns the summary."""
+    """summary.json (with the version and commit), run.json (what was run: world, scenarios, seeds), per trial
+    the thesis's CSV with a JSON sidecar (what the trial was, where the kidnap happened) and a TUM pair, and the
+    best/worst figures on ``occupancy``; returns the summary."""
+    from pimm_agents.evaluation.trajectories import trajectory_errors, write_trial_tum
+
     folder = Path(folder)
-    summary = summary_of(results)
+    logs, tum = folder / "logs", folder / "tum"
+    logs.mkdir(exist_ok=True)
+    errors = []
+    for result in results:
+        stem = trial_stem(result)
+        result.log.write_csv(logs / f"{stem}.csv")
+        write_sidecar(logs / f"{stem}.json", result)
+        write_trial_tum(tum / stem, result.log)
+        errors.append(trajectory_errors(result.log.after_kidnap()))
+    summary = {**summary_of(results, errors), **provenance()}
     (folder / "summary.json").write_text(json.dumps(summary, indent=2))
     (folder / "run.json").write_text(json.dumps(run_record, indent=2))
-    logs = folder / "logs"
-    logs.mkdir(exist_ok=True)
-    for result in results:
-        s = result.spec
-        result.log.write_csv(logs / f"{s.scenario}_{file_safe(s.localizer)}_trial{s.trial:02d}.csv")
     groups: dict[tuple[str, str], list[TrialResult]] = {}
     for result in results:
         groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
@@ -124,6 +196,23 @@ def write_results(
             if index is not None:
                 plot_trial(occupancy, trials[index], figures / f"{scenario}_{file_safe(localizer)}_{label}.png", label)
     return summary
+
+
+def write_sidecar(path: Path, result: TrialResult) -> Path:
+    """What a trial's CSV holds, beside it: scenario, localizer, trial, seed, world, and the first row after
+    the kidnap (the thesis's 11 columns stay as they are, so the thesis's tools still read the CSV)."""
+    s = result.spec
+    record = {
+        "scenario": s.scenario,
+        "localizer": s.localizer,
+        "trial": s.trial,
+        "seed": s.seed,
+        "world": s.world,
+        "kidnap_row": result.log.kidnap_index,
+        "rows": len(result.log),
+    }
+    Path(path).write_text(json.dumps(record, indent=1))
+    return Path(path)
 
 
 def plot_trial(occupancy: OccupancyGrid, trial: TrialResult, path: Path, label: str) -> Path:
