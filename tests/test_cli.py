@@ -123,6 +123,7 @@ def test_a_runs_config_yaml_repeats_it_exactly(tmp_path):
     config = Path(first["folder"]) / "config.yaml"
     assert yaml.safe_load(config.read_text())["amcl"]["max_particles"] == 400
     again = run("--params", str(config), "--out", str(tmp_path / "b"))
+
     def without_clock(summary: dict) -> dict:  # what the machine's speed changes: timings and wall time
         row = {k: v for k, v in summary["scenarios"]["area_b"]["amcl"].items() if k != "timings_ms"}
         row["per_trial"] = [{k: v for k, v in t.items() if k != "wall_s"} for t in row["per_trial"]]

@@ -29,8 +29,10 @@ def test_the_thesis_logs_faults_are_counted_and_can_be_dropped():
         clean = cleaned(item.log, drop_repeated=True, drop_uninitialised=True)
         assert faults_of(clean).repeated_stamps == 0 and faults_of(clean).uninitialised_leading == 0
         most = item.faults.repeated_stamps + item.faults.uninitialised_leading  # a row can be both
-        assert len(item.log) - most <= len(clean) <= len(item.log) - max(
-            item.faults.repeated_stamps, item.faults.uninitialised_leading
+        assert (
+            len(item.log) - most
+            <= len(clean)
+            <= len(item.log) - max(item.faults.repeated_stamps, item.faults.uninitialised_leading)
         )
 
 
