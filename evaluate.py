@@ -218,13 +218,15 @@ def score(
 
 @app.command()
 def rollout(
-    scenarios: list[str] = typer.Option(DEFAULT_SCENARIOS, "--scenarios", help="scenario names"),
+    scenarios: list[str] | None = typer.Option(None, "--scenarios", help="scenario names (default: the world's)"),
     world: str = typer.Option("iilab", help="world name or world file"),
     seed: int = typer.Option(0, help="seed of the simulation's noise"),
     out: Path = typer.Option(Path("results"), help="where the timestamped results folder goes"),
     json_out: bool = typer.Option(False, "--json", help="print one JSON object instead of a table"),
 ) -> None:
     """Drive each scenario's waypoints (3D LiDAR on) and report length, time and odometry drift."""
+    from tqdm import tqdm
+
     from pimm_env.driving.plots import plot_rollouts
     from pimm_env.driving.rollout import run
     from pimm_env.driving.scenarios import load_scenarios
@@ -234,6 +236,7 @@ def rollout(
     loaded = load_world(world)
     occupancy = ensure_derived_maps(loaded).occupancy
     available = load_scenarios(loaded)
+    scenarios = scenarios or list(available)
     unknown = [s for s in scenarios if s not in available]
     if unknown:
         raise typer.BadParameter(
@@ -242,9 +245,14 @@ def rollout(
     folder = _results_dir(out, "rollout")
     results = []
     for name in scenarios:
-        if not json_out:
-            typer.echo(f"rolling out {name} ...", err=True)
-        results.append(run(available[name], world=loaded, seed=seed))
+        scenario = available[name]
+        expected_s = scenario.length * (2 if scenario.kidnap_to is not None else 1) / scenario.speed
+        with tqdm(total=round(expected_s), desc=name, unit="sim s", disable=json_out, leave=False) as bar:
+
+            def advance(obs: dict, info: dict, bar: tqdm = bar) -> None:
+                bar.update(max(0, int(float(obs["time"][0])) - bar.n))
+
+            results.append(run(scenario, world=loaded, seed=seed, on_step=advance))
     summary = {
         r.scenario: {
             "length_m": round(r.length_m, 3),
@@ -314,19 +322,26 @@ def perception(
     and the corner detector on true and on predicted labels (parts whose trained files are missing are left out)."""
     from pimm_agents.evaluation.corner_quality import collect_scans
     from pimm_agents.evaluation.perception_quality import format_perception, perception_report
-    from pimm_agents.perception.files import checkpoint_path, load_perception
+    from pimm_agents.perception.files import checkpoint_path, fingerprint_path, load_perception
+    from pimm_agents.perception.segmenter import Segmenter
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
     loaded = load_world(world)
     maps = ensure_derived_maps(loaded)
     segmenter = fingerprints = None
-    if checkpoint_path(loaded).exists():
-        segmenter, fingerprints = load_perception(loaded)
-    else:
+    if not checkpoint_path(loaded).exists():
         typer.echo(
             f"{checkpoint_path(loaded)} is missing: only the corner detector on true labels is measured", err=True
         )
+    elif not fingerprint_path(loaded).exists():
+        typer.echo(
+            f"{fingerprint_path(loaded)} is missing (python evaluate.py world prepare {world}): retrieval is left out",
+            err=True,
+        )
+        segmenter = Segmenter(checkpoint_path(loaded))
+    else:
+        segmenter, fingerprints = load_perception(loaded)
     collected = collect_scans(world, scans, seed)
     result = perception_report(
         collected, maps.corners, segmenter, fingerprints, figure=figure, occupancy=maps.occupancy

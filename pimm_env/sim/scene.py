@@ -13,10 +13,13 @@ class BulletScene:
     """A headless pybullet client holding ``world``'s elements and a visual body for the robot."""
 
     def __init__(self, world: World, robot_radius: float, robot_height: float = 0.4) -> None:
-        import pybullet
-        from pybullet_utils.bullet_client import BulletClient
+        from pimm_env.sim.quiet import silenced_stdout
 
-        self.client = BulletClient(connection_mode=pybullet.DIRECT)
+        with silenced_stdout():  # pybullet's build-time and argv[0] banners
+            import pybullet
+            from pybullet_utils.bullet_client import BulletClient
+
+            self.client = BulletClient(connection_mode=pybullet.DIRECT)
         self._closed = False
         classes: dict[int, int] = {}
         for element in world.elements:

@@ -1,0 +1,50 @@
+"""``--json`` prints exactly one JSON document on stdout, whatever C libraries print (run as a user would)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.test_trials import ROUTES
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def room_world(room_file: Path) -> Path:
+    (room_file.parent / "scenarios.yaml").write_text(ROUTES)
+    return room_file
+
+
+def _stdout(*args: str) -> str:
+    done = subprocess.run([sys.executable, str(ROOT / "evaluate.py"), *args, "--json"], capture_output=True,
+                          text=True, cwd=ROOT, timeout=600)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout
+
+
+def _one_document(text: str) -> dict:
+    document = json.loads(text)  # fails on a banner before or after the document
+    assert isinstance(document, dict) and text.strip().count("\n") == 0
+    return document
+
+
+def test_run_score_and_rollout_print_one_json_document(room_world, tmp_path):
+    run = _one_document(_stdout("run", "--world", str(room_world), "--localizers", "tests.plugins.dead_reckoning:make",
+                                "--trials", "1", "--workers", "1", "--out", str(tmp_path)))  # fmt: skip
+    assert set(run["scenarios"]) == {"there", "there_kidnap"}
+    scored = _one_document(_stdout("score", str(Path(run["folder"]) / "logs")))
+    assert len(scored["trials"]) == 2
+    rolled = _one_document(_stdout("rollout", "--world", str(room_world), "--out", str(tmp_path)))
+    assert rolled["rollouts"]["there"]["completed"] is True
+
+
+@pytest.mark.expensive
+def test_perception_and_bench_print_one_json_document(room_world):
+    perception = _one_document(_stdout("perception", "--world", str(room_world), "--scans", "2"))
+    assert "retrieval" not in perception  # the room has no fingerprint map yet: left out, not an error
+    assert 0.0 <= perception["segmentation"]["miou"] <= 1.0
+    bench = _one_document(_stdout("bench", "--repeats", "3"))
+    assert bench["pimm_pipeline_ms"] > 0
