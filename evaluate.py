@@ -71,6 +71,9 @@ def run(
     resume: bool = typer.Option(
         False, "--resume", help="continue the newest run folder under --out: run only the trials it lacks"
     ),
+    video: str | None = typer.Option(
+        None, "--video", help="best | worst | all: replay those trials as animations (videos/ in the results)"
+    ),
 ) -> None:
     """Run localizers on scenarios: one simulation per trial feeds every localizer; trials in parallel. Prints
     the thesis's tables and writes logs and figures; each trial is saved as it finishes (see --resume)."""
@@ -118,6 +121,8 @@ def run(
         for scenario in scenarios
         for localizer in localizers
     ]
+    if video not in (None, "best", "worst", "all"):
+        raise typer.BadParameter(f"expected best, worst or all, got {video!r}", param_hint="--video")
     workers = workers or os.cpu_count() or 1
     earlier = _latest_run(out) if resume else None
     folder = earlier or _results_dir(out, "run")
@@ -150,7 +155,9 @@ def run(
             world, " ".join(scenarios), trials, seed
         ),
     }
-    summary = write_results(folder, results, run_record, maps.occupancy)
+    summary = write_results(folder, results, run_record, maps.occupancy, maps.corners.xy)
+    if video is not None:
+        _write_videos(folder, results, video, maps, quiet=json_out)
     if json_out:
         typer.echo(json.dumps({**summary, "folder": str(folder)}))
         return
@@ -161,6 +168,30 @@ def run(
         + (f" ({len(stored)} more from the earlier run)" if stored else "")
         + f"; results: {folder}/ (summary.json, config.yaml, run.json, trials/, logs/, figures/)"
     )
+
+
+def _write_videos(folder: Path, results: list, which: str, maps, quiet: bool) -> None:
+    """Replay the chosen trials of every scenario and localizer as animations under ``folder/videos``."""
+    from tqdm import tqdm
+
+    from pimm_agents.evaluation.metrics import best_and_worst
+    from pimm_agents.evaluation.report import file_safe
+    from pimm_agents.evaluation.video import chosen_trials, collect_frames, write_video
+
+    groups: dict[tuple[str, str], list] = {}
+    for result in results:
+        groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
+    jobs = []
+    for (scenario, localizer), trials in groups.items():
+        best, worst = best_and_worst([t.metrics for t in trials])
+        for label, index in chosen_trials(which, best, worst, len(trials)):
+            jobs.append((scenario, localizer, label, trials[index]))
+    (folder / "videos").mkdir(exist_ok=True)
+    for scenario, localizer, label, trial in tqdm(jobs, desc="videos", unit="video", disable=quiet):
+        frames = collect_frames(trial.spec)
+        title = f"{localizer}, {scenario}, {label} trial (seed {trial.spec.seed})"
+        target = folder / "videos" / f"{scenario}_{file_safe(localizer)}_{label}"
+        write_video(frames, maps.occupancy, maps.corners.xy, target, title)
 
 
 @app.command()

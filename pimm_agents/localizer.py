@@ -61,6 +61,21 @@ class Localizer(Protocol):
         ...
 
 
+class Inspectable(Protocol):
+    """A localizer that can show its inner state, for figures and replays (optional; the evaluation draws
+    what a localizer offers). ``snapshot`` returns map-frame arrays: ``particles`` (N, 3), at most
+    ``max_particles`` of them, and where the localizer has them ``corners`` (K, 2), the features it measured
+    at the latest scan placed at its estimate, and ``suggestions`` (M, 2), positions it was told to look at."""
+
+    def snapshot(self, max_particles: int = 500) -> dict[str, np.ndarray]: ...
+
+
+def particle_sample(particles: np.ndarray, max_particles: int) -> np.ndarray:
+    """Every k-th particle, at most ``max_particles`` (a picture needs no more)."""
+    step = max(1, int(np.ceil(len(particles) / max(1, max_particles))))
+    return np.array(particles[::step, :3], dtype=float)
+
+
 def require(obs: Observation, key: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
     """``obs[key]`` as a float array, with a clear error if it is missing or has the wrong shape."""
     if key not in obs:

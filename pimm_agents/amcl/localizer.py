@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from pimm_agents.localizer import Observation, PoseEstimate, require
+from pimm_agents.localizer import Observation, PoseEstimate, particle_sample, require
 from pimm_agents.particles.free_space import FreeSpace
 from pimm_agents.particles.initial_pose import gaussian_poses
 from pimm_agents.particles.kld import bin_keys, kld_sample_count
@@ -137,6 +137,10 @@ class Amcl:
         self._odom_at_update: np.ndarray | None = None
         self._pose_at_update = self._heaviest_cluster()
         self._estimate: PoseEstimate | None = None
+
+    def snapshot(self, max_particles: int = 500) -> dict[str, np.ndarray]:
+        """The particle cloud (every k-th particle, at most ``max_particles``)."""
+        return {"particles": particle_sample(self.particles, max_particles)}
 
     def update(self, obs: Observation) -> PoseEstimate:
         odom = require(obs, "odom", (3,))

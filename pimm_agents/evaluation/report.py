@@ -165,11 +165,16 @@ def trial_stem(result: TrialResult) -> str:
 
 
 def write_results(
-    folder: Path, results: Sequence[TrialResult], run_record: dict[str, Any], occupancy: OccupancyGrid
+    folder: Path,
+    results: Sequence[TrialResult],
+    run_record: dict[str, Any],
+    occupancy: OccupancyGrid,
+    corners: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """summary.json (with the version and commit), run.json (what was run: world, scenarios, seeds), per trial
     the thesis's CSV with a JSON sidecar (what the trial was, where the kidnap happened) and a TUM pair, and the
-    best/worst figures on ``occupancy``; returns the summary."""
+    best/worst figures on ``occupancy`` (with the map's ``corners`` (N, 2) when given; one figure when the best
+    trial is also the worst) and a summary figure; returns the summary."""
     from pimm_agents.evaluation.trajectories import trajectory_errors, write_trial_tum
 
     folder = Path(folder)
@@ -192,9 +197,12 @@ def write_results(
     figures.mkdir(exist_ok=True)
     for (scenario, localizer), trials in groups.items():
         best, worst = best_and_worst([t.metrics for t in trials])
-        for label, index in (("best", best), ("worst", worst)):
+        picks = [("best and worst", best)] if best == worst else [("best", best), ("worst", worst)]
+        for label, index in picks:
             if index is not None:
-                plot_trial(occupancy, trials[index], figures / f"{scenario}_{file_safe(localizer)}_{label}.png", label)
+                name = f"{scenario}_{file_safe(localizer)}_{label.replace(' and ', '_')}.png"
+                plot_trial(occupancy, trials[index], figures / name, label, corners)
+    plot_summary(summary, figures / "summary.png")
     return summary
 
 
@@ -215,8 +223,11 @@ def write_sidecar(path: Path, result: TrialResult) -> Path:
     return Path(path)
 
 
-def plot_trial(occupancy: OccupancyGrid, trial: TrialResult, path: Path, label: str) -> Path:
-    """Trajectories on the map (true and estimated) and position/angle error over time, as thesis fig. 4.2."""
+def plot_trial(
+    occupancy: OccupancyGrid, trial: TrialResult, path: Path, label: str, corners: np.ndarray | None = None
+) -> Path:
+    """Trajectories on the map (true and estimated, start and kidnap marked, the map's corners) and position and
+    angle error over time with the convergence thresholds, as thesis fig. 4.2."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -226,34 +237,99 @@ def plot_trial(occupancy: OccupancyGrid, trial: TrialResult, path: Path, label: 
     from pimm_env.envs.render import show_map
 
     log = trial.log
-    fig, (ax_map, ax_err) = plt.subplots(1, 2, figsize=(14, 5), gridspec_kw={"width_ratios": [1.4, 1]})
+    fig, (ax_map, ax_err) = plt.subplots(1, 2, figsize=(14, 5.5), gridspec_kw={"width_ratios": [1.4, 1]})
     show_map(ax_map, occupancy)
+    if corners is not None and len(corners):
+        ax_map.plot(corners[:, 0], corners[:, 1], "s", ms=3, mfc="none", mec="0.45", label="map corners")
     true_xy = log.true[:, :2]
     if log.kidnap_index is not None:  # no line across the teleport
         true_xy = np.insert(true_xy, log.kidnap_index, np.nan, axis=0)
-    ax_map.plot(true_xy[:, 0], true_xy[:, 1], "-", color="tab:green", lw=1.5, label="true")
+    ax_map.plot(true_xy[:, 0], true_xy[:, 1], "-", color="tab:green", lw=1.5, label="true path")
     ax_map.plot(log.estimate[:, 0], log.estimate[:, 1], ".", color="tab:red", ms=2, label="estimate")
+    if len(log):
+        ax_map.plot(*log.true[0, :2], "^", color="tab:green", ms=10, mec="k", label="start")
+    if log.kidnap_index is not None:
+        ax_map.plot(*log.true[log.kidnap_index - 1, :2], "X", color="k", ms=10, label="kidnapped from")
+        ax_map.plot(*log.true[log.kidnap_index, :2], "X", color="tab:purple", ms=10, mec="k", label="kidnapped to")
     ax_map.set_xlabel("x (m)")
     ax_map.set_ylabel("y (m)")
     ax_map.legend(loc="upper right", fontsize=8)
     m = trial.metrics
     verdict = f"converged at {m.convergence_time_s:.1f} s" if m.converged else "did not converge"
-    ax_map.set_title(f"{trial.spec.localizer}, {trial.spec.scenario}, {label} trial ({trial.spec.trial}): {verdict}")
+    if m.converged and log.kidnap_index is not None:
+        verdict += " after the kidnap"
+    fig.suptitle(
+        f"{trial.spec.localizer} in {trial.spec.scenario}: {label} of the trials (trial {trial.spec.trial}, "
+        f"seed {trial.spec.seed}), {verdict}",
+        fontsize=11,
+    )
     t = log.time - log.time[0]
     ax_err.plot(t, position_errors(log), color="tab:blue", lw=1, label="position error (m)")
-    ax_err.axhline(POSITION_THRESHOLD_M, color="tab:blue", ls=":", lw=0.8)
+    ax_err.axhline(
+        POSITION_THRESHOLD_M, color="tab:blue", ls=":", lw=0.8, label=f"{POSITION_THRESHOLD_M:g} m threshold"
+    )
     ax_err.set_xlabel("time (s)")
     ax_err.set_ylabel("position error (m)", color="tab:blue")
     ax_ang = ax_err.twinx()
     ax_ang.plot(t, angle_errors_deg(log), color="tab:orange", lw=1, label="angle error (deg)")
-    ax_ang.axhline(ANGLE_THRESHOLD_DEG, color="tab:orange", ls=":", lw=0.8)
+    ax_ang.axhline(
+        ANGLE_THRESHOLD_DEG, color="tab:orange", ls=":", lw=0.8, label=f"{ANGLE_THRESHOLD_DEG:g} deg threshold"
+    )
     ax_ang.set_ylabel("angle error (deg)", color="tab:orange")
     if log.kidnap_index is not None:
-        ax_err.axvline(t[log.kidnap_index], color="k", ls="--", lw=1)
-        ax_err.text(t[log.kidnap_index], ax_err.get_ylim()[1] * 0.9, " kidnap", fontsize=8)
+        ax_err.axvline(t[log.kidnap_index], color="k", ls="--", lw=1, label="kidnap")
     if m.converged:
         start = t[0] + m.convergence_time_s + (t[log.kidnap_index] if log.kidnap_index is not None else 0.0)
-        ax_err.axvline(start, color="tab:green", ls="--", lw=1)
+        ax_err.axvline(start, color="tab:green", ls="--", lw=1, label="converged")
+    lines = ax_err.get_legend_handles_labels()
+    more = ax_ang.get_legend_handles_labels()
+    ax_err.legend(lines[0] + more[0], lines[1] + more[1], loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_summary(summary: dict[str, Any], path: Path) -> Path:
+    """Convergence rate and mean convergence time per scenario and localizer, as bars, with the thesis's
+    values beside them (hatched) for the localizers the thesis ran."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenarios = list(summary["scenarios"])
+    localizers = list(dict.fromkeys(name for rows in summary["scenarios"].values() for name in rows))
+    bars = [(name, False) for name in localizers]
+    bars += [
+        (name, True) for name in ("pimm", "amcl") if name in localizers and any(s in THESIS_RESULTS for s in scenarios)
+    ]
+    width = 0.8 / max(1, len(bars))
+    fig, (ax_rate, ax_time) = plt.subplots(1, 2, figsize=(max(10, 2.2 * len(scenarios) + 4), 4.5))
+    colors = {name: f"C{i}" for i, name in enumerate(localizers)}
+    for k, (name, thesis) in enumerate(bars):
+        rates, times = [], []
+        for scenario in scenarios:
+            if thesis:
+                rate, time_s, _, _ = THESIS_RESULTS.get(scenario, {}).get(name, (np.nan, None, None, None))
+            else:
+                row = summary["scenarios"][scenario].get(name, {})
+                rate, time_s = row.get("convergence_rate", np.nan), row.get("convergence_time_s")
+            rates.append(100 * rate)
+            times.append(np.nan if time_s is None else time_s)
+        x = np.arange(len(scenarios)) + (k - (len(bars) - 1) / 2) * width
+        style = {"color": colors[name], "hatch": "//" if thesis else None, "alpha": 0.45 if thesis else 1.0}
+        label = f"{name} (thesis)" if thesis else name
+        ax_rate.bar(x, rates, width, label=label, edgecolor="k", lw=0.5, **style)
+        ax_time.bar(x, times, width, label=label, edgecolor="k", lw=0.5, **style)
+    for ax, ylabel in ((ax_rate, "convergence rate (%)"), (ax_time, "mean convergence time (s)")):
+        ax.set_xticks(np.arange(len(scenarios)), scenarios, rotation=20, ha="right")
+        ax.set_ylabel(ylabel)
+        ax.grid(axis="y", lw=0.4)
+    ax_rate.set_ylim(0, 105)
+    ax_time.legend(fontsize=8)
+    trials = sorted({row["trials"] for rows in summary["scenarios"].values() for row in rows.values()})
+    fig.suptitle(f"convergence per scenario ({'/'.join(map(str, trials))} trials each; thesis: 10)", fontsize=11)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -54,7 +54,12 @@ def run_trial(spec: TrialSpec) -> TrialResult:
     return run_shared([spec])[0]
 
 
-def run_shared(specs: Sequence[TrialSpec]) -> list[TrialResult]:
+#: Called after every env step of a shared trial with its localizers (in the order of the specs), the
+#: observation and the info (whose ``estimate`` is the last localizer's): for replays and figures.
+Watcher = Callable[[Sequence[Any], dict[str, Any], dict[str, Any]], None]
+
+
+def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list[TrialResult]:
     """Simulate the trial once and feed it to every spec's localizer; seeds the env and each localizer with
     the trial's seed. All specs must share ``TrialSpec.simulation``."""
     from pimm_agents.evaluation.recorder import LocalizationRecorder
@@ -83,8 +88,9 @@ def run_shared(specs: Sequence[TrialSpec]) -> list[TrialResult]:
     for localizer in localizers:
         env = LocalizationRecorder(env, localizer)
         recorders.append(env)
+    on_step = None if watch is None else (lambda obs, info: watch(localizers, obs, info))
     try:
-        rollout = run(scenario, seed=first.seed, env=env)
+        rollout = run(scenario, seed=first.seed, env=env, on_step=on_step)
         logs = [recorder.trial_log() for recorder in recorders]
     finally:
         env.close()

@@ -16,7 +16,7 @@ import numpy as np
 
 from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, detect_corners
 from pimm_agents.corners.lookup import NearestCornerGrid
-from pimm_agents.localizer import Observation, PoseEstimate, require
+from pimm_agents.localizer import Observation, PoseEstimate, particle_sample, require
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.perception.fingerprint_map import FingerprintMap
 from pimm_agents.perception.point_features import valid_returns
@@ -238,6 +238,16 @@ class PimmLocalizer:
         if self.config.wall_field.enabled:
             self._walls = wall_points(cloud, segmented.labels, self.config.wall_field)
         self._unused_scan = True
+
+    def snapshot(self, max_particles: int = 500) -> dict[str, np.ndarray]:
+        """Particles, the latest scan's corners placed at the current estimate, and the fingerprint suggestions."""
+        pose = self._estimate if self._estimate is not None else self.filter.best_mean()
+        corners = compose(pose, self._features[:, :3])[:, :2] if len(self._features) else np.zeros((0, 2))
+        return {
+            "particles": particle_sample(self.filter.particles, max_particles),
+            "corners": corners,
+            "suggestions": np.asarray(self._suggestions, dtype=float).reshape(-1, 2),
+        }
 
     def update(self, obs: Observation) -> PoseEstimate:
         began = time.perf_counter()
