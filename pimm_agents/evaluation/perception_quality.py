@@ -149,7 +149,19 @@ def plot_perception(
         color = "tab:green" if errors.min() <= 2.0 else "tab:red"
         ax_map.plot([truth[0], best[0]], [truth[1], best[1]], "-", color=color, lw=1.2)
         ax_map.plot(*truth[:2], "o", color=color, ms=3)
-    ax_map.set_title(f"fingerprint retrieval: {len(retrievals)} fresh scans, true position to nearest of k")
+    from matplotlib.lines import Line2D
+
+    ax_map.legend(
+        handles=[
+            Line2D([], [], color="tab:green", marker="o", ms=3, label="nearest suggestion within 2 m"),
+            Line2D([], [], color="tab:red", marker="o", ms=3, label="all suggestions over 2 m away"),
+        ],
+        loc="upper right",
+        fontsize=8,
+        title="scan position -> nearest of k",
+        title_fontsize=8,
+    )
+    ax_map.set_title(f"fingerprint retrieval: {len(retrievals)} fresh scans")
     ax_map.set_xlabel("x (m)")
     ax_map.set_ylabel("y (m)")
     shares = confusion / np.maximum(confusion.sum(axis=1, keepdims=True), 1)

@@ -12,7 +12,8 @@ from pimm_env.mapping.occupancy import OccupancyGrid
 
 
 def plot_rollouts(occupancy: OccupancyGrid, results: Sequence[RolloutResult], path: Path) -> Path:
-    """Top-down picture of each rollout's true path and its odometry, one panel per scenario."""
+    """Top-down picture of each rollout's true path and its odometry, one panel per scenario in a grid of two
+    columns; a kidnap's teleport is marked, not drawn as a line."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -21,10 +22,19 @@ def plot_rollouts(occupancy: OccupancyGrid, results: Sequence[RolloutResult], pa
     from pimm_env.envs.render import show_map
 
     n = max(1, len(results))
-    fig, axes = plt.subplots(1, n, figsize=(7 * n, 5), squeeze=False)
-    for ax, result in zip(axes[0], results, strict=False):
+    cols = min(2, n)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(7 * cols, 5 * rows), squeeze=False)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    for ax, result in zip(axes.flat, results, strict=False):
         show_map(ax, occupancy)
-        ax.plot(result.true_path[:, 0], result.true_path[:, 1], "-", color="tab:green", lw=1.5, label="true path")
+        true_path = result.true_path[:, :2].astype(float)
+        jumps = np.nonzero(np.linalg.norm(np.diff(true_path, axis=0), axis=1) > 1.0)[0]  # a kidnap's teleport
+        true_path = np.insert(true_path, jumps + 1, np.nan, axis=0)  # no line through the walls
+        ax.plot(true_path[:, 0], true_path[:, 1], "-", color="tab:green", lw=1.5, label="true path")
+        for jump in jumps:
+            ax.plot(*result.true_path[jump + 1, :2], "X", color="tab:purple", ms=9, mec="k", label="kidnapped to")
         if np.isfinite(result.final_drift_m):
             ax.plot(result.odom_path[:, 0], result.odom_path[:, 1], "--", color="tab:red", lw=1.0, label="odometry")
         ax.plot(*result.true_path[0, :2], "o", color="tab:blue", label="start")
