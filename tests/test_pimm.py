@@ -80,3 +80,13 @@ def test_pimm_converges_in_area_b():
 
     result = run_trial(TrialSpec(scenario="area_b", localizer="pimm", trial=0, seed=0))
     assert result.metrics.converged, result.metrics
+    # the trial log keeps the corners PIMM detected, placed at its estimate: once converged, on the map's corners
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    corners = result.log.corners
+    late = corners[result.log.time[corners[:, 0].astype(int)] >= result.log.time[0] + 20.0]
+    assert len(late) > 20
+    map_xy = ensure_derived_maps(load_world("iilab")).corners.xy
+    nearest = np.min(np.linalg.norm(late[:, None, 1:] - map_xy[None], axis=2), axis=1)
+    assert np.median(nearest) < 0.3

@@ -68,11 +68,13 @@ def test_specs_are_grouped_by_the_simulation_they_share(room_with_routes):
 
 def test_a_saved_trial_loads_back_whole(room_with_routes, tmp_path):
     result = run_shared([_spec(room_with_routes, "amcl", "there_kidnap", params=AMCL)])[0]
+    result.log.corners = np.array([[3.0, 1.5, 2.5], [40.0, 0.1, 0.2]])  # as PIMM's would be: row, x, y
     path = save_trial(tmp_path, result)
     assert path.name == f"{trial_key(result.spec)}.npz" and path.stem.startswith("room__there_kidnap__amcl__")
     back = load_trial(path)
     assert back.spec == result.spec and back.metrics == result.metrics and _same_log(back.log, result.log)
     assert back.log.timings == result.log.timings and back.completed == result.completed
+    assert np.array_equal(back.log.corners, result.log.corners)
     other = _spec(room_with_routes, "amcl", "there_kidnap", params={**AMCL, "max_particles": 301})
     assert trial_key(other) != trial_key(result.spec)  # a changed setting is a different trial
     assert list(load_stored(tmp_path, [other, result.spec])) == [1]

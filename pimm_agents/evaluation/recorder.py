@@ -25,13 +25,14 @@ class LocalizationRecorder(gym.Wrapper):
         self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = []
         self._timings: list[dict[str, float]] = []
         self._kidnap_index: int | None = None
+        self._corners: list[np.ndarray] = []  # (k, 3): row, x, y
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
         kidnap = (options or {}).get("kidnap")
         if kidnap is None or kidnap is False:
             self.localizer.reset(seed=seed)
-            self._rows, self._timings, self._kidnap_index = [], [], None
+            self._rows, self._timings, self._kidnap_index, self._corners = [], [], None, []
         else:
             self._kidnap_index = len(self._rows)
         self._observe(obs, info, record=True)
@@ -50,6 +51,11 @@ class LocalizationRecorder(gym.Wrapper):
         if record:
             cov = np.diag(np.asarray(estimate.covariance, dtype=float))
             time = float(np.asarray(obs["time"]).reshape(-1)[0])
+            if info.get("fresh_cloud") and hasattr(self.localizer, "snapshot"):
+                corners = self.localizer.snapshot(max_particles=0).get("corners")
+                if corners is not None and len(corners):
+                    row = np.full((len(corners), 1), float(len(self._rows)))
+                    self._corners.append(np.hstack([row, np.asarray(corners, dtype=float)[:, :2]]))
             self._rows.append((time, float(estimate.stamp), np.asarray(info["true_pose"], float), estimate.pose, cov))
 
     def trial_log(self) -> TrialLog:
@@ -65,4 +71,5 @@ class LocalizationRecorder(gym.Wrapper):
             np.array(cov),
             self._kidnap_index,
             list(self._timings),
+            np.vstack(self._corners) if self._corners else np.zeros((0, 3)),
         )

@@ -246,6 +246,9 @@ def plot_trial(
         true_xy = np.insert(true_xy, log.kidnap_index, np.nan, axis=0)
     ax_map.plot(true_xy[:, 0], true_xy[:, 1], "-", color="tab:green", lw=1.5, label="true path")
     ax_map.plot(log.estimate[:, 0], log.estimate[:, 1], ".", color="tab:red", ms=2, label="estimate")
+    if len(log.corners):
+        ax_map.plot(log.corners[:, 1], log.corners[:, 2], "x", color="tab:orange", ms=3, mew=0.6, alpha=0.5,
+                    label="detected corners (at the estimate)")  # fmt: skip
     if len(log):
         ax_map.plot(*log.true[0, :2], "^", color="tab:green", ms=10, mec="k", label="start")
     if log.kidnap_index is not None:

@@ -36,6 +36,9 @@ class TrialLog:
     cov: np.ndarray
     kidnap_index: int | None = None
     timings: list[dict[str, float]] = field(default_factory=list, repr=False)
+    #: (K, 3): row, x, y of the corners the localizer detected at that row's scan, placed at its estimate
+    #: (for figures; empty for localizers that detect none)
+    corners: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
 
     def __len__(self) -> int:
         return len(self.time)
@@ -43,6 +46,7 @@ class TrialLog:
     def after_kidnap(self) -> TrialLog:
         """The rows from the kidnap on (the whole log if there was none)."""
         start = self.kidnap_index or 0
+        corners = self.corners[self.corners[:, 0] >= start] - [start, 0.0, 0.0]
         return TrialLog(
             self.time[start:],
             self.estimate_time[start:],
@@ -51,6 +55,7 @@ class TrialLog:
             self.cov[start:],
             None,
             self.timings[start:],
+            corners,
         )
 
     def write_csv(self, path: Path) -> None:

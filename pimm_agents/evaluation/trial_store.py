@@ -72,6 +72,7 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
             estimate=log.estimate,
             cov=log.cov,
             timings=timings,
+            corners=log.corners,
         )
     os.replace(partial, target)
     return target
@@ -94,6 +95,7 @@ def load_trial(path: Path) -> TrialResult:
                 data["cov"],
                 meta["kidnap_index"],
                 timings,
+                data["corners"] if "corners" in data.files else np.zeros((0, 3)),
             )
         spec = TrialSpec(**meta["spec"])
     except (OSError, KeyError, ValueError, TypeError) as error:
