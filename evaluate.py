@@ -462,7 +462,20 @@ def expand_list_options(argv: list[str]) -> list[str]:
 
 
 def cli() -> int:
-    return app(args=expand_list_options(sys.argv[1:]))
+    """The command line, with a user's mistakes (a missing file, a bad world file, stale maps) reported as one
+    line naming the file instead of a traceback; set PIMM_DEBUG=1 for the traceback."""
+    import os
+
+    try:
+        return app(args=expand_list_options(sys.argv[1:]))
+    except Exception as error:
+        from pimm_env.mapping.derived_maps import StaleMapsError  # here, so that --help stays instant
+        from pimm_env.world.model import WorldFileError
+
+        if os.environ.get("PIMM_DEBUG") or not isinstance(error, FileNotFoundError | WorldFileError | StaleMapsError):
+            raise
+        typer.echo(f"error: {error}", err=True)
+        return 1
 
 
 if __name__ == "__main__":

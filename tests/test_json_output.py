@@ -48,3 +48,11 @@ def test_perception_and_bench_print_one_json_document(room_world):
     assert 0.0 <= perception["segmentation"]["miou"] <= 1.0
     bench = _one_document(_stdout("bench", "--repeats", "3"))
     assert bench["pimm_pipeline_ms"] > 0
+
+
+def test_a_missing_world_is_one_line_naming_it(tmp_path):
+    done = subprocess.run([sys.executable, str(ROOT / "evaluate.py"), "run", "--world", str(tmp_path / "nowhere")],
+                          capture_output=True, text=True, cwd=ROOT, timeout=120)  # fmt: skip
+    assert done.returncode == 1 and done.stdout == ""
+    assert done.stderr.startswith("error: unknown world") and "nowhere" in done.stderr
+    assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1

@@ -13,9 +13,9 @@ class BulletScene:
     """A headless pybullet client holding ``world``'s elements and a visual body for the robot."""
 
     def __init__(self, world: World, robot_radius: float, robot_height: float = 0.4) -> None:
-        from pimm_env.sim.quiet import silenced_stdout
+        from pimm_env.sim.quiet import silenced_console
 
-        with silenced_stdout():  # pybullet's build-time and argv[0] banners
+        with silenced_console():  # pybullet's build-time and argv[0] banners
             import pybullet
             from pybullet_utils.bullet_client import BulletClient
 
