@@ -204,7 +204,11 @@ def format_perception(report: dict[str, Any]) -> str:
                 f"{r['mean_min_error_m']:>8.2f}  {r['mean_max_error_m']:>8.2f}   {ref}"
             )
         lines += [f"  suggestions passing the 10 m spread check: {ret['consistent_share']:.3f}", ""]
-    lines.append("corners                    " + "  ".join(f"{k:>12.12}" for k in CORNER_KEYS))
+    headers = ("precision", "recall", "median pos. err m", "median orient. err deg")
+    lines.append("corners                    " + "  ".join(f"{h:>{max(12, len(h))}}" for h in headers))
     for which, stats in report["corners"].items():
-        lines.append(f"  {which:<24} " + "  ".join(f"{_num(stats[k]):>12}" for k in CORNER_KEYS))
+        lines.append(
+            f"  {which:<24} "
+            + "  ".join(f"{_num(stats[k]):>{max(12, len(h))}}" for k, h in zip(CORNER_KEYS, headers, strict=True))
+        )
     return "\n".join(lines)
