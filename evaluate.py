@@ -195,6 +195,92 @@ def _write_videos(folder: Path, results: list, which: str, maps, quiet: bool) ->
 
 
 @app.command()
+def record(
+    scenario: str = typer.Option(..., help="the scenario to drive"),
+    world: str = typer.Option("iilab", help="world name or world file"),
+    seed: int = typer.Option(0, help="seed of the simulation's noise (a run's trial i uses seed + i)"),
+    out: Path = typer.Option(..., help="the rosbag2 folder to write (must not exist)"),
+) -> None:
+    """Drive a scenario and write it as a rosbag2: /points, /scan, /odom, /ground_truth, /events (kidnap)."""
+    from pimm_env.bags.record import record_scenario
+
+    try:
+        path = record_scenario(scenario, out, world, seed)
+    except (FileExistsError, ValueError) as error:
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(1) from None
+    typer.echo(f"wrote {path} (python evaluate.py replay {path} --world {world} --seed {seed} --localizers ...)")
+
+
+@app.command()
+def replay(
+    bag: Path = typer.Argument(..., help="a rosbag2 folder or a ROS 1 .bag"),
+    localizers: list[str] = typer.Option(["amcl"], "--localizers", help="names or module:factory"),
+    world: str = typer.Option("iilab", help="the prepared world the bag was recorded in"),
+    map_path: Path | None = typer.Option(None, "--map", help="a map_server .yaml: map-only localizers, no world"),
+    seed: int = typer.Option(0, help="the localizers' seed (a recorded bag: the seed it was recorded with)"),
+    odom_topic: str = typer.Option("/odom", "--odom-topic"),
+    scan_topic: str = typer.Option("/scan", "--scan-topic"),
+    points_topic: str = typer.Option("/points", "--points-topic"),
+    truth_topic: str = typer.Option("/ground_truth", "--truth-topic", help="nav_msgs/Odometry of the true pose"),
+    params: Path | None = typer.Option(None, "--params", help="params file: one section per localizer name"),
+    settings: list[str] = typer.Option([], "--set", help="NAME.KEY=VALUE"),
+    out: Path = typer.Option(Path("results"), help="where the timestamped results folder goes"),
+    json_out: bool = typer.Option(False, "--json", help="print the summary as one JSON object"),
+) -> None:
+    """Feed a bag to localizers and write the same results folder as run (metrics where it has ground truth)."""
+    from pimm_agents.evaluation.replay import replay_bag, replay_specs
+    from pimm_agents.evaluation.report import format_tables, write_results
+    from pimm_agents.evaluation.trajectories import write_tum
+    from pimm_agents.factory import check_name, resolved_params
+    from pimm_agents.params import ParamsError, merge_params, parse_settings, read_params_file, write_params_file
+    from pimm_env.bags.messages import BagError
+    from pimm_env.bags.read import BagTopics
+    from pimm_env.importers.ros_map import MapImportError, read_occupancy
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    for name in localizers:
+        try:
+            check_name(name)
+        except ValueError as error:
+            raise typer.BadParameter(str(error), param_hint="--localizers") from None
+    try:
+        sections = merge_params(read_params_file(params) if params else {}, parse_settings(settings, localizers))
+        configs = {name: resolved_params(name, sections.get(name)) for name in localizers}
+    except ParamsError as error:
+        raise typer.BadParameter(str(error), param_hint="--params/--set") from None
+    specs = replay_specs(bag, localizers, configs, seed, world)
+    topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic)
+    try:
+        if map_path is not None:
+            occupancy, corners = read_occupancy(map_path), None
+        else:
+            maps = ensure_derived_maps(load_world(world))
+            occupancy, corners = maps.occupancy, maps.corners.xy
+        results, has_truth = replay_bag(bag, specs, map_path, topics)
+    except (BagError, MapImportError, ValueError) as error:
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(1) from None
+    folder = _results_dir(out, "replay")
+    write_params_file(folder / "config.yaml", configs)
+    record = {"bag": str(bag), "world": None if map_path else world, "map": str(map_path) if map_path else None,
+              "localizers": localizers, "seed": seed, "ground_truth": has_truth}  # fmt: skip
+    if not has_truth:
+        (folder / "run.json").write_text(json.dumps(record, indent=2))
+        for result in results:
+            write_tum(folder / "tum" / result.spec.localizer / "est.tum", result.log.time, result.log.estimate)
+        typer.echo(f"{bag} has no {truth_topic}: estimates only, in {folder}/tum/<localizer>/est.tum")
+        return
+    summary = write_results(folder, results, record, occupancy, corners)
+    if json_out:
+        typer.echo(json.dumps({**summary, "folder": str(folder)}))
+        return
+    typer.echo(format_tables(summary))
+    typer.echo(f"\nresults: {folder}/")
+
+
+@app.command()
 def score(
     paths: list[Path] = typer.Argument(..., help="trial logs (thesis CSV format) or folders holding them"),
     drop_repeated: bool = typer.Option(False, "--drop-repeated", help="drop rows that repeat the previous stamp"),

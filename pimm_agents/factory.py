@@ -12,6 +12,7 @@ import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import Any
 
 from pimm_agents.localizer import Localizer
@@ -121,16 +122,28 @@ def resolved_params(name: str, params: Mapping[str, Any] | None = None) -> Param
     return dict(params or {})
 
 
+#: The built-in localizers that need nothing but an occupancy map.
+MAP_ONLY = ("amcl", "amcl-recovery", "amcl-recovery-nav2")
+
+
 def make_localizer(
-    name: str, world: str | World = "iilab", params: Mapping[str, Any] | None = None, **overrides: Any
+    name: str,
+    world: str | World = "iilab",
+    params: Mapping[str, Any] | None = None,
+    map: str | Path | None = None,
+    **overrides: Any,
 ) -> Localizer:
-    """The localizer ``name`` for ``world`` (a name, a world file or a loaded world).
+    """The localizer ``name`` for ``world`` (a name, a world file or a loaded world), or, with ``map`` (a
+    map_server ``.yaml``, PGM or PNG), from that map alone: the AMCLs run from a map; PIMM needs a prepared
+    world (corner and fingerprint maps) and says so; a plugin's factory gets ``world=None, map=PATH``.
 
     ``params`` is its params-file section; keyword arguments override fields on top of it, nested as the
     config is (``max_particles=500``; ``corners={"planes": {"method": "open3d"}}`` for PIMM).
     """
-    loaded = world if isinstance(world, World) else load_world(world)
     settings = merge_params(params or {}, overrides)
+    if map is not None:
+        return _from_map(name, Path(map), settings)
+    loaded = world if isinstance(world, World) else load_world(world)
     if name in BUILT_IN:
         return BUILT_IN[name].build(loaded, resolve_config(name, settings), name)
     localizer = plugin_factory(name)(world=loaded, **settings)
@@ -141,3 +154,21 @@ def make_localizer(
 
 
 __all__ = ["ParamsError", "available_localizers", "make_localizer", "resolve_config", "resolved_params"]
+
+
+def _from_map(name: str, map_path: Path, settings: Params) -> Localizer:
+    from pimm_agents.amcl.localizer import Amcl
+    from pimm_env.importers.ros_map import read_occupancy
+
+    if name in MAP_ONLY:
+        return Amcl(read_occupancy(map_path), resolve_config(name, settings), name=name)
+    if name in BUILT_IN:
+        raise ValueError(
+            f"localizer {name!r} needs a prepared world (corner map, fingerprint map), not a map alone: "
+            f"python evaluate.py world import {map_path} --name NAME, then --world NAME"
+        )
+    localizer = plugin_factory(name)(world=None, map=map_path, **settings)
+    for attribute in ("update", "reset"):
+        if not callable(getattr(localizer, attribute, None)):
+            raise TypeError(f"localizer {name!r}: its factory returned {localizer!r}, which has no {attribute}()")
+    return localizer

@@ -49,6 +49,38 @@ class SimConfig:
     ray_caster: str = "auto"
 
 
+def action_space(config: SimConfig) -> spaces.Box:
+    """``cmd_vel``: linear and angular velocity (m/s, rad/s) within the robot's limits."""
+    r = config.robot
+    return spaces.Box(
+        low=np.array([-r.max_linear, -r.max_angular], dtype=np.float32),
+        high=np.array([r.max_linear, r.max_angular], dtype=np.float32),
+        dtype=np.float32,
+    )
+
+
+def observation_space(config: SimConfig) -> spaces.Dict:
+    """The observation's keys and fixed shapes for these LiDARs (ARCHITECTURE.md's contract)."""
+    l3, l2 = config.lidar3d, config.lidar2d
+    n = l3.num_points
+    time_box = spaces.Box(low=np.float64(0.0), high=np.float64(MAX_TIME), shape=(1,), dtype=np.float64)
+    return spaces.Dict(
+        {
+            "odom": spaces.Box(
+                low=np.array([-MAX_ODOM, -MAX_ODOM, -np.pi], dtype=np.float32),
+                high=np.array([MAX_ODOM, MAX_ODOM, np.pi], dtype=np.float32),
+                dtype=np.float32,
+            ),
+            "cloud": spaces.Box(np.float32(-l3.max_range), np.float32(l3.max_range), (n, 3), np.float32),
+            "cloud_mask": spaces.MultiBinary(n),
+            "scan": spaces.Box(np.float32(0.0), np.float32(l2.max_range), (l2.beams,), np.float32),
+            "time": time_box,
+            "cloud_time": time_box,
+            "scan_time": time_box,
+        }
+    )
+
+
 class LidarRobotEnv(gym.Env):
     """Base simulator; see :class:`pimm_env.envs.iilab_env.IILabEnv` for the documented environment."""
 
@@ -77,28 +109,8 @@ class LidarRobotEnv(gym.Env):
         self._azimuths2d = beam_angles_2d(l2)
         self._directions3d = directions_3d(l3)  # sensor frame, same order as the cast
         n = l3.num_points
-        r = self.config.robot
-        self.action_space = spaces.Box(
-            low=np.array([-r.max_linear, -r.max_angular], dtype=np.float32),
-            high=np.array([r.max_linear, r.max_angular], dtype=np.float32),
-            dtype=np.float32,
-        )
-        time_box = spaces.Box(low=np.float64(0.0), high=np.float64(MAX_TIME), shape=(1,), dtype=np.float64)
-        self.observation_space = spaces.Dict(
-            {
-                "odom": spaces.Box(
-                    low=np.array([-MAX_ODOM, -MAX_ODOM, -np.pi], dtype=np.float32),
-                    high=np.array([MAX_ODOM, MAX_ODOM, np.pi], dtype=np.float32),
-                    dtype=np.float32,
-                ),
-                "cloud": spaces.Box(np.float32(-l3.max_range), np.float32(l3.max_range), (n, 3), np.float32),
-                "cloud_mask": spaces.MultiBinary(n),
-                "scan": spaces.Box(np.float32(0.0), np.float32(l2.max_range), (l2.beams,), np.float32),
-                "time": time_box,
-                "cloud_time": time_box,
-                "scan_time": time_box,
-            }
-        )
+        self.action_space = action_space(self.config)
+        self.observation_space = observation_space(self.config)
         self._time = 0.0
         self._next_cloud = 0.0
         self._next_scan = 0.0

@@ -115,3 +115,22 @@ def read_ros_map(yaml_path: Path) -> RasterMap:
     else:
         probability = pixels / 255.0 if negate else (255.0 - pixels) / 255.0
     return RasterMap(probability > occupied_thresh, probability < free_thresh, resolution, (ox, oy, yaw), yaml_path)
+
+
+def read_occupancy(yaml_path: Path):  # -> OccupancyGrid
+    """A map_server map (PGM or PNG, thresholds and ``negate`` honoured) as an occupancy grid, for localizers
+    that need only the map. The grid is axis-aligned: an origin yaw other than 0 is refused (nav2's amcl
+    ignores it; we say so instead)."""
+    from pimm_env.mapping.occupancy import OccupancyGrid
+    from pimm_env.world.grid import GridSpec
+
+    raster = read_ros_map(yaml_path)
+    x0, y0, yaw = raster.origin
+    if abs(yaw) > 1e-9:
+        raise MapImportError(
+            f"{yaml_path}: origin: yaw {yaw} rad; a map-only localizer needs an axis-aligned map (yaw 0). "
+            "Import it as a world instead: python evaluate.py world import MAP.yaml --name NAME"
+        )
+    if not raster.free.any():
+        raise MapImportError(f"{yaml_path}: the map has no free cell (check negate and the thresholds)")
+    return OccupancyGrid(GridSpec((x0, y0), raster.resolution, raster.occupied.shape), raster.occupied, raster.free)

@@ -1,0 +1,103 @@
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import evaluate
+from pimm_agents.evaluation.replay import replay_bag
+from pimm_agents.evaluation.trials import TrialSpec, run_shared
+from pimm_env.bags.messages import BagError, odometry, typestore
+from pimm_env.bags.read import BagTopics, read_steps
+from pimm_env.bags.record import record_scenario
+from pimm_env.envs.base_env import SimConfig
+from pimm_env.mapping.derived_maps import ensure_derived_maps
+from pimm_env.world.files import load_world
+from tests.test_trials import AMCL, DEAD, ROUTES
+
+
+@pytest.fixture
+def room(room_file: Path) -> str:
+    (room_file.parent / "scenarios.yaml").write_text(ROUTES)
+    ensure_derived_maps(load_world(room_file))
+    return str(room_file)
+
+
+@pytest.fixture
+def kidnap_bag(room: str, tmp_path: Path) -> Path:
+    return record_scenario("there_kidnap", tmp_path / "bag", room, seed=2)
+
+
+def test_a_recorded_bag_replays_to_the_live_runs_estimates(room, kidnap_bag):
+    specs = [TrialSpec("there_kidnap", "amcl", 0, 2, room, AMCL), TrialSpec("there_kidnap", DEAD, 0, 2, room)]
+    live = run_shared(specs)
+    replayed, has_truth = replay_bag(kidnap_bag, specs)
+    assert has_truth
+    for a, b in zip(live, replayed, strict=True):
+        assert len(a.log) == len(b.log) > 50 and a.log.kidnap_index == b.log.kidnap_index is not None
+        assert np.array_equal(a.log.estimate, b.log.estimate)  # the localizers saw the same observations
+        assert np.allclose(a.log.true, b.log.true, atol=1e-12) and np.allclose(a.log.time, b.log.time, atol=1e-9)
+        assert a.metrics.converged == b.metrics.converged
+        for key in ("convergence_time_s", "position_error_m", "angle_error_deg"):
+            assert getattr(b.metrics, key) == pytest.approx(getattr(a.metrics, key), abs=1e-9)
+    from_map, _ = replay_bag(kidnap_bag, specs[:1], map_path=Path(room).parent / "occupancy.yaml")
+    assert np.array_equal(from_map[0].log.estimate, live[0].log.estimate)  # the map alone is the world's map
+
+
+def test_record_and_replay_commands_write_a_results_folder(room, kidnap_bag, tmp_path):
+    args = ["replay", str(kidnap_bag), "--world", room, "--seed", "2", "--localizers", "amcl", "--json"]
+    args += ["--set", "amcl.max_particles=300", "--set", "amcl.min_particles=100", "--out", str(tmp_path / "r")]
+    result = CliRunner().invoke(evaluate.app, evaluate.expand_list_options(args))
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output.strip().splitlines()[-1])
+    row = summary["scenarios"]["there_kidnap"]["amcl"]
+    live = run_shared([TrialSpec("there_kidnap", "amcl", 0, 2, room, AMCL)])[0]
+    assert row["convergence_rate"] == float(live.metrics.converged)
+    folder = Path(summary["folder"])
+    assert (folder / "tum" / "there_kidnap_amcl_trial00" / "est.tum").is_file()
+    assert json.loads((folder / "logs" / "there_kidnap_amcl_trial00.json").read_text())["kidnap_row"] is not None
+    again = CliRunner().invoke(
+        evaluate.app, ["record", "--scenario", "there", "--world", room, "--out", str(kidnap_bag)]
+    )
+    assert again.exit_code == 1 and "already exists" in again.output
+
+
+def test_bad_bags_name_the_topic_and_the_message(room, kidnap_bag, tmp_path):
+    config = SimConfig()
+    with pytest.raises(BagError, match=r"no odometry topic '/wheel_odom'; the bag has \['/events', '/ground_truth'"):
+        next(read_steps(kidnap_bag, BagTopics(odom="/wheel_odom"), config.lidar2d, config.lidar3d))
+    fewer = replace(config.lidar2d, beams=180)
+    with pytest.raises(BagError, match="/scan message 0: 360 beams, the 2D LiDAR layout expects 180"):
+        next(read_steps(kidnap_bag, BagTopics(), fewer, config.lidar3d))
+    from rosbags.rosbag2 import Writer
+
+    store = typestore()
+    backwards = tmp_path / "backwards"
+    with Writer(backwards, version=9) as writer:
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        for i, t in enumerate((0.0, 0.1, 0.05)):
+            raw = store.serialize_cdr(odometry(store, t, np.zeros(3), "odom"), "nav_msgs/msg/Odometry")
+            writer.write(odom, i, raw)
+        del scan
+    with pytest.raises(BagError, match=r"/odom message 2: stamp 0.050000 s goes back from 0.100000 s"):
+        list(read_steps(backwards, BagTopics(), config.lidar2d, config.lidar3d))
+    with pytest.raises(FileNotFoundError, match="nope: no such bag"):
+        next(read_steps(tmp_path / "nope", BagTopics(), config.lidar2d, config.lidar3d))
+
+
+def test_a_cloud_without_z_is_refused():
+    from pimm_env.bags.messages import cloud_points
+
+    store = typestore()
+    t = store.types
+    fields = [t["sensor_msgs/msg/PointField"](name=n, offset=4 * i, datatype=7, count=1) for i, n in enumerate("xy")]
+    header = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="lidar")
+    msg = t["sensor_msgs/msg/PointCloud2"](
+        header=header, height=1, width=2, fields=fields, is_bigendian=False, point_step=8, row_step=16,
+        data=np.zeros(16, np.uint8), is_dense=True,
+    )  # fmt: skip
+    with pytest.raises(BagError, match=r"/points message 3: PointCloud2 has no field\(s\) \['z'\]"):
+        cloud_points(msg, "/points message 3")
