@@ -51,6 +51,8 @@ def main(ctx: typer.Context) -> None:
             settings=[],
             json_out=False,
             resume=False,
+            video=None,
+            sensors="thesis",
         )
 
 
@@ -74,6 +76,7 @@ def run(
     video: str | None = typer.Option(
         None, "--video", help="best | worst | all: replay those trials as animations (videos/ in the results)"
     ),
+    sensors: str = typer.Option("thesis", help="LiDAR presets, comma-separated (thesis, hokuyo-utm30lx, ...)"),
 ) -> None:
     """Run localizers on scenarios: one simulation per trial feeds every localizer; trials in parallel. Prints
     the thesis's tables and writes logs and figures; each trial is saved as it finishes (see --resume)."""
@@ -116,11 +119,12 @@ def run(
     except ParamsError as error:  # fail here, not in a worker, on a bad setting
         raise typer.BadParameter(str(error), param_hint="--params/--set") from None
     specs = [  # trial-major: a stopped run has every scenario's first trials
-        TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer])
+        TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer], sensors)
         for trial in range(trials)
         for scenario in scenarios
         for localizer in localizers
     ]
+    _check_sensors(sensors)
     if video not in (None, "best", "worst", "all"):
         raise typer.BadParameter(f"expected best, worst or all, got {video!r}", param_hint="--video")
     workers = workers or os.cpu_count() or 1
@@ -151,8 +155,10 @@ def run(
         "wall_s": round(time.perf_counter() - start, 1),
         "trials_run": len(todo),
         "trials_reused": len(stored),
-        "repeat": "python evaluate.py run --params config.yaml --world {} --scenarios {} --trials {} --seed {}".format(
-            world, " ".join(scenarios), trials, seed
+        "sensors": sensors,
+        "repeat": (
+            f"python evaluate.py run --params config.yaml --world {world} --scenarios {' '.join(scenarios)} "
+            f"--trials {trials} --seed {seed}" + ("" if sensors == "thesis" else f" --sensors {sensors}")
         ),
     }
     summary = write_results(folder, results, run_record, maps.occupancy, maps.corners.xy)
@@ -168,6 +174,15 @@ def run(
         + (f" ({len(stored)} more from the earlier run)" if stored else "")
         + f"; results: {folder}/ (summary.json, config.yaml, run.json, trials/, logs/, figures/)"
     )
+
+
+def _check_sensors(sensors: str) -> None:
+    from pimm_env.sim.sensors import sensor_layouts
+
+    try:
+        sensor_layouts(sensors)
+    except ValueError as error:
+        raise typer.BadParameter(str(error), param_hint="--sensors") from None
 
 
 def _write_videos(folder: Path, results: list, which: str, maps, quiet: bool) -> None:
@@ -200,12 +215,15 @@ def record(
     world: str = typer.Option("iilab", help="world name or world file"),
     seed: int = typer.Option(0, help="seed of the simulation's noise (a run's trial i uses seed + i)"),
     out: Path = typer.Option(..., help="the rosbag2 folder to write (must not exist)"),
+    sensors: str = typer.Option("thesis", help="LiDAR presets, comma-separated (thesis, hokuyo-utm30lx, ...)"),
+    clouds: bool = typer.Option(True, help="record the 3D LiDAR (--no-clouds: a 2D bag, 1 % of the size)"),
 ) -> None:
     """Drive a scenario and write it as a rosbag2: /points, /scan, /odom, /ground_truth, /events (kidnap)."""
     from pimm_env.bags.record import record_scenario
 
+    _check_sensors(sensors)
     try:
-        path = record_scenario(scenario, out, world, seed)
+        path = record_scenario(scenario, out, world, seed, sensors, clouds)
     except (FileExistsError, ValueError) as error:
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(1) from None
@@ -227,6 +245,7 @@ def replay(
     settings: list[str] = typer.Option([], "--set", help="NAME.KEY=VALUE"),
     out: Path = typer.Option(Path("results"), help="where the timestamped results folder goes"),
     json_out: bool = typer.Option(False, "--json", help="print the summary as one JSON object"),
+    sensors: str | None = typer.Option(None, help="LiDAR presets of the bag (default: what it was recorded with)"),
 ) -> None:
     """Feed a bag to localizers and write the same results folder as run (metrics where it has ground truth)."""
     from pimm_agents.evaluation.replay import replay_bag, replay_specs
@@ -250,7 +269,9 @@ def replay(
         configs = {name: resolved_params(name, sections.get(name)) for name in localizers}
     except ParamsError as error:
         raise typer.BadParameter(str(error), param_hint="--params/--set") from None
-    specs = replay_specs(bag, localizers, configs, seed, world)
+    if sensors is not None:
+        _check_sensors(sensors)
+    specs = replay_specs(bag, localizers, configs, seed, world, sensors)
     topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic)
     try:
         if map_path is not None:

@@ -29,7 +29,7 @@ class BuiltIn:
     """A built-in localizer: its default config (the thesis's or nav2's values) and how to build it."""
 
     default_config: Callable[[], Any]
-    build: Callable[[World, Any, str], Localizer]
+    build: Callable[[World, Any, str, str | None], Localizer]  # world, config, name, sensor presets
 
 
 def _amcl_config(preset: str) -> Callable[[], Any]:
@@ -42,11 +42,12 @@ def _amcl_config(preset: str) -> Callable[[], Any]:
     return make
 
 
-def _build_amcl(world: World, config: Any, name: str) -> Localizer:
+def _build_amcl(world: World, config: Any, name: str, sensors: str | None) -> Localizer:
     from pimm_agents.amcl.localizer import Amcl
     from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.sim.sensors import sensor_layouts
 
-    return Amcl(load_derived_maps(world).occupancy, config, name=name)
+    return Amcl(load_derived_maps(world).occupancy, config, lidar=sensor_layouts(sensors)[1], name=name)
 
 
 def _pimm_config() -> Any:
@@ -55,7 +56,7 @@ def _pimm_config() -> Any:
     return PimmConfig()
 
 
-def _build_pimm(world: World, config: Any, name: str) -> Localizer:
+def _build_pimm(world: World, config: Any, name: str, sensors: str | None) -> Localizer:
     from pimm_agents.perception.files import load_perception
     from pimm_agents.pimm.localizer import PimmLocalizer
     from pimm_env.mapping.derived_maps import load_derived_maps
@@ -131,21 +132,23 @@ def make_localizer(
     world: str | World = "iilab",
     params: Mapping[str, Any] | None = None,
     map: str | Path | None = None,
+    sensors: str | None = None,
     **overrides: Any,
 ) -> Localizer:
     """The localizer ``name`` for ``world`` (a name, a world file or a loaded world), or, with ``map`` (a
     map_server ``.yaml``, PGM or PNG), from that map alone: the AMCLs run from a map; PIMM needs a prepared
     world (corner and fingerprint maps) and says so; a plugin's factory gets ``world=None, map=PATH``.
+    ``sensors`` names the LiDAR presets the data comes from (``pimm_env.sim.sensors``; None: the thesis's).
 
     ``params`` is its params-file section; keyword arguments override fields on top of it, nested as the
     config is (``max_particles=500``; ``corners={"planes": {"method": "open3d"}}`` for PIMM).
     """
     settings = merge_params(params or {}, overrides)
     if map is not None:
-        return _from_map(name, Path(map), settings)
+        return _from_map(name, Path(map), settings, sensors)
     loaded = world if isinstance(world, World) else load_world(world)
     if name in BUILT_IN:
-        return BUILT_IN[name].build(loaded, resolve_config(name, settings), name)
+        return BUILT_IN[name].build(loaded, resolve_config(name, settings), name, sensors)
     localizer = plugin_factory(name)(world=loaded, **settings)
     for attribute in ("update", "reset"):
         if not callable(getattr(localizer, attribute, None)):
@@ -156,12 +159,14 @@ def make_localizer(
 __all__ = ["ParamsError", "available_localizers", "make_localizer", "resolve_config", "resolved_params"]
 
 
-def _from_map(name: str, map_path: Path, settings: Params) -> Localizer:
+def _from_map(name: str, map_path: Path, settings: Params, sensors: str | None) -> Localizer:
     from pimm_agents.amcl.localizer import Amcl
     from pimm_env.importers.ros_map import read_occupancy
+    from pimm_env.sim.sensors import sensor_layouts
 
     if name in MAP_ONLY:
-        return Amcl(read_occupancy(map_path), resolve_config(name, settings), name=name)
+        lidar = sensor_layouts(sensors)[1]
+        return Amcl(read_occupancy(map_path), resolve_config(name, settings), lidar=lidar, name=name)
     if name in BUILT_IN:
         raise ValueError(
             f"localizer {name!r} needs a prepared world (corner map, fingerprint map), not a map alone: "

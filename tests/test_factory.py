@@ -60,4 +60,6 @@ def test_a_plugin_localizer_runs_from_the_command_line(tmp_path):
     assert row["trials"] == 1 and row["convergence_rate"] == 0.0  # it starts at the origin: never near the truth
     folder = next(tmp_path.iterdir())
     assert yaml.safe_load((folder / "config.yaml").read_text()) == {PLUGIN: {"spread": 0.5}}
-    assert [p.name for p in (folder / "logs").iterdir()] == ["area_b_tests.plugins.dead_reckoning-make_trial00.csv"]
+    assert sorted(p.name for p in (folder / "logs").iterdir()) == [
+        f"area_b_tests.plugins.dead_reckoning-make_trial00.{ext}" for ext in ("csv", "json")
+    ]

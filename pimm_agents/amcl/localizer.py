@@ -23,7 +23,7 @@ from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import multinomial_resample
 from pimm_env.geometry import carry, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
-from pimm_env.sim.lidar import Lidar2DConfig, beam_angles_2d
+from pimm_env.sim.lidar import Lidar2DConfig, beam_bearings_2d
 
 
 @dataclass(frozen=True)
@@ -116,7 +116,8 @@ class Amcl:
             LikelihoodFieldParams(c.z_hit, c.z_rand, c.sigma_hit, c.laser_likelihood_max_dist, self.lidar.max_range),
         )
         self._beams = subsample_beams(self.lidar.beams, c.max_beams)
-        self._bearings = beam_angles_2d(self.lidar)[self._beams]
+        self._bearings = beam_bearings_2d(self.lidar)[self._beams]  # in the robot's frame
+        self._mount = (self.lidar.mount_x, self.lidar.mount_y)
         self.reset()
 
     # ------------------------------------------------------------------ the contract
@@ -198,7 +199,7 @@ class Amcl:
         and update the recovery averages."""
         ranges = scan[self._beams]
         usable = np.isfinite(ranges) & (ranges >= self.lidar.min_range) & (ranges < self.lidar.max_range)
-        factors = self.field.weight_factors(self.particles, ranges[usable], self._bearings[usable])
+        factors = self.field.weight_factors(self.particles, ranges[usable], self._bearings[usable], self._mount)
         weights = self.weights * factors
         total = float(weights.sum())
         if not np.isfinite(total) or total <= 0:  # cannot happen with factors >= 1, but never divide by it

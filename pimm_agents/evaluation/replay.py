@@ -25,18 +25,19 @@ def replay_bag(
     from pimm_env.bags.read import BagTopics, read_steps
     from pimm_env.bags.replay_env import BagEnv
     from pimm_env.envs.base_env import SimConfig
+    from pimm_env.sim.sensors import with_sensors
 
     if not specs:
         return [], True
-    seeds = {spec.seed for spec in specs}
-    if len(seeds) != 1:
-        raise ValueError(f"one replay feeds localizers with one seed, got {sorted(seeds)}")
-    config = config or SimConfig()
+    seeds, layouts = {spec.seed for spec in specs}, {spec.sensors for spec in specs}
+    if len(seeds) != 1 or len(layouts) != 1:
+        raise ValueError(f"one replay feeds localizers one seed and one sensor layout, got {seeds} and {layouts}")
+    config = config or with_sensors(SimConfig(), specs[0].sensors)
     start = time.perf_counter()
     localizers = [
-        make_localizer(s.localizer, params=s.params, map=map_path)
+        make_localizer(s.localizer, params=s.params, map=map_path, sensors=s.sensors)
         if map_path is not None
-        else make_localizer(s.localizer, s.world, params=s.params)
+        else make_localizer(s.localizer, s.world, params=s.params, sensors=s.sensors)
         for s in specs
     ]
     bag_env = BagEnv(read_steps(Path(bag), topics or BagTopics(), config.lidar2d, config.lidar3d), config)
@@ -61,15 +62,20 @@ def replay_bag(
 
 
 def replay_specs(
-    bag: Path, localizers: Sequence[str], params: dict[str, dict], seed: int, world: str
+    bag: Path, localizers: Sequence[str], params: dict[str, dict], seed: int, world: str, sensors: str | None = None
 ) -> list[TrialSpec]:
-    """One spec per localizer, named after the scenario the bag's record file gives (else the bag's name)."""
+    """One spec per localizer, named after the scenario the bag's record file gives (else the bag's name), with
+    the sensors it was recorded with unless ``sensors`` says otherwise."""
     from pimm_env.bags.record import RECORD_FILE
 
-    scenario = Path(bag).name
+    scenario, recorded = Path(bag).name, "thesis"
     record_file = Path(bag) / RECORD_FILE
     if record_file.is_file():
         import yaml
 
-        scenario = str(yaml.safe_load(record_file.read_text()).get("scenario", scenario))
-    return [replace(TrialSpec(scenario, name, 0, seed, world), params=params.get(name, {})) for name in localizers]
+        record = yaml.safe_load(record_file.read_text()) or {}
+        scenario, recorded = str(record.get("scenario", scenario)), str(record.get("sensors", recorded))
+    return [
+        replace(TrialSpec(scenario, name, 0, seed, world), params=params.get(name, {}), sensors=sensors or recorded)
+        for name in localizers
+    ]

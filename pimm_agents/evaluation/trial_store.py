@@ -35,7 +35,10 @@ def world_label(world: str) -> str:
 
 def trial_key(spec: TrialSpec) -> str:
     """The file stem of a trial: world, scenario, localizer, config hash and seed, safe for a file name."""
-    parts = (world_label(spec.world), spec.scenario, spec.localizer, config_hash(spec.params), f"seed{spec.seed}")
+    parts: tuple[str, ...] = (world_label(spec.world), spec.scenario, spec.localizer, config_hash(spec.params),
+                              f"seed{spec.seed}")  # fmt: skip
+    if spec.sensors != "thesis":  # the thesis's sensors leave the key as it was before presets existed
+        parts = (*parts, spec.sensors)
     return "__".join("".join(c if c.isalnum() or c in "._-" else "-" for c in part) for part in parts)
 
 
@@ -55,6 +58,7 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
             "seed": spec.seed,
             "world": spec.world,
             "params": spec.params,
+            "sensors": spec.sensors,
         },
         "wall_s": result.wall_s,
         "completed": result.completed,

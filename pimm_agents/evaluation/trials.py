@@ -28,11 +28,12 @@ class TrialSpec:
     seed: int
     world: str = "iilab"
     params: dict[str, Any] = field(default_factory=dict)  # the localizer's params-file section
+    sensors: str = "thesis"  # LiDAR presets (pimm_env.sim.sensors)
 
     @property
-    def simulation(self) -> tuple[str, str, int, int]:
+    def simulation(self) -> tuple[str, str, int, int, str]:
         """What the simulated stream depends on; specs that share it share one simulation."""
-        return (self.world, self.scenario, self.trial, self.seed)
+        return (self.world, self.scenario, self.trial, self.seed, self.sensors)
 
 
 @dataclass
@@ -79,8 +80,10 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
     start = time.perf_counter()
     world = load_world(first.world)  # read once, passed to everything below
     scenario = get_scenario(first.scenario, world)
-    localizers = [make_localizer(spec.localizer, world, params=spec.params) for spec in specs]
-    config = SimConfig()
+    from pimm_env.sim.sensors import with_sensors
+
+    localizers = [make_localizer(spec.localizer, world, params=spec.params, sensors=spec.sensors) for spec in specs]
+    config = with_sensors(SimConfig(), first.sensors)
     if not any("cloud" in getattr(loc, "sensors", ("cloud",)) for loc in localizers):
         config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))  # nobody reads it: skip 14 400 rays
     recorders = []
@@ -102,7 +105,7 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
 
 def group_by_simulation(specs: Sequence[TrialSpec]) -> list[list[int]]:
     """Indices of ``specs`` grouped by the simulation they share, in order of first appearance."""
-    groups: dict[tuple[str, str, int, int], list[int]] = {}
+    groups: dict[tuple[str, str, int, int, str], list[int]] = {}
     for i, spec in enumerate(specs):
         groups.setdefault(spec.simulation, []).append(i)
     return list(groups.values())

@@ -35,11 +35,11 @@ class Frame:
 
 def collect_frames(spec: TrialSpec, every: int = EVERY_SCANS, max_particles: int = 400) -> list[Frame]:
     """Simulate ``spec`` again and keep a frame at every ``every``-th fresh 2D scan."""
-    from pimm_env.envs.base_env import SimConfig
-    from pimm_env.sim.lidar import beam_angles_2d
+    from pimm_env.sim.lidar import beam_bearings_2d
+    from pimm_env.sim.sensors import sensor_layouts
 
-    lidar = SimConfig().lidar2d
-    angles = beam_angles_2d(lidar)
+    lidar = sensor_layouts(spec.sensors)[1]
+    angles = beam_bearings_2d(lidar)
     frames: list[Frame] = []
     scans = 0
     last_true: np.ndarray | None = None

@@ -62,11 +62,15 @@ class LikelihoodField:
         out[valid] = self.distance[rows[valid], cols[valid]]
         return out
 
-    def weight_factors(self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
-        """1 + sum of pz^3 over the beams, for each pose (N, 3) of the sensor; beams given in its frame."""
+    def weight_factors(
+        self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray, origin: tuple[float, float] = (0.0, 0.0)
+    ) -> np.ndarray:
+        """1 + sum of pz^3 over the beams, for each robot pose (N, 3); beams leave ``origin`` (the sensor's
+        place in the robot's frame) at ``bearings`` in the robot's frame."""
         if np.size(ranges) == 0:
             return np.ones(len(poses))
-        return 1.0 + np.take(self._cubes, self._cells(poses, ranges, bearings)).sum(axis=1, dtype=np.float64)
+        cells = self._cells(poses, ranges, bearings, origin)
+        return 1.0 + np.take(self._cubes, cells).sum(axis=1, dtype=np.float64)
 
     def log_likelihoods(self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
         """Sum of log pz over the beams, for each pose (N, 3): the log of the beams' joint likelihood if they
@@ -75,14 +79,17 @@ class LikelihoodField:
             return np.zeros(len(poses))
         return np.take(self._log_pz, self._cells(poses, ranges, bearings)).sum(axis=1, dtype=np.float64)
 
-    def _cells(self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray) -> np.ndarray:
+    def _cells(
+        self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray, origin: tuple[float, float] = (0.0, 0.0)
+    ) -> np.ndarray:
         """(N, B) flat indices into the padded tables of the beams' end points seen from each pose."""
         poses = np.asarray(poses, dtype=np.float32)
         ranges = np.asarray(ranges, dtype=np.float32)
         bearings = np.asarray(bearings, dtype=np.float32)
         res = np.float32(1.0 / self.grid.resolution)
         # Beam end points in cell units, shifted by the pad ring: a 2 x 2 rotation as one small matmul.
-        beams = np.stack([ranges * np.cos(bearings), ranges * np.sin(bearings)]) * res  # (2, B)
+        ox, oy = np.float32(origin[0]), np.float32(origin[1])
+        beams = np.stack([ox + ranges * np.cos(bearings), oy + ranges * np.sin(bearings)]) * res  # (2, B)
         c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
         col = np.stack([c, -s], axis=1) @ beams
         col += ((poses[:, 0] - np.float32(self.grid.origin[0])) * res + np.float32(1.0))[:, None]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -68,13 +69,17 @@ class BagRecorder(gym.Wrapper):
         self._write(TOPICS["odom"], t, odometry(self.store, t, obs["odom"], "odom"))  # last: closes the step
 
 
-def record_scenario(scenario_name: str, out: Path, world: str = "iilab", seed: int = 0) -> Path:
-    """Drive ``scenario_name`` in ``world`` with ``seed`` and write it as the rosbag2 folder ``out``."""
+def record_scenario(
+    scenario_name: str, out: Path, world: str = "iilab", seed: int = 0, sensors: str = "thesis", clouds: bool = True
+) -> Path:
+    """Drive ``scenario_name`` in ``world`` with ``seed`` and the LiDAR presets ``sensors``, and write it as the
+    rosbag2 folder ``out`` (without ``clouds``: no 3D LiDAR, a 2D bag, a hundredth of the size)."""
     import yaml
     from rosbags.rosbag2 import Writer
 
     from pimm_env.driving.rollout import run
     from pimm_env.driving.scenarios import get_scenario
+    from pimm_env.envs.base_env import SimConfig
     from pimm_env.envs.iilab_env import IILabEnv
     from pimm_env.world.files import load_world
 
@@ -83,14 +88,17 @@ def record_scenario(scenario_name: str, out: Path, world: str = "iilab", seed: i
         raise FileExistsError(f"{out}: already exists; a bag is written to a new folder")
     loaded = load_world(world)
     scenario = get_scenario(scenario_name, loaded)
-    env = IILabEnv(world=loaded, terminate_on_collision=False)
+    config = SimConfig()
+    if not clouds:
+        config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))
+    env = IILabEnv(world=loaded, config=config, terminate_on_collision=False, sensors=sensors)
     with Writer(out, version=9) as writer:
         recorder = BagRecorder(env, writer)
         try:
             result = run(scenario, seed=seed, env=recorder)
         finally:
             recorder.close()
-    record = {"world": world, "scenario": scenario_name, "seed": seed, "completed": result.completed,
-              "sim_seconds": round(result.duration_s, 3), "messages": recorder.messages}  # fmt: skip
+    record = {"world": world, "scenario": scenario_name, "seed": seed, "sensors": sensors, "clouds": clouds}
+    record.update(completed=result.completed, sim_seconds=round(result.duration_s, 3), messages=recorder.messages)
     (out / RECORD_FILE).write_text(yaml.safe_dump(record, sort_keys=False))
     return out

@@ -19,7 +19,7 @@ from pimm_env.sim.lidar import (
     Lidar2DConfig,
     Lidar3DConfig,
     azimuths_3d,
-    beam_angles_2d,
+    beam_bearings_2d,
     directions_3d,
     elevations_3d,
     noisy_ranges,
@@ -106,7 +106,7 @@ class LidarRobotEnv(gym.Env):
         l3, l2 = self.config.lidar3d, self.config.lidar2d
         self._elevations = elevations_3d(l3)
         self._azimuths3d = azimuths_3d(l3)
-        self._azimuths2d = beam_angles_2d(l2)
+        self._azimuths2d = beam_bearings_2d(l2)
         self._directions3d = directions_3d(l3)  # sensor frame, same order as the cast
         n = l3.num_points
         self.action_space = action_space(self.config)
@@ -302,7 +302,9 @@ class LidarRobotEnv(gym.Env):
             self._next_cloud = self._next_cloud + 1.0 / l3.rate_hz
             fresh_cloud = True
         if l2.enabled and self._time + eps >= self._next_scan:
-            origin = np.array([x, y, self.world.floor_z + l2.height])
+            c, s = np.cos(theta), np.sin(theta)
+            mx, my = x + c * l2.mount_x - s * l2.mount_y, y + s * l2.mount_x + c * l2.mount_y
+            origin = np.array([mx, my, self.world.floor_z + l2.height])
             ranges, _ = self.caster.cast(origin, self._azimuths2d + theta, np.zeros(1), l2.max_range)
             ranges = ranges.reshape(-1)
             hit = np.isfinite(ranges)

@@ -59,6 +59,7 @@ class IILabEnv(LidarRobotEnv):
     |--------------------------|-----------|-----------------------------------------------------------------|
     | `world`                  | `"iilab"` | world name under `maps/`, a world file, or a `World`            |
     | `config`                 | defaults  | `SimConfig`: robot, 3D/2D LiDAR settings, ray caster            |
+    | `sensors`                | `None`    | LiDAR presets by name (`"hokuyo-utm30lx"`; see `sim/sensors.py`) |
     | `render_mode`            | `None`    | `"rgb_array"`: top-down map, robot and current scans            |
     | `terminate_on_collision` | `True`    | end the episode when the body touches an obstacle               |
 
@@ -76,7 +77,12 @@ class IILabEnv(LidarRobotEnv):
         config: SimConfig | None = None,
         render_mode: str | None = None,
         terminate_on_collision: bool = True,
+        sensors: str | None = None,
     ) -> None:
+        if sensors is not None:
+            from pimm_env.sim.sensors import with_sensors
+
+            config = with_sensors(config or SimConfig(), sensors)
         super().__init__(world=world, config=config, render_mode=render_mode)
         self._terminate_on_collision = terminate_on_collision
 

@@ -31,7 +31,12 @@ class Lidar3DConfig:
 
 @dataclass(frozen=True)
 class Lidar2DConfig:
-    """Defaults: the thesis's 2D LiDAR, 360 beams over 360 deg, 10 m range."""
+    """Defaults: the thesis's 2D LiDAR, 360 beams over 360 deg from -180 deg, 10 m range, at the robot's centre.
+
+    Beams run counter-clockwise from ``angle_min_deg`` to ``angle_max_deg`` (both included, as a LaserScan's
+    angle_min/angle_max; a full circle leaves out the end, which is the start). The sensor sits at
+    (``mount_x``, ``mount_y``) in the robot's frame, turned by ``mount_yaw_deg``.
+    """
 
     beams: int = 360
     max_range: float = 10.0
@@ -40,6 +45,20 @@ class Lidar2DConfig:
     rate_hz: float = 10.0
     height: float = 0.30  # above the floor; the occupancy grid is cut at this height
     enabled: bool = True  # off: no rays are cast, every beam reads max_range
+    angle_min_deg: float = -180.0
+    angle_max_deg: float = 180.0
+    mount_x: float = 0.0
+    mount_y: float = 0.0
+    mount_yaw_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.beams < 1 or not self.angle_min_deg < self.angle_max_deg <= self.angle_min_deg + 360.0:
+            raise ValueError(
+                f"2D LiDAR: need beams >= 1 and angle_min_deg < angle_max_deg <= angle_min_deg + 360, got "
+                f"{self.beams} beams over [{self.angle_min_deg}, {self.angle_max_deg}] deg"
+            )
+        if not 0 <= self.min_range < self.max_range:
+            raise ValueError(f"2D LiDAR: need 0 <= min_range < max_range, got {self.min_range}, {self.max_range}")
 
 
 def elevations_3d(config: Lidar3DConfig) -> np.ndarray:
@@ -60,8 +79,16 @@ def directions_3d(config: Lidar3DConfig) -> np.ndarray:
 
 
 def beam_angles_2d(config: Lidar2DConfig) -> np.ndarray:
-    """Beam angles in the sensor frame, from -pi, counter-clockwise."""
-    return -np.pi + 2 * np.pi * np.arange(config.beams) / config.beams
+    """Beam angles in the sensor frame, counter-clockwise from ``angle_min_deg``."""
+    low, high = np.radians(config.angle_min_deg), np.radians(config.angle_max_deg)
+    if config.angle_max_deg - config.angle_min_deg >= 360.0:  # a full circle: the end is the start
+        return low + 2 * np.pi * np.arange(config.beams) / config.beams
+    return np.linspace(low, high, config.beams) if config.beams > 1 else np.array([low])
+
+
+def beam_bearings_2d(config: Lidar2DConfig) -> np.ndarray:
+    """Beam angles in the robot's frame (the sensor's mount yaw added)."""
+    return beam_angles_2d(config) + np.radians(config.mount_yaw_deg)
 
 
 def cast_rays(client, origins: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
