@@ -53,6 +53,7 @@ def main(ctx: typer.Context) -> None:
             resume=False,
             video=None,
             sensors="thesis",
+            start="global",
         )
 
 
@@ -77,6 +78,7 @@ def run(
         None, "--video", help="best | worst | all: replay those trials as animations (videos/ in the results)"
     ),
     sensors: str = typer.Option("thesis", help="LiDAR presets, comma-separated (thesis, hokuyo-utm30lx, ...)"),
+    start: str = typer.Option("global", help="global (pose unknown) or known (true start, nav2's covariance)"),
 ) -> None:
     """Run localizers on scenarios: one simulation per trial feeds every localizer; trials in parallel. Prints
     the thesis's tables and writes logs and figures; each trial is saved as it finishes (see --resume)."""
@@ -119,12 +121,14 @@ def run(
     except ParamsError as error:  # fail here, not in a worker, on a bad setting
         raise typer.BadParameter(str(error), param_hint="--params/--set") from None
     specs = [  # trial-major: a stopped run has every scenario's first trials
-        TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer], sensors)
+        TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer], sensors, start)
         for trial in range(trials)
         for scenario in scenarios
         for localizer in localizers
     ]
     _check_sensors(sensors)
+    if start not in ("global", "known"):
+        raise typer.BadParameter(f"expected global or known, got {start!r}", param_hint="--start")
     if video not in (None, "best", "worst", "all"):
         raise typer.BadParameter(f"expected best, worst or all, got {video!r}", param_hint="--video")
     workers = workers or os.cpu_count() or 1
@@ -135,7 +139,7 @@ def run(
     if resume and not json_out:
         where = f"{len(stored)} of {len(specs)} trials already in {folder}" if earlier else f"no run under {out}"
         typer.echo(f"resume: {where}; running {len(todo)}", err=True)
-    start = time.perf_counter()
+    began = time.perf_counter()
 
     def done(result: TrialResult) -> None:
         save_trial(folder, result)
@@ -152,13 +156,16 @@ def run(
         "trials": trials,
         "seed": seed,
         "workers": workers,
-        "wall_s": round(time.perf_counter() - start, 1),
+        "wall_s": round(time.perf_counter() - began, 1),
         "trials_run": len(todo),
         "trials_reused": len(stored),
         "sensors": sensors,
+        "start": start,
         "repeat": (
             f"python evaluate.py run --params config.yaml --world {world} --scenarios {' '.join(scenarios)} "
-            f"--trials {trials} --seed {seed}" + ("" if sensors == "thesis" else f" --sensors {sensors}")
+            f"--trials {trials} --seed {seed}"
+            + ("" if sensors == "thesis" else f" --sensors {sensors}")
+            + ("" if start == "global" else f" --start {start}")
         ),
     }
     summary = write_results(folder, results, run_record, maps.occupancy, maps.corners.xy)
@@ -167,6 +174,7 @@ def run(
     if json_out:
         typer.echo(json.dumps({**summary, "folder": str(folder)}))
         return
+    typer.echo(f"start: {'the true pose, nav2 initial covariance' if start == 'known' else 'global (pose unknown)'}")
     typer.echo(format_tables(summary))
     typer.echo(format_timings(summary))
     typer.echo(

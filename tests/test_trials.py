@@ -1,4 +1,5 @@
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -112,3 +113,17 @@ def test_resume_runs_only_the_missing_trials_and_gives_the_full_runs_metrics(roo
     assert no_timings(extended) == no_timings(whole)
     assert run(tmp_path / "a", 2, "--resume")["folder"] == first["folder"]
     assert json.loads((Path(first["folder"]) / "run.json").read_text())["trials_run"] == 0
+
+
+def test_a_known_start_gives_every_localizer_the_true_pose(room_with_routes):
+    known = [TrialSpec("there", name, 0, 3, room_with_routes, AMCL if name == "amcl" else {}, start="known")
+             for name in ("amcl", DEAD)]  # fmt: skip
+    amcl, dead = run_shared(known)
+    start = np.array([1.0, 1.0, 0.0])
+    assert np.allclose(dead.log.estimate[0], start, atol=1e-6)  # dead reckoning from the true start
+    assert np.hypot(*(amcl.log.estimate[0, :2] - start[:2])) < 1.0 and amcl.metrics.convergence_time_s == 0.0
+    assert trial_key(known[0]).endswith("__start-known") and trial_key(known[0]) != trial_key(
+        replace(known[0], start="global")
+    )
+    with pytest.raises(ValueError, match="start must be one of"):
+        run_shared([replace(known[0], start="somewhere")])

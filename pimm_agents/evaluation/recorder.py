@@ -10,18 +10,25 @@ import numpy as np
 from pimm_agents.evaluation.trial_log import TrialLog
 from pimm_agents.localizer import Localizer
 
+#: How a trial starts the localizer: ``global`` (pose unknown, the thesis's experiments) or ``known`` (the true
+#: start pose with nav2's initial covariance, 0.5 m, 0.5 m, pi/12 rad standard deviations).
+STARTS = ("global", "known")
+
 
 class LocalizationRecorder(gym.Wrapper):
     """Feeds every observation to ``localizer`` and records (truth, estimate) at every fresh scan.
 
-    ``reset`` resets the localizer too, except for a kidnap (``options={"kidnap": ...}``), which the
+    ``reset`` resets the localizer too (from ``start``), except for a kidnap (``options={"kidnap": ...}``), which the
     localizer must discover by itself; the log marks where it happened. ``info["estimate"]`` carries the
     latest estimate. ``trial_log()`` returns what was recorded since the last full reset.
     """
 
-    def __init__(self, env: gym.Env, localizer: Localizer) -> None:
+    def __init__(self, env: gym.Env, localizer: Localizer, start: str = "global") -> None:
         super().__init__(env)
+        if start not in STARTS:
+            raise ValueError(f"start must be one of {STARTS}, got {start!r}")
         self.localizer = localizer
+        self.start = start
         self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = []
         self._timings: list[dict[str, float]] = []
         self._kidnap_index: int | None = None
@@ -31,7 +38,10 @@ class LocalizationRecorder(gym.Wrapper):
         obs, info = self.env.reset(seed=seed, options=options)
         kidnap = (options or {}).get("kidnap")
         if kidnap is None or kidnap is False:
-            self.localizer.reset(seed=seed)
+            if self.start == "known":  # the true start, with nav2's initial covariance
+                self.localizer.reset(seed=seed, initial_pose=np.asarray(info["true_pose"], dtype=float))
+            else:
+                self.localizer.reset(seed=seed)
             self._rows, self._timings, self._kidnap_index, self._corners = [], [], None, []
         else:
             self._kidnap_index = len(self._rows)

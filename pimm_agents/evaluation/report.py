@@ -187,7 +187,7 @@ def write_results(
         write_sidecar(logs / f"{stem}.json", result)
         write_trial_tum(tum / stem, result.log)
         errors.append(trajectory_errors(result.log.after_kidnap()))
-    summary = {**summary_of(results, errors), **provenance()}
+    summary = {**summary_of(results, errors), "start": run_record.get("start", "global"), **provenance()}
     (folder / "summary.json").write_text(json.dumps(summary, indent=2))
     (folder / "run.json").write_text(json.dumps(run_record, indent=2))
     groups: dict[tuple[str, str], list[TrialResult]] = {}

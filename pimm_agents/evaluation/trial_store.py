@@ -39,6 +39,8 @@ def trial_key(spec: TrialSpec) -> str:
                               f"seed{spec.seed}")  # fmt: skip
     if spec.sensors != "thesis":  # the thesis's sensors leave the key as it was before presets existed
         parts = (*parts, spec.sensors)
+    if spec.start != "global":
+        parts = (*parts, f"start-{spec.start}")
     return "__".join("".join(c if c.isalnum() or c in "._-" else "-" for c in part) for part in parts)
 
 
@@ -59,6 +61,7 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
             "world": spec.world,
             "params": spec.params,
             "sensors": spec.sensors,
+            "start": spec.start,
         },
         "wall_s": result.wall_s,
         "completed": result.completed,

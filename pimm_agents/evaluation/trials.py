@@ -29,6 +29,7 @@ class TrialSpec:
     world: str = "iilab"
     params: dict[str, Any] = field(default_factory=dict)  # the localizer's params-file section
     sensors: str = "thesis"  # LiDAR presets (pimm_env.sim.sensors)
+    start: str = "global"  # or "known": the true start pose with nav2's covariance (recorder.STARTS)
 
     @property
     def simulation(self) -> tuple[str, str, int, int, str]:
@@ -88,8 +89,8 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
         config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))  # nobody reads it: skip 14 400 rays
     recorders = []
     env: Any = IILabEnv(world=world, config=config, terminate_on_collision=False)
-    for localizer in localizers:
-        env = LocalizationRecorder(env, localizer)
+    for spec, localizer in zip(specs, localizers, strict=True):
+        env = LocalizationRecorder(env, localizer, spec.start)
         recorders.append(env)
     on_step = None if watch is None else (lambda obs, info: watch(localizers, obs, info))
     try:
