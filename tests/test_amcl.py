@@ -195,3 +195,19 @@ def _synthetic_scan(room: OccupancyGrid, pose: np.ndarray) -> np.ndarray:
     hit[valid] = room.occupied[rows[valid], cols[valid]]
     first = hit.reshape(360, -1).argmax(axis=1)
     return steps[first]
+
+
+def test_a_100_m_odometry_glitch_and_a_nan_leave_the_estimate_where_it_was():
+    room = box_room()
+    amcl = Amcl(room, AmclConfig(max_particles=500, min_particles=100))
+    amcl.reset(seed=0, initial_pose=np.array([2.0, 2.0, 0.0]))
+    scan = np.full(360, 10.0, dtype=np.float32)
+    obs = {"odom": np.zeros(3, np.float32), "scan": scan, "time": np.array([0.0]), "scan_time": np.array([0.0]),
+           "cloud": np.zeros((1, 3), np.float32), "cloud_mask": np.zeros(1, np.int8)}  # fmt: skip
+    before = amcl.update(obs).pose
+    glitch = {**obs, "odom": np.array([100.0, 0.0, 0.0], np.float32), "time": np.array([0.032])}
+    assert np.array_equal(amcl.update(glitch).pose, before)
+    with pytest.raises(ValueError, match="observation 'odom'"):
+        amcl.update({**obs, "odom": np.array([np.nan, 0.0, 0.0], np.float32), "time": np.array([0.064])})
+    after = amcl.update({**obs, "time": np.array([0.096])})
+    assert np.allclose(after.pose, before) and np.all(np.isfinite(after.covariance))

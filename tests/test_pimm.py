@@ -41,6 +41,30 @@ def test_pimm_survives_scans_with_no_returns(pimm):
     assert pimm.filter.weights.sum() == pytest.approx(1.0)
 
 
+def test_a_stamp_from_the_future_and_a_nan_do_not_stop_pimm(pimm):
+    env = IILabEnv()
+    obs, _ = env.reset(seed=2, options={"pose": [-18.5, 14.0, 1.57]})
+    pimm.reset(seed=2)
+    perceived_after = fresh_after = 0
+    fresh = True
+    for step in range(40):
+        if step == 10:  # one observation stamped a billion seconds ahead: set aside
+            future = dict(obs, time=obs["time"] + 1e9, cloud_time=obs["cloud_time"] + 1e9)
+            assert np.isfinite(pimm.update(future).pose).all()
+        if step == 12:  # a NaN in the odometry: a clear error, and nothing of the filter touched
+            with pytest.raises(ValueError, match="observation 'odom'"):
+                pimm.update(dict(obs, odom=np.array([np.nan, 0.0, 0.0], dtype=np.float32)))
+        estimate = pimm.update(obs)
+        assert np.isfinite(estimate.pose).all()
+        perceived_after += step > 12 and "segmentation" in estimate.timings
+        fresh_after += step > 12 and fresh
+        obs, _, _, _, info = env.step(np.array([0.3, 0.0], dtype=np.float32))
+        fresh = info["fresh_cloud"]
+    env.close()
+    assert perceived_after == fresh_after >= 8  # every later 3D scan was still taken
+    assert pimm.guard.glitches == 1
+
+
 def test_each_scan_weighs_the_particles_once(pimm, monkeypatch):
     """Motion updates between two scans move the particles but do not weigh them with the same scan again."""
     env = IILabEnv()

@@ -14,6 +14,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from pimm_agents.localizer import Observation, PoseEstimate, particle_sample, require
+from pimm_agents.observation_guard import ObservationGuard
 from pimm_agents.particles.free_space import FreeSpace
 from pimm_agents.particles.initial_pose import gaussian_poses
 from pimm_agents.particles.kld import bin_keys, kld_sample_count
@@ -116,6 +117,7 @@ class Amcl:
             LikelihoodFieldParams(c.z_hit, c.z_rand, c.sigma_hit, c.laser_likelihood_max_dist, self.lidar.max_range),
         )
         self._beams = subsample_beams(self.lidar.beams, c.max_beams)
+        self.guard = ObservationGuard()
         self._bearings = beam_bearings_2d(self.lidar)[self._beams]  # in the robot's frame
         self._mount = (self.lidar.mount_x, self.lidar.mount_y)
         self.reset()
@@ -126,6 +128,7 @@ class Amcl:
     ) -> None:
         """Global localization (particles uniform over free space), or a Gaussian about ``initial_pose``."""
         self.rng = np.random.default_rng(seed)
+        self.guard.reset()
         n = self.config.max_particles
         if initial_pose is None:
             self.particles = self.free_space.sample(n, self.rng)
@@ -144,14 +147,17 @@ class Amcl:
         return {"particles": particle_sample(self.particles, max_particles)}
 
     def update(self, obs: Observation) -> PoseEstimate:
+        self.guard.check(obs, ("odom", "time", "scan_time"))
+        scan = require(obs, "scan", (self.lidar.beams,))  # NaN or out-of-range beams are skipped (REP 117)
+        taken = self.guard.take(obs)
+        if taken is None and self._estimate is not None:  # a glitch: keep the estimate
+            return self._estimate
+        obs = taken or obs
         odom = require(obs, "odom", (3,))
-        scan = require(obs, "scan", (self.lidar.beams,))
         scan_time = float(require(obs, "scan_time", (1,))[0])
         stamp = float(require(obs, "time", (1,))[0])
-        if not np.all(np.isfinite(odom)):
-            raise ValueError(f"observation 'odom' is not finite: {odom}")
         timings: dict[str, float] = {}
-        if scan_time != self._last_scan_time:
+        if np.isfinite(scan_time) and scan_time != self._last_scan_time:
             self._last_scan_time = scan_time
             if self._odom_at_update is None:
                 self.filter_update(odom, scan, None, timings)

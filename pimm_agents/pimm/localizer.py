@@ -17,6 +17,7 @@ import numpy as np
 from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, detect_corners
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.localizer import Observation, PoseEstimate, particle_sample, require
+from pimm_agents.observation_guard import ObservationGuard
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.perception.fingerprint_map import FingerprintMap
 from pimm_agents.perception.point_features import valid_returns
@@ -192,6 +193,7 @@ class PimmLocalizer:
             wall_temperature=walls.temperature if walls.model == "product" else None,
         )
         self.history = OdometryHistory(config.odometry_history_s)
+        self.guard = ObservationGuard()
         self._warm_up()
         self.reset()
 
@@ -208,6 +210,8 @@ class PimmLocalizer:
         """Forget everything: global localization, or particles about ``initial_pose`` (nav2's covariance)."""
         self.rng = np.random.default_rng(seed)
         self.filter.reset(self.rng, initial_pose, initial_cov)
+        self.guard.reset()
+        self._last: PoseEstimate | None = None
         self.history.clear()
         self._features = np.zeros((0, 5))
         self._features_stamp = 0.0
@@ -252,13 +256,20 @@ class PimmLocalizer:
     def update(self, obs: Observation) -> PoseEstimate:
         began = time.perf_counter()
         timings: dict[str, float] = {}
+        self.guard.check(obs, ("odom", "time", "cloud_time", "cloud"))
+        cloud = np.asarray(require(obs, "cloud"), dtype=np.float32)
+        if cloud.ndim != 2 or cloud.shape[1] != 3:
+            raise ValueError(f"observation 'cloud' has shape {cloud.shape}, expected (N, 3) points")
+        mask = require(obs, "cloud_mask", (len(cloud),)).astype(bool)
+        taken = self.guard.take(obs)
+        if taken is None and self._last is not None:  # a glitch: keep the estimate
+            return self._last
+        obs = taken or obs
         stamp = float(require(obs, "time", (1,))[0])
         odom = require(obs, "odom", (3,))
         self.history.add(stamp, odom)
         cloud_time = float(require(obs, "cloud_time", (1,))[0])
-        if cloud_time > self._last_cloud_time:
-            cloud = np.asarray(require(obs, "cloud"), dtype=np.float32)
-            mask = require(obs, "cloud_mask", (len(cloud),)).astype(bool)
+        if np.isfinite(cloud_time) and cloud_time > self._last_cloud_time:
             self._last_cloud_time = cloud_time
             if np.any(valid_returns(cloud, mask)):
                 self.perceive(cloud, mask, cloud_time, timings)
@@ -283,6 +294,7 @@ class PimmLocalizer:
             self._estimate, self._estimate_odom = self.filter.best_mean(), odom.copy()
         pose = carry(self._estimate, self._estimate_odom, odom)
         timings["total"] = 1000 * (time.perf_counter() - began)
-        return PoseEstimate(
+        self._last = PoseEstimate(
             float(pose[0]), float(pose[1]), float(pose[2]), self.filter.covariance(pose), stamp, timings
         )
+        return self._last

@@ -1,0 +1,99 @@
+"""What every localizer does with an observation before it touches its state: check it, and set glitches aside.
+
+- A missing key, a wrong shape or a non-finite value raises ``ValueError`` naming the key (and the shape), before
+  any state changes, so the localizer goes on as if the observation had never come.
+- A glitch is set aside and the last estimate kept: a stamp that goes back, or jumps further ahead than
+  ``max_gap_s``; odometry that moved faster than the robot can (``max_speed``, ``max_turn_rate``) since the last
+  observation taken. A sensor stamp ahead of the observation's own time (``stamp_slack_s``) marks that sensor's
+  data as not fresh.
+- A change that lasts is a new base, not a glitch: after ``confirm`` observations in a row agree with each other
+  (the odometry frame was reset, a bag paused), they are taken, the odometry re-anchored so that the jump counts
+  as no motion.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pimm_agents.localizer import Observation, require
+from pimm_env.geometry import compose, relative_motion
+
+
+@dataclass(frozen=True)
+class GuardConfig:
+    """Ours; the speed limits are three times the simulated robot's (1 m/s, 2 rad/s)."""
+
+    max_gap_s: float = 30.0
+    max_speed: float = 3.0  # m/s
+    max_turn_rate: float = 6.0  # rad/s
+    stamp_slack_s: float = 0.5
+    confirm: int = 5
+
+
+class ObservationGuard:
+    """One per localizer; ``take(obs)`` returns the observation to use (odometry re-anchored) or None."""
+
+    def __init__(self, config: GuardConfig | None = None) -> None:
+        self.config = config or GuardConfig()
+        self.reset()
+
+    def reset(self) -> None:
+        self.last_time: float | None = None
+        self.last_odom: np.ndarray | None = None  # raw, as the last taken observation had it
+        self.offset = np.zeros(3)  # corrected odometry = compose(offset, raw odometry)
+        self._pending: list[tuple[float, np.ndarray]] = []  # set-aside observations that agree with each other
+        self.glitches = 0
+
+    def check(self, obs: Observation, keys: tuple[str, ...]) -> None:
+        """Raise ``ValueError`` naming the key unless every one of ``keys`` is present, shaped and finite."""
+        shapes = {"odom": (3,), "time": (1,), "cloud_time": (1,), "scan_time": (1,)}
+        for key in keys:
+            value = require(obs, key, shapes.get(key))
+            if not np.all(np.isfinite(value)):
+                bad = int(np.count_nonzero(~np.isfinite(value)))
+                raise ValueError(f"observation {key!r} (shape {value.shape}) has {bad} non-finite value(s)")
+
+    def take(self, obs: Observation) -> Observation | None:
+        """The observation with its odometry re-anchored, or None for a glitch (the localizer keeps its estimate)."""
+        t = float(np.asarray(obs["time"]).reshape(-1)[0])
+        odom = np.asarray(obs["odom"], dtype=float).reshape(3)
+        if self.last_time is None or self.last_odom is None:
+            return self._accept(obs, t, odom)
+        if self._plausible(self.last_time, self.last_odom, t, odom):
+            self._pending.clear()
+            return self._accept(obs, t, odom)
+        self.glitches += 1
+        if self._pending and not self._plausible(*self._pending[-1], t, odom):
+            self._pending.clear()
+        self._pending.append((t, odom))
+        if len(self._pending) < self.config.confirm:
+            return None
+        # A new base: the jump from the last taken observation to the first of these counts as no motion.
+        _, first_odom = self._pending[0]
+        before = compose(self.offset, self.last_odom)[0]  # where the corrected odometry stood
+        self.offset = compose(before, relative_motion(first_odom, np.zeros(3)))[0]
+        self._pending.clear()
+        return self._accept(obs, t, odom)
+
+    def _plausible(self, t0: float, odom0: np.ndarray, t1: float, odom1: np.ndarray) -> bool:
+        c = self.config
+        dt = t1 - t0
+        if dt < 0 or dt > c.max_gap_s:
+            return False
+        step = relative_motion(odom0, odom1)
+        slack = 0.05  # m and rad: what a single control step may show at standstill
+        return bool(
+            np.hypot(step[0], step[1]) <= c.max_speed * dt + slack and abs(step[2]) <= c.max_turn_rate * dt + slack
+        )
+
+    def _accept(self, obs: Observation, t: float, odom: np.ndarray) -> Observation:
+        self.last_time, self.last_odom = t, odom.copy()
+        out = dict(obs)
+        if np.any(self.offset):
+            out["odom"] = compose(self.offset, odom)[0].astype(np.asarray(obs["odom"]).dtype)
+        for key in ("cloud_time", "scan_time"):
+            if key in out and float(np.asarray(out[key]).reshape(-1)[0]) > t + self.config.stamp_slack_s:
+                out[key] = np.array([-np.inf])  # stamped in the future: not a fresh reading
+        return out

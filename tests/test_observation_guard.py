@@ -1,0 +1,46 @@
+import numpy as np
+import pytest
+
+from pimm_agents.observation_guard import ObservationGuard
+
+
+def _obs(t: float, odom) -> dict:
+    return {"time": np.array([t]), "odom": np.asarray(odom, dtype=np.float32), "scan_time": np.array([t])}
+
+
+def test_a_one_step_odometry_jump_is_set_aside():
+    guard = ObservationGuard()
+    taken = [guard.take(_obs(0.1 * k, [0.05 * k + (100.0 if k == 10 else 0.0), 0.0, 0.0])) for k in range(20)]
+    assert taken[10] is None and all(o is not None for i, o in enumerate(taken) if i != 10)
+    assert np.allclose([o["odom"][0] for o in taken if o is not None], [0.05 * k for k in range(20) if k != 10])
+
+
+def test_a_lasting_jump_becomes_a_new_base_that_counts_as_no_motion():
+    guard = ObservationGuard()
+    moved = []
+    for k in range(30):
+        raw = [0.05 * k + (50.0 if k >= 20 else 0.0), 0.0, 0.0]  # the odometry frame was reset at step 20
+        out = guard.take(_obs(0.1 * k, raw))
+        moved.append(None if out is None else float(out["odom"][0]))
+    assert moved[20:24] == [None] * 4  # five observations in a row must agree first
+    assert moved[24] == pytest.approx(0.95 + 4 * 0.05) and moved[29] == pytest.approx(0.95 + 9 * 0.05)
+
+
+def test_stamps_that_go_back_or_leap_ahead_are_glitches():
+    guard = ObservationGuard()
+    assert guard.take(_obs(1.0, [0, 0, 0])) is not None
+    assert guard.take(_obs(1e9, [0, 0, 0])) is None  # a stamp a billion seconds ahead
+    assert guard.take(_obs(0.5, [0, 0, 0])) is None  # back in time
+    assert guard.take(_obs(1.1, [0.01, 0, 0])) is not None
+    future_scan = guard.take({**_obs(1.2, [0.02, 0, 0]), "scan_time": np.array([99.0])})
+    assert future_scan is not None and future_scan["scan_time"][0] == -np.inf  # that scan is not fresh
+
+
+def test_bad_values_name_the_key_and_shape():
+    guard = ObservationGuard()
+    with pytest.raises(ValueError, match=r"observation 'odom' \(shape \(3,\)\) has 1 non-finite value"):
+        guard.check(_obs(0.0, [0.0, np.nan, 0.0]), ("time", "odom"))
+    with pytest.raises(ValueError, match=r"observation 'odom' has shape \(2,\), expected \(3,\)"):
+        guard.check(_obs(0.0, [0.0, 0.0]), ("odom",))
+    with pytest.raises(KeyError, match="observation has no 'cloud_time'"):
+        guard.check(_obs(0.0, [0, 0, 0]), ("cloud_time",))
