@@ -200,9 +200,17 @@ class PimmLocalizer:
     def _warm_up(self) -> None:
         """Run perception once on a synthetic scan (a 5 m sphere) so that the one-off costs of torch's first
         call and of importing Open3D do not land in the first real update's timings."""
+        import multiprocessing
+        import sys
+
+        from tqdm import tqdm
+
         layers, per_layer = self.segmenter.layers, self.segmenter.points_per_layer
         directions = directions_3d(Lidar3DConfig(layers=layers, points_per_layer=per_layer)).astype(np.float32)
-        self.perceive(5.0 * directions, np.ones(len(directions), dtype=bool), 0.0, {})
+        quiet = multiprocessing.current_process().name != "MainProcess" or not sys.stderr.isatty()
+        with tqdm(total=1, desc=f"{self.name}: warm-up (torch, Open3D)", leave=False, disable=quiet) as bar:
+            self.perceive(5.0 * directions, np.ones(len(directions), dtype=bool), 0.0, {})
+            bar.update()
 
     def reset(
         self, seed: int | None = None, initial_pose: np.ndarray | None = None, initial_cov: np.ndarray | None = None
