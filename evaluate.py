@@ -90,8 +90,7 @@ def run(
     from pimm_agents.evaluation.report import format_tables, format_timings, write_results
     from pimm_agents.evaluation.trial_store import load_stored, save_trial
     from pimm_agents.evaluation.trials import TrialResult, TrialSpec, run_trials
-    from pimm_agents.factory import available_localizers, check_name, resolved_params
-    from pimm_agents.params import ParamsError, merge_params, parse_settings, read_params_file, write_params_file
+    from pimm_agents.params import write_params_file
     from pimm_env.driving.scenarios import load_scenarios
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
@@ -105,21 +104,7 @@ def run(
         raise typer.BadParameter(
             f"unknown scenario(s) {unknown}; valid: {', '.join(available)}", param_hint="--scenarios"
         )
-    try:
-        from_file = read_params_file(params) if params is not None else {}
-    except ParamsError as error:
-        raise typer.BadParameter(str(error), param_hint="--params") from None
-    localizers = localizers or list(from_file) or available_localizers()
-    for name in localizers:
-        try:
-            check_name(name)
-        except ValueError as error:
-            raise typer.BadParameter(str(error), param_hint="--localizers") from None
-    try:
-        sections = merge_params(from_file, parse_settings(settings, localizers))
-        configs = {name: resolved_params(name, sections.get(name)) for name in localizers}
-    except ParamsError as error:  # fail here, not in a worker, on a bad setting
-        raise typer.BadParameter(str(error), param_hint="--params/--set") from None
+    localizers, configs = _localizer_configs(localizers, params, settings)
     specs = [  # trial-major: a stopped run has every scenario's first trials
         TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer], sensors, start)
         for trial in range(trials)
@@ -182,6 +167,31 @@ def run(
         + (f" ({len(stored)} more from the earlier run)" if stored else "")
         + f"; results: {folder}/ (summary.json, config.yaml, run.json, trials/, logs/, figures/)"
     )
+
+
+def _localizer_configs(
+    localizers: list[str] | None, params: Path | None, settings: list[str]
+) -> tuple[list[str], dict[str, dict]]:
+    """The localizers to run (default: the params file's sections, else every registered one) and each one's
+    resolved settings; a bad name or setting fails here, in the main process, naming it."""
+    from pimm_agents.factory import available_localizers, check_name, resolved_params
+    from pimm_agents.params import ParamsError, merge_params, parse_settings, read_params_file
+
+    try:
+        from_file = read_params_file(params) if params is not None else {}
+    except ParamsError as error:
+        raise typer.BadParameter(str(error), param_hint="--params") from None
+    names = localizers or list(from_file) or available_localizers()
+    for name in names:
+        try:
+            check_name(name)
+        except ValueError as error:
+            raise typer.BadParameter(str(error), param_hint="--localizers") from None
+    try:
+        sections = merge_params(from_file, parse_settings(settings, names))
+        return names, {name: resolved_params(name, sections.get(name)) for name in names}
+    except ParamsError as error:
+        raise typer.BadParameter(str(error), param_hint="--params/--set") from None
 
 
 def _check_sensors(sensors: str) -> None:
@@ -259,24 +269,14 @@ def replay(
     from pimm_agents.evaluation.replay import replay_bag, replay_specs
     from pimm_agents.evaluation.report import format_tables, write_results
     from pimm_agents.evaluation.trajectories import write_tum
-    from pimm_agents.factory import check_name, resolved_params
-    from pimm_agents.params import ParamsError, merge_params, parse_settings, read_params_file, write_params_file
+    from pimm_agents.params import write_params_file
     from pimm_env.bags.messages import BagError
     from pimm_env.bags.read import BagTopics
     from pimm_env.importers.ros_map import MapImportError, read_occupancy
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
-    for name in localizers:
-        try:
-            check_name(name)
-        except ValueError as error:
-            raise typer.BadParameter(str(error), param_hint="--localizers") from None
-    try:
-        sections = merge_params(read_params_file(params) if params else {}, parse_settings(settings, localizers))
-        configs = {name: resolved_params(name, sections.get(name)) for name in localizers}
-    except ParamsError as error:
-        raise typer.BadParameter(str(error), param_hint="--params/--set") from None
+    localizers, configs = _localizer_configs(localizers, params, settings)
     if sensors is not None:
         _check_sensors(sensors)
     specs = replay_specs(bag, localizers, configs, seed, world, sensors)
