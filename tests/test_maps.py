@@ -104,3 +104,37 @@ def test_every_thesis_corner_has_a_derived_corner():
     matches = corner_matches(ours, reference, max_dist=0.3, max_angle_deg=20.0)
     missing = [tuple(reference.xy[i]) for i, m in enumerate(matches) if m is None]
     assert not missing, f"thesis corners without a derived corner: {missing}"
+
+
+def test_bad_map_server_and_corner_files_name_the_file_and_the_field(tmp_path):
+    from pimm_env.mapping.occupancy import load_map_server
+
+    (tmp_path / "map.pgm").write_bytes(b"P5\n4 3\n255\n" + bytes(12))
+    good = "image: map.pgm\nresolution: 0.05\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    (tmp_path / "map.yaml").write_text(good)
+    assert load_map_server(tmp_path / "map.yaml").grid.shape == (3, 4)
+    for bad, message in (
+        (good.replace("0.05", "-0.05"), "resolution: expected a positive number of metres, got -0.05"),
+        (good.replace("[0, 0, 0]", "[0, .nan, 0]"), "origin: expected"),
+        (good.replace("0.65", "1.5"), "occupied_thresh: expected a number in"),
+        ("image: [", "not valid YAML"),
+    ):
+        (tmp_path / "map.yaml").write_text(bad)
+        with pytest.raises(ValueError, match=f"map.yaml: {message}" if "YAML" not in message else message):
+            load_map_server(tmp_path / "map.yaml")
+    (tmp_path / "map.yaml").write_text(good)
+    (tmp_path / "map.pgm").write_bytes(b"P5\n4 3\n255\n" + bytes(5))
+    with pytest.raises(ValueError, match=r"map.pgm: truncated: 5 bytes of pixels, the header says 4 x 3 = 12"):
+        load_map_server(tmp_path / "map.yaml")
+    corners = tmp_path / "corners.yaml"
+    for text, message in (
+        ("corners:\n  - {x: 1, y: 2, theta: 90}\n  - {x: 1, y: 2}\n", r"corners\[1\]: missing field 'theta'"),
+        ("corners:\n  - {x: 1, y: a, theta: 90}\n", r"corners\[0\].y: expected a finite number, got 'a'"),
+        ("corners:\n  - {x: .nan, y: 1, theta: 90}\n", r"corners\[0\].x: expected a finite number"),
+        ("corners: [\n", "not valid YAML"),
+    ):
+        corners.write_text(text)
+        with pytest.raises(ValueError, match=message):
+            load_corner_map(corners)
+    corners.write_text("corners:\n  - {x: 1, y: 2, theta: 90}\n")  # z may be left out
+    assert load_corner_map(corners).z.tolist() == [0.0]

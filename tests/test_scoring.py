@@ -79,3 +79,16 @@ def test_score_reproduces_runs_metrics_on_every_scenario(tmp_path):
         for key in ("trials", "convergence_rate", "convergence_time_s", "position_error_m", "angle_error_deg"):
             assert again[key] == pytest.approx(ran[key], abs=1e-5), (scenario, key)
     assert run["scenarios"]["a_c_b_kidnap"]["amcl-recovery"]["convergence_rate"] == 1.0  # a real kidnap recovery
+
+
+def test_a_binary_file_or_rows_out_of_time_order_are_named(tmp_path):
+    binary = tmp_path / "weights.csv"
+    binary.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(ValueError, match="weights.csv: not a text CSV file"):
+        score_log(binary)
+    t = np.array([0.0, 1.0, 0.5, 2.0])
+    log = TrialLog(t, t, np.zeros((4, 3)), np.zeros((4, 3)), np.zeros((4, 3)))
+    path = tmp_path / "reversed.csv"
+    log.write_csv(path)
+    with pytest.raises(ValueError, match=r"reversed.csv: line 4: timestamp_real goes back \(0.5 after 1.0\)"):
+        score_log(path)

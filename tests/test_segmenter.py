@@ -141,3 +141,24 @@ def test_fused_inference_matches_the_trained_module():
         fused_logits, fused_descriptor = FusedPointNet(model)(x[0].T.contiguous())
     assert torch.allclose(logits[0].T, fused_logits, atol=1e-4)
     assert torch.allclose(descriptor[0], fused_descriptor, atol=1e-5)
+
+
+def test_a_damaged_checkpoint_is_caught_by_its_checksum(tmp_path):
+    import json
+    import shutil
+
+    from pimm_agents.perception.files import SHIPPED_WEIGHTS
+    from pimm_agents.perception.pointnet import file_sha256
+
+    record = json.loads(SHIPPED_WEIGHTS.with_suffix(".json").read_text())
+    assert record["sha256"] == file_sha256(SHIPPED_WEIGHTS)  # the shipped record holds the weights' checksum
+    copy = tmp_path / "pointnet.pt"
+    shutil.copy(SHIPPED_WEIGHTS, copy)
+    shutil.copy(SHIPPED_WEIGHTS.with_suffix(".json"), copy.with_suffix(".json"))
+    load_checkpoint(copy)
+    data = bytearray(copy.read_bytes())
+    start = len(data) // 2
+    data[start : start + 4096] = bytes(b ^ 0xFF for b in data[start : start + 4096])  # 4 KB of flipped bytes
+    copy.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match=r"pointnet.pt: SHA-256 .* differs from .*pointnet.json"):
+        load_checkpoint(copy)

@@ -66,7 +66,7 @@ def train(
     import numpy as np
 
     from pimm_agents.perception.files import own_checkpoint_path
-    from pimm_agents.perception.pointnet import PointNetConfig, load_checkpoint, save_checkpoint
+    from pimm_agents.perception.pointnet import PointNetConfig, file_sha256, load_checkpoint, save_checkpoint
     from training.dataset import load, pool, split
     from training.train import TrainConfig, describe
     from training.train import train as fit
@@ -107,6 +107,7 @@ def train(
         "history": history,
     }
     save_checkpoint(model, target, record)
+    record["sha256"] = file_sha256(target)  # verified on every load
     target.with_suffix(".json").write_text(json.dumps(record, indent=1) + "\n")
     size = target.stat().st_size / 1e6
     typer.echo(f"wrote {target} ({size:.2f} MB, {record['parameters']} parameters)")

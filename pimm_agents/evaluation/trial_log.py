@@ -71,6 +71,13 @@ def read_csv(path: Path) -> TrialLog:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such log file")
+    try:
+        return _read_rows(path)
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text CSV file (it does not decode as UTF-8)") from None
+
+
+def _read_rows(path: Path) -> TrialLog:
     with path.open(newline="") as handle:
         reader = csv.reader(handle)
         header = [h.strip() for h in next(reader, [])]
@@ -97,4 +104,11 @@ def read_csv(path: Path) -> TrialLog:
     if not rows:
         raise ValueError(f"{path}: the log has no rows")
     table = np.array(rows)
+    back = np.nonzero(np.diff(table[:, 0]) < 0)[0]
+    if len(back):
+        line = int(back[0]) + 3  # the header is line 1, the first row line 2
+        raise ValueError(
+            f"{path}: line {line}: timestamp_real goes back ({table[back[0] + 1, 0]} after {table[back[0], 0]}); "
+            f"{len(back)} row(s) out of time order: sort the log by time first"
+        )
     return TrialLog(table[:, 0], table[:, 1], table[:, 2:5], table[:, 5:8], table[:, 8:11])

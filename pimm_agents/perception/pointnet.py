@@ -193,6 +193,31 @@ def save_checkpoint(model: PointNetSegmenter, path: Path, training: dict[str, An
     )
 
 
+def file_sha256(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def verify_checksum(path: Path) -> None:
+    """Compare the checkpoint's SHA-256 with the one its ``.json`` record holds (where it holds one): a file
+    damaged on disk or in transfer may still load, and then labels scans badly without a word."""
+    import json
+
+    record = Path(path).with_suffix(".json")
+    if not record.is_file():
+        return
+    try:
+        expected = json.loads(record.read_text()).get("sha256")
+    except (json.JSONDecodeError, AttributeError):
+        raise ValueError(f"{record}: not a JSON record of the checkpoint") from None
+    if expected is not None and file_sha256(path) != expected:
+        raise ValueError(
+            f"{path}: SHA-256 {file_sha256(path)[:16]}... differs from {record}'s {str(expected)[:16]}...: the file is "
+            "damaged (or was replaced without its record); restore it or retrain"
+        )
+
+
 def load_checkpoint(path: Path) -> tuple[PointNetSegmenter, dict[str, Any]]:
     """The model (in eval mode) and its training record; a missing, corrupt or mismatched file is named."""
     path = Path(path)
@@ -200,6 +225,7 @@ def load_checkpoint(path: Path) -> tuple[PointNetSegmenter, dict[str, Any]]:
         raise FileNotFoundError(
             f"{path}: no PointNet checkpoint; train one with `python -m training rebuild --world <world>`"
         )
+    verify_checksum(path)
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as err:  # torch raises many types for a damaged file

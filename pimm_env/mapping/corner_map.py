@@ -197,18 +197,40 @@ def save_corner_map(corners: CornerMap, path: Path, world_name: str, stamp: str)
 
 
 def load_corner_map(path: Path) -> CornerMap:
-    """Read a corner map; accepts this project's format and the thesis's ``features:`` list."""
+    """Read a corner map; accepts this project's format and the thesis's ``features:`` list. Every problem
+    names the file, the entry and the field."""
     import yaml
 
-    data = yaml.safe_load(Path(path).read_text())
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as error:
+        raise ValueError(f"{path}: not valid YAML: {error}") from None
+    fields: tuple[tuple[str, ...], ...]
     if isinstance(data, dict) and "corners" in data:
-        rows = [(c["x"], c["y"], c.get("z", 0.0), c["theta"]) for c in data["corners"] or []]
+        entries, fields = data["corners"] or [], (("x",), ("y",), ("z",), ("theta",))
+        where = "corners"
     elif isinstance(data, dict) and "features" in data:
-        rows = [
-            (f["position"]["x"], f["position"]["y"], f["position"].get("z", 0.0), f["orientation"]["theta"])
-            for f in data["features"]
-        ]
+        entries = data["features"] or []
+        fields = (("position", "x"), ("position", "y"), ("position", "z"), ("orientation", "theta"))
+        where = "features"
     else:
         raise ValueError(f"{path}: expected a 'corners' (or thesis 'features') list")
+    if not isinstance(entries, list):
+        raise ValueError(f"{path}: {where}: expected a list, got {type(entries).__name__}")
+    rows = [[_corner_number(path, where, i, entry, keys) for keys in fields] for i, entry in enumerate(entries)]
     arr = np.array(rows, dtype=float).reshape(-1, 4)
     return CornerMap(arr[:, :2], arr[:, 2], np.radians(arr[:, 3]))
+
+
+def _corner_number(path: Path, where: str, index: int, entry: object, keys: tuple[str, ...]) -> float:
+    value: object = entry
+    for key in keys:
+        if not isinstance(value, dict) or key not in value:
+            if keys[-1] == "z" and isinstance(value, dict):  # a corner's ceiling height may be left out
+                return 0.0
+            raise ValueError(f"{path}: {where}[{index}]: missing field {'.'.join(keys)!r}")
+        value = value[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise ValueError(f"{path}: {where}[{index}].{'.'.join(keys)}: expected a finite number, got {value!r}")
+    return float(value)
