@@ -54,6 +54,8 @@ def main(ctx: typer.Context) -> None:
             video=None,
             sensors="thesis",
             start="global",
+            backend="local",
+            address=None,
         )
 
 
@@ -79,6 +81,8 @@ def run(
     ),
     sensors: str = typer.Option("thesis", help="LiDAR presets, comma-separated (thesis, hokuyo-utm30lx, ...)"),
     start: str = typer.Option("global", help="global (pose unknown) or known (true start, nav2's covariance)"),
+    backend: str = typer.Option("local", help="local (worker processes) or ray (a local Ray, or --address)"),
+    address: str | None = typer.Option(None, help="a Ray cluster to join, e.g. ray://head:10001 or auto"),
 ) -> None:
     """Run localizers on scenarios: one simulation per trial feeds every localizer; trials in parallel. Prints
     the thesis's tables and writes logs and figures; each trial is saved as it finishes (see --resume)."""
@@ -114,6 +118,10 @@ def run(
     _check_sensors(sensors)
     if start not in ("global", "known"):
         raise typer.BadParameter(f"expected global or known, got {start!r}", param_hint="--start")
+    if backend not in ("local", "ray") or (address is not None and backend != "ray"):
+        raise typer.BadParameter(
+            f"expected local or ray (--address only with ray), got {backend!r}", param_hint="--backend"
+        )
     if video not in (None, "best", "worst", "all"):
         raise typer.BadParameter(f"expected best, worst or all, got {video!r}", param_hint="--video")
     workers = workers or os.cpu_count() or 1
@@ -131,7 +139,7 @@ def run(
         bar.update()
 
     with tqdm(total=len(todo), desc="trials", unit="trial", disable=json_out) as bar:
-        fresh = iter(run_trials(todo, workers=min(workers, max(1, len(todo))), on_done=done))
+        fresh = iter(run_trials(todo, min(workers, max(1, len(todo))), done, backend, address))
     results = [stored[i] if i in stored else next(fresh) for i in range(len(specs))]
     write_params_file(folder / "config.yaml", configs)
     run_record = {
@@ -146,6 +154,7 @@ def run(
         "trials_reused": len(stored),
         "sensors": sensors,
         "start": start,
+        "backend": backend if address is None else f"ray at {address}",
         "repeat": (
             f"python evaluate.py run --params config.yaml --world {world} --scenarios {' '.join(scenarios)} "
             f"--trials {trials} --seed {seed}"

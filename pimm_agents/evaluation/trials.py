@@ -119,11 +119,22 @@ def _limit_threads(threads: int) -> None:
     torch.set_num_threads(threads)
 
 
+#: Where trials run: ``local`` worker processes (the default, no Ray needed) or a Ray cluster.
+BACKENDS = ("local", "ray")
+
+
 def run_trials(
-    specs: Sequence[TrialSpec], workers: int = 1, on_done: Callable[[TrialResult], None] | None = None
+    specs: Sequence[TrialSpec],
+    workers: int = 1,
+    on_done: Callable[[TrialResult], None] | None = None,
+    backend: str = "local",
+    address: str | None = None,
 ) -> list[TrialResult]:
-    """All trials, one simulation per group of specs that share it, in ``workers`` processes (1: in this one);
+    """All trials, one simulation per group of specs that share it, in ``workers`` local processes (1: in this
+    one) or as Ray tasks (``backend="ray"``: a local Ray with ``workers`` CPUs, or the cluster at ``address``);
     ``on_done`` sees each result as its simulation finishes; results come back in the order of ``specs``."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     results: dict[int, TrialResult] = {}
     groups = group_by_simulation(specs)
 
@@ -133,7 +144,9 @@ def run_trials(
             if on_done:
                 on_done(result)
 
-    if workers <= 1 or len(groups) <= 1:
+    if backend == "ray":
+        _run_on_ray(specs, groups, workers, address, finish)
+    elif workers <= 1 or len(groups) <= 1:
         for indices in groups:
             finish(indices, run_shared([specs[i] for i in indices]))
     else:
@@ -143,3 +156,43 @@ def run_trials(
             for future in as_completed(futures):
                 finish(futures[future], future.result())
     return [results[i] for i in range(len(specs))]
+
+
+def _shared_on_one_thread(specs: list[TrialSpec]) -> list[TrialResult]:
+    """A Ray task: one CPU each, so torch keeps to one thread."""
+    _limit_threads(1)
+    return run_shared(specs)
+
+
+def _run_on_ray(
+    specs: Sequence[TrialSpec],
+    groups: list[list[int]],
+    workers: int,
+    address: str | None,
+    finish: Callable[[list[int], list[TrialResult]], None],
+) -> None:
+    """Each shared simulation as a Ray task (one CPU); results handed to ``finish`` as they complete. Starts a
+    local Ray with ``workers`` CPUs unless one is running or ``address`` names a cluster (then it joins it)."""
+    try:
+        import ray
+    except ImportError:
+        raise RuntimeError("--backend ray needs Ray: pip install 'ray>=2.9' (or the project's [ray] extra)") from None
+    started = not ray.is_initialized()
+    if started:
+        ray.init(
+            address=address,
+            num_cpus=None if address else max(1, workers),
+            include_dashboard=False,
+            log_to_driver=False,
+            configure_logging=False,
+        )
+    try:
+        task = ray.remote(num_cpus=1)(_shared_on_one_thread)
+        pending = {task.remote([specs[i] for i in indices]): indices for indices in groups}
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            for ref in ready:
+                finish(pending.pop(ref), ray.get(ref))
+    finally:
+        if started:
+            ray.shutdown()
