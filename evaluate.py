@@ -29,9 +29,9 @@ def _results_dir(out: Path, kind: str) -> Path:
     return folder
 
 
-def _latest_run(out: Path) -> Path | None:
-    """The newest ``*_run`` folder under ``out`` (timestamped names sort by time), if any."""
-    runs = sorted(p for p in Path(out).glob("*_run") if p.is_dir())
+def _latest_run(out: Path, kind: str = "run") -> Path | None:
+    """The newest ``*_KIND`` folder under ``out`` (timestamped names sort by time), if any."""
+    runs = sorted(p for p in Path(out).glob(f"*_{kind}") if p.is_dir())
     return runs[-1] if runs else None
 
 
@@ -222,7 +222,7 @@ def _write_videos(folder: Path, results: list, which: str, maps, quiet: bool) ->
 
     groups: dict[tuple[str, str], list] = {}
     for result in results:
-        groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
+        groups.setdefault((result.spec.case, result.spec.name), []).append(result)
     jobs = []
     for (scenario, localizer), trials in groups.items():
         best, worst = best_and_worst([t.metrics for t in trials])
@@ -232,8 +232,69 @@ def _write_videos(folder: Path, results: list, which: str, maps, quiet: bool) ->
     for scenario, localizer, label, trial in tqdm(jobs, desc="videos", unit="video", disable=quiet):
         frames = collect_frames(trial.spec)
         title = f"{localizer}, {scenario}, {label} trial (seed {trial.spec.seed})"
-        target = folder / "videos" / f"{scenario}_{file_safe(localizer)}_{label}"
+        target = folder / "videos" / f"{file_safe(scenario)}_{file_safe(localizer)}_{label}"
         write_video(frames, maps.occupancy, maps.corners.xy, target, title)
+
+
+@app.command()
+def sweep(
+    spec: Path = typer.Argument(..., help="the sweep file (worlds, scenarios, localizers, grid, trials)"),
+    out: Path = typer.Option(Path("results"), help="where the timestamped results folder goes"),
+    workers: int = typer.Option(0, help="worker processes or Ray CPUs (0: one per core)"),
+    backend: str = typer.Option("local", help="local (worker processes) or ray (a local Ray, or --address)"),
+    address: str | None = typer.Option(None, help="a Ray cluster to join"),
+    resume: bool = typer.Option(False, "--resume", help="continue the newest sweep folder under --out"),
+    json_out: bool = typer.Option(False, "--json", help="print the summary as one JSON object"),
+) -> None:
+    """Run a grid (worlds x scenarios x localizers x settings x trials) into one results folder and one table."""
+    import os
+    import time
+
+    from tqdm import tqdm
+
+    from pimm_agents.evaluation.report import format_tables, write_results
+    from pimm_agents.evaluation.sweep import read_sweep, sweep_specs
+    from pimm_agents.evaluation.trial_store import load_stored, save_trial
+    from pimm_agents.evaluation.trials import TrialResult, run_trials
+    from pimm_agents.params import ParamsError
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    if backend not in ("local", "ray") or (address is not None and backend != "ray"):
+        raise typer.BadParameter(
+            f"expected local or ray (--address only with ray), got {backend!r}", param_hint="--backend"
+        )
+    try:
+        study = read_sweep(spec)
+        _check_sensors(study.sensors)
+        specs = sweep_specs(study)
+    except (ValueError, ParamsError) as error:
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(1) from None
+    earlier = _latest_run(out, "sweep") if resume else None
+    folder = earlier or _results_dir(out, "sweep")
+    stored = load_stored(folder, specs) if earlier else {}
+    todo = [s for i, s in enumerate(specs) if i not in stored]
+    began = time.perf_counter()
+
+    def done(result: TrialResult) -> None:
+        save_trial(folder, result)
+        bar.update()
+
+    with tqdm(total=len(todo), desc="sweep", unit="trial", disable=json_out) as bar:
+        fresh = iter(run_trials(todo, min(workers or os.cpu_count() or 1, max(1, len(todo))), done, backend, address))
+    results = [stored[i] if i in stored else next(fresh) for i in range(len(specs))]
+    (folder / "sweep.yaml").write_text(Path(spec).read_text())
+    record = {"sweep": str(spec), "trials_run": len(todo), "trials_reused": len(stored), "backend": backend}
+    record.update(wall_s=round(time.perf_counter() - began, 1), repeat=f"python evaluate.py sweep {folder}/sweep.yaml")
+    one_world = len(study.worlds) == 1
+    occupancy = ensure_derived_maps(load_world(study.worlds[0])).occupancy if one_world else None
+    summary = write_results(folder, results, record, occupancy)
+    if json_out:
+        typer.echo(json.dumps({**summary, "folder": str(folder)}))
+        return
+    typer.echo(format_tables(summary))
+    typer.echo(f"\n{len(todo)} trials in {record['wall_s']} s; results: {folder}/")
 
 
 @app.command()

@@ -34,7 +34,7 @@ def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] 
     max) of each metric over the trials that converged, and the mean of the trials' APE and RPE statistics."""
     groups: dict[tuple[str, str], list[int]] = {}
     for i, result in enumerate(results):
-        groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(i)
+        groups.setdefault((result.spec.case, result.spec.name), []).append(i)
     scenarios: dict[str, dict[str, Any]] = {}
     for (scenario, localizer), indices in groups.items():
         trials = [results[i] for i in indices]
@@ -161,20 +161,21 @@ def file_safe(name: str) -> str:
 
 def trial_stem(result: TrialResult) -> str:
     s = result.spec
-    return f"{s.scenario}_{file_safe(s.localizer)}_trial{s.trial:02d}"
+    return f"{file_safe(s.case)}_{file_safe(s.name)}_trial{s.trial:02d}"
 
 
 def write_results(
     folder: Path,
     results: Sequence[TrialResult],
     run_record: dict[str, Any],
-    occupancy: OccupancyGrid,
+    occupancy: OccupancyGrid | None,
     corners: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """summary.json (with the version and commit), run.json (what was run: world, scenarios, seeds), per trial
     the thesis's CSV with a JSON sidecar (what the trial was, where the kidnap happened) and a TUM pair, and the
     best/worst figures on ``occupancy`` (with the map's ``corners`` (N, 2) when given; one figure when the best
-    trial is also the worst) and a summary figure; returns the summary."""
+    trial is also the worst; none without a map, as for a sweep over several worlds) and a summary figure;
+    returns the summary."""
     from pimm_agents.evaluation.trajectories import trajectory_errors, write_trial_tum
 
     folder = Path(folder)
@@ -192,15 +193,17 @@ def write_results(
     (folder / "run.json").write_text(json.dumps(run_record, indent=2))
     groups: dict[tuple[str, str], list[TrialResult]] = {}
     for result in results:
-        groups.setdefault((result.spec.scenario, result.spec.localizer), []).append(result)
+        groups.setdefault((result.spec.case, result.spec.name), []).append(result)
     figures = folder / "figures"
     figures.mkdir(exist_ok=True)
     for (scenario, localizer), trials in groups.items():
+        if occupancy is None:
+            break
         best, worst = best_and_worst([t.metrics for t in trials])
         picks = [("best and worst", best)] if best == worst else [("best", best), ("worst", worst)]
         for label, index in picks:
             if index is not None:
-                name = f"{scenario}_{file_safe(localizer)}_{label.replace(' and ', '_')}.png"
+                name = f"{file_safe(scenario)}_{file_safe(localizer)}_{label.replace(' and ', '_')}.png"
                 plot_trial(occupancy, trials[index], figures / name, label, corners)
     plot_summary(summary, figures / "summary.png")
     return summary
@@ -211,8 +214,9 @@ def write_sidecar(path: Path, result: TrialResult) -> Path:
     the kidnap (the thesis's 11 columns stay as they are, so the thesis's tools still read the CSV)."""
     s = result.spec
     record = {
-        "scenario": s.scenario,
-        "localizer": s.localizer,
+        "scenario": s.case,
+        "localizer": s.name,
+        "factory": s.localizer,
         "trial": s.trial,
         "seed": s.seed,
         "world": s.world,
@@ -262,7 +266,7 @@ def plot_trial(
     if m.converged and log.kidnap_index is not None:
         verdict += " after the kidnap"
     fig.suptitle(
-        f"{trial.spec.localizer} in {trial.spec.scenario}: {label} of the trials (trial {trial.spec.trial}, "
+        f"{trial.spec.name} in {trial.spec.case}: {label} of the trials (trial {trial.spec.trial}, "
         f"seed {trial.spec.seed}), {verdict}",
         fontsize=11,
     )

@@ -62,6 +62,8 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
             "params": spec.params,
             "sensors": spec.sensors,
             "start": spec.start,
+            "label": spec.label,
+            "row": spec.row,
         },
         "wall_s": result.wall_s,
         "completed": result.completed,

@@ -30,6 +30,16 @@ class TrialSpec:
     params: dict[str, Any] = field(default_factory=dict)  # the localizer's params-file section
     sensors: str = "thesis"  # LiDAR presets (pimm_env.sim.sensors)
     start: str = "global"  # or "known": the true start pose with nav2's covariance (recorder.STARTS)
+    label: str = ""  # how reports name the localizer (a sweep's "amcl[max_particles=500]"); default its name
+    row: str = ""  # how reports name the scenario (a sweep over worlds: "gen-900/route_1"); default its name
+
+    @property
+    def name(self) -> str:
+        return self.label or self.localizer
+
+    @property
+    def case(self) -> str:
+        return self.row or self.scenario
 
     @property
     def simulation(self) -> tuple[str, str, int, int, str]:

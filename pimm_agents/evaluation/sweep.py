@@ -1,0 +1,138 @@
+"""A study as one file: worlds x scenarios x localizers x settings x trials, run into one results folder.
+
+```yaml
+worlds: [iilab]                      # names or world files
+scenarios: [area_b, a_c_b]           # optional: every scenario of each world
+localizers:                          # label: {localizer: factory name (default: the label), settings...}
+  pimm: {}
+  amcl-small: {localizer: amcl, max_particles: 500}
+grid:                                # optional: settings to cross, per label (dotted keys for nested ones)
+  pimm: {filter.num_particles: [2000, 10000]}
+trials: 3                            # seeds seed, seed + 1, ...
+seed: 0
+sensors: thesis
+start: global
+```
+
+Each combination of a label's grid values is its own row, named ``pimm[filter.num_particles=2000]``.
+With several worlds, a scenario's row is named ``WORLD/SCENARIO``.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pimm_agents.evaluation.trials import TrialSpec
+
+KEYS = ("worlds", "scenarios", "localizers", "grid", "trials", "seed", "sensors", "start")
+
+
+@dataclass(frozen=True)
+class Sweep:
+    worlds: list[str]
+    localizers: dict[str, dict[str, Any]]
+    scenarios: list[str] | None = None
+    grid: dict[str, dict[str, list[Any]]] = field(default_factory=dict)
+    trials: int = 3
+    seed: int = 0
+    sensors: str = "thesis"
+    start: str = "global"
+
+
+def read_sweep(path: Path) -> Sweep:
+    """The sweep in ``path``; every problem names the file and the field."""
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such sweep file")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as error:
+        raise ValueError(f"{path}: not valid YAML: {error}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a mapping with {', '.join(KEYS)}")
+    unknown = sorted(set(data) - set(KEYS))
+    if unknown:
+        raise ValueError(f"{path}: unknown key {unknown[0]!r}; valid keys: {', '.join(KEYS)}")
+    worlds, localizers = data.get("worlds"), data.get("localizers")
+    if not isinstance(worlds, list) or not worlds or not all(isinstance(w, str) for w in worlds):
+        raise ValueError(f"{path}: worlds: expected a non-empty list of world names or files, got {worlds!r}")
+    if not isinstance(localizers, dict) or not localizers:
+        raise ValueError(f"{path}: localizers: expected a mapping of label -> settings, got {localizers!r}")
+    for label, settings in localizers.items():
+        if settings is not None and not isinstance(settings, dict):
+            raise ValueError(f"{path}: localizers.{label}: expected a mapping of settings, got {settings!r}")
+    grid = data.get("grid") or {}
+    for label, axes in grid.items():
+        if label not in localizers:
+            raise ValueError(f"{path}: grid.{label}: no such label under localizers ({', '.join(localizers)})")
+        for key, values in (axes or {}).items():
+            if not isinstance(values, list) or not values:
+                raise ValueError(f"{path}: grid.{label}.{key}: expected a non-empty list of values, got {values!r}")
+    trials = data.get("trials", 3)
+    if not isinstance(trials, int) or trials < 1:
+        raise ValueError(f"{path}: trials: expected a positive integer, got {trials!r}")
+    scenarios = data.get("scenarios")
+    if scenarios is not None and (not isinstance(scenarios, list) or not scenarios):
+        raise ValueError(f"{path}: scenarios: expected a non-empty list, got {scenarios!r}")
+    return Sweep(
+        worlds=worlds,
+        localizers={label: dict(settings or {}) for label, settings in localizers.items()},
+        scenarios=scenarios,
+        grid={label: dict(axes or {}) for label, axes in grid.items()},
+        trials=trials,
+        seed=int(data.get("seed", 0)),
+        sensors=str(data.get("sensors", "thesis")),
+        start=str(data.get("start", "global")),
+    )
+
+
+def _settings(factory: str, flat: dict[str, Any]) -> dict[str, Any]:
+    """Flat settings (dotted keys allowed) as a nested params section, checked against the factory's config."""
+    from pimm_agents.factory import resolved_params
+    from pimm_agents.params import merge_params, parse_settings
+
+    nested = parse_settings([f"{factory}.{key}={value}" for key, value in flat.items()], [factory])
+    return resolved_params(factory, merge_params({}, nested).get(factory))
+
+
+def rows_of(sweep: Sweep) -> list[tuple[str, str, dict[str, Any]]]:
+    """(row label, factory name, resolved settings) for every localizer label and grid combination."""
+    rows = []
+    for label, settings in sweep.localizers.items():
+        fixed = dict(settings)
+        factory = str(fixed.pop("localizer", label))
+        axes = sweep.grid.get(label, {})
+        for values in itertools.product(*axes.values()) if axes else [()]:
+            chosen = dict(zip(axes, values, strict=True))
+            name = label + (f"[{','.join(f'{k}={v}' for k, v in chosen.items())}]" if chosen else "")
+            rows.append((name, factory, _settings(factory, {**fixed, **chosen})))
+    return rows
+
+
+def sweep_specs(sweep: Sweep) -> list[TrialSpec]:
+    """Every trial of the sweep, trial-major (a stopped sweep has every row's first trials)."""
+    from pimm_agents.evaluation.trial_store import world_label
+    from pimm_env.driving.scenarios import load_scenarios
+    from pimm_env.world.files import load_world
+
+    rows = rows_of(sweep)
+    cases = []
+    for world in sweep.worlds:
+        available = list(load_scenarios(load_world(world)))
+        chosen = sweep.scenarios or available
+        missing = [s for s in chosen if s not in available]
+        if missing:
+            raise ValueError(f"world {world!r} has no scenario(s) {missing}; it has {', '.join(available)}")
+        for scenario in chosen:
+            cases.append((world, scenario, f"{world_label(world)}/{scenario}" if len(sweep.worlds) > 1 else ""))
+    return [
+        TrialSpec(scenario, factory, trial, sweep.seed + trial, world, params, sweep.sensors, sweep.start, name, row)
+        for trial in range(sweep.trials)
+        for world, scenario, row in cases
+        for name, factory, params in rows
+    ]
