@@ -72,3 +72,16 @@ def test_retrieval_errors_by_hand():
     assert errors["mean_min_error_m"] == pytest.approx((0 + 2.5) / 2)
     assert errors["mean_max_error_m"] == pytest.approx((1 + 4.5) / 2)
     assert errors["mean_error_m"] == pytest.approx(((0 + 1 + 1) / 3 + (2.5 + 3.5 + 4.5) / 3) / 2)
+
+
+def test_a_truncated_fingerprint_map_is_named(tmp_path):
+    from pathlib import Path
+
+    from pimm_agents.perception.fingerprint_map import FingerprintMap
+
+    source = Path(__file__).resolve().parents[1] / "maps" / "iilab" / "fingerprints.npz"
+    for keep in (5000, source.stat().st_size - 100):
+        cut = tmp_path / f"cut{keep}.npz"
+        cut.write_bytes(source.read_bytes()[:keep])
+        with pytest.raises(ValueError, match=f"cut{keep}.npz: .*damaged or truncated"):
+            FingerprintMap.load(cut)
