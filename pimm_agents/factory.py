@@ -60,10 +60,12 @@ def _build_pimm(world: World, config: Any, name: str, sensors: str | None) -> Lo
     from pimm_agents.perception.files import load_perception
     from pimm_agents.pimm.localizer import PimmLocalizer
     from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.sim.sensors import sensor_layouts
 
     maps = load_derived_maps(world)
     segmenter, fingerprints = load_perception(world)
-    return PimmLocalizer(maps.occupancy, maps.corners, segmenter, fingerprints, config, name=name)
+    lidar3d = sensor_layouts(sensors)[0]
+    return PimmLocalizer(maps.occupancy, maps.corners, segmenter, fingerprints, config, name=name, lidar3d=lidar3d)
 
 
 BUILT_IN: dict[str, BuiltIn] = {

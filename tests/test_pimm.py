@@ -114,3 +114,19 @@ def test_pimm_converges_in_area_b():
     map_xy = ensure_derived_maps(load_world("iilab")).corners.xy
     nearest = np.min(np.linalg.norm(late[:, None, 1:] - map_xy[None], axis=2), axis=1)
     assert np.median(nearest) < 0.3
+
+
+def test_pimm_reads_an_os0_64_through_the_networks_layout():
+    pimm = make_localizer("pimm", filter={"num_particles": 1000}, sensors="os0-64")
+    env = IILabEnv(sensors="os0-64")
+    obs, _ = env.reset(seed=0, options={"pose": [-18.5, 14.0, 1.57]})
+    assert obs["cloud"].shape == (64 * 1024, 3)
+    pimm.reset(seed=0)
+    perceived = 0
+    for _ in range(15):
+        estimate = pimm.update(obs)
+        assert np.isfinite(estimate.pose).all()
+        perceived += "segmentation" in estimate.timings
+        obs, *_ = env.step(np.array([0.3, 0.0], dtype=np.float32))
+    env.close()
+    assert perceived >= 4 and len(pimm.snapshot()["corners"]) > 0  # scans segmented, corners found

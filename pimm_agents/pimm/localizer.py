@@ -21,6 +21,7 @@ from pimm_agents.observation_guard import ObservationGuard
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.perception.fingerprint_map import FingerprintMap
 from pimm_agents.perception.point_features import valid_returns
+from pimm_agents.perception.resample import LayoutResampler
 from pimm_agents.perception.segmenter import Segmenter
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_env.geometry import carry, compose, relative_motion
@@ -170,8 +171,15 @@ class PimmLocalizer:
         fingerprints: FingerprintMap,
         config: PimmConfig = PimmConfig(),
         name: str = "pimm",
+        lidar3d: Lidar3DConfig | None = None,
     ) -> None:
         self.name = name
+        network_layout = Lidar3DConfig(layers=segmenter.layers, points_per_layer=segmenter.points_per_layer)
+        self.lidar3d = lidar3d or network_layout
+        same = (self.lidar3d.layers, self.lidar3d.points_per_layer, self.lidar3d.vertical_fov_deg) == (
+            network_layout.layers, network_layout.points_per_layer, network_layout.vertical_fov_deg,
+        )  # fmt: skip
+        self.resample = None if same else LayoutResampler(self.lidar3d, network_layout)
         self.config = config
         self.segmenter = segmenter
         self.fingerprints = fingerprints
@@ -279,6 +287,8 @@ class PimmLocalizer:
         cloud_time = float(require(obs, "cloud_time", (1,))[0])
         if np.isfinite(cloud_time) and cloud_time > self._last_cloud_time:
             self._last_cloud_time = cloud_time
+            if self.resample is not None:  # another sensor's layout, read as the network's (perception/resample.py)
+                cloud, mask = self.resample(cloud, mask)
             if np.any(valid_returns(cloud, mask)):
                 self.perceive(cloud, mask, cloud_time, timings)
         moved = self.filter.motion_update(odom)
