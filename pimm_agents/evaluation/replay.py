@@ -43,8 +43,8 @@ def replay_bag(
     bag_env = BagEnv(read_steps(Path(bag), topics or BagTopics(), config.lidar2d, config.lidar3d), config)
     env: Any = bag_env
     recorders = []
-    for localizer in localizers:
-        env = LocalizationRecorder(env, localizer)
+    for spec, localizer in zip(specs, localizers, strict=True):
+        env = LocalizationRecorder(env, localizer, spec.start)
         recorders.append(env)
     env.reset(seed=specs[0].seed)
     idle = np.zeros(2, dtype=np.float32)
