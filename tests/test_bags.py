@@ -101,3 +101,23 @@ def test_a_cloud_without_z_is_refused():
     )  # fmt: skip
     with pytest.raises(BagError, match=r"/points message 3: PointCloud2 has no field\(s\) \['z'\]"):
         cloud_points(msg, "/points message 3")
+
+
+def test_a_cloud_with_ring_and_intensity_fields_reads_its_xyz():
+    from pimm_env.bags.messages import cloud_points
+
+    t = typestore().types
+    layout = [("intensity", 0, 7), ("x", 4, 7), ("y", 8, 7), ("z", 12, 7), ("ring", 16, 4)]  # 4: uint16
+    fields = [t["sensor_msgs/msg/PointField"](name=n, offset=o, datatype=d, count=1) for n, o, d in layout]
+    points = np.array([[1.0, 2.0, 3.0], [np.nan, np.nan, np.nan], [-4.0, 5.5, 0.25]], dtype=np.float32)
+    rows = np.zeros((3, 20), np.uint8)
+    rows[:, 4:16] = points.view(np.uint8).reshape(3, 12)
+    rows[:, 0:4] = np.full(3, 7.0, np.float32).view(np.uint8).reshape(3, 4)
+    rows[:, 16:18] = np.array([0, 1, 2], np.uint16).view(np.uint8).reshape(3, 2)
+    header = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="lidar")
+    msg = t["sensor_msgs/msg/PointCloud2"](
+        header=header, height=1, width=3, fields=fields, is_bigendian=False, point_step=20, row_step=60,
+        data=rows.reshape(-1), is_dense=False,
+    )  # fmt: skip
+    read = cloud_points(msg, "/points message 0")
+    assert np.array_equal(read[[0, 2]], points[[0, 2]]) and np.isnan(read[1]).all()
