@@ -342,8 +342,8 @@ def replay(
     from pimm_agents.params import write_params_file
     from pimm_env.bags.messages import BagError
     from pimm_env.bags.read import BagTopics
-    from pimm_env.importers.ros_map import MapImportError, read_occupancy
     from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.mapping.map_server import MapFileError, load_map_server
     from pimm_env.world.files import load_world
 
     localizers, configs = _localizer_configs(localizers, params, settings)
@@ -353,12 +353,12 @@ def replay(
     topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic)
     try:
         if map_path is not None:
-            occupancy, corners = read_occupancy(map_path), None
+            occupancy, corners = load_map_server(map_path), None
         else:
             maps = ensure_derived_maps(load_world(world))
             occupancy, corners = maps.occupancy, maps.corners.xy
         results, has_truth = replay_bag(bag, specs, map_path, topics)
-    except (BagError, MapImportError, ValueError) as error:
+    except (BagError, MapFileError, ValueError) as error:
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(1) from None
     folder = _results_dir(out, "replay")
@@ -583,8 +583,8 @@ def world_import(
     prepare: bool = typer.Option(True, help="also prepare the world (maps, fingerprints, routes)"),
 ) -> None:
     """Write maps/NAME/world.yaml from a ROS map or a mesh, then prepare it."""
-    from pimm_env.importers.ros_map import MapImportError
     from pimm_env.importers.world_import import import_world
+    from pimm_env.mapping.map_server import MapFileError
     from pimm_env.world.files import MAPS_DIR
     from pimm_env.world.model import WorldFileError
 
@@ -592,7 +592,7 @@ def world_import(
         path = import_world(
             source, name, maps_dir or MAPS_DIR, ceiling_height, ceilings, furnish, seed, up_axis=up_axis
         )
-    except (MapImportError, WorldFileError) as error:
+    except (MapFileError, WorldFileError) as error:
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(1) from None
     typer.echo(f"wrote {path}")

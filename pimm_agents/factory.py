@@ -163,12 +163,12 @@ __all__ = ["ParamsError", "available_localizers", "make_localizer", "resolve_con
 
 def _from_map(name: str, map_path: Path, settings: Params, sensors: str | None) -> Localizer:
     from pimm_agents.amcl.localizer import Amcl
-    from pimm_env.importers.ros_map import read_occupancy
+    from pimm_env.mapping.map_server import load_map_server
     from pimm_env.sim.sensors import sensor_layouts
 
     if name in MAP_ONLY:
         lidar = sensor_layouts(sensors)[1]
-        return Amcl(read_occupancy(map_path), resolve_config(name, settings), lidar=lidar, name=name)
+        return Amcl(load_map_server(map_path), resolve_config(name, settings), lidar=lidar, name=name)
     if name in BUILT_IN:
         raise ValueError(
             f"localizer {name!r} needs a prepared world (corner map, fingerprint map), not a map alone: "

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from pimm_env.importers.ros_map import MapImportError, read_ros_map
 from pimm_env.importers.world_import import import_world
 from pimm_env.mapping.corner_map import derive_corner_map
 from pimm_env.mapping.derived_maps import ensure_derived_maps
+from pimm_env.mapping.map_server import MapFileError, read_ros_map
 from pimm_env.world.files import load_world
 from pimm_env.world.model import WorldFileError
 from pimm_env.world.semantics import SemanticClass
@@ -111,15 +111,15 @@ def test_furniture_is_seeded_and_keeps_passages(tmp_path):
 def test_bad_maps_are_named(tmp_path):
     source, _ = write_map(tmp_path / "src", 0.0)
     (source.parent / "plan.pgm").unlink()
-    with pytest.raises(MapImportError, match=r"plan.yaml: image: file .*plan.pgm does not exist"):
+    with pytest.raises(MapFileError, match=r"plan.yaml: image: file .*plan.pgm does not exist"):
         import_world(source, "x", tmp_path / "maps")
     source, _ = write_map(tmp_path / "src", 0.0)
     source.write_text(source.read_text().replace("resolution: 0.05", "resolution: -0.05"))
-    with pytest.raises(MapImportError, match="resolution: must be positive"):
+    with pytest.raises(MapFileError, match="resolution: must be positive"):
         import_world(source, "x", tmp_path / "maps")
     source, _ = write_map(tmp_path / "src", 0.0)
     (source.parent / "plan.pgm").write_bytes(b"P5\n20 10\n255\n" + bytes([0] * 200))
-    with pytest.raises(MapImportError, match="plan.yaml.*no free space"):
+    with pytest.raises(MapFileError, match="plan.yaml.*no free space"):
         import_world(source, "x", tmp_path / "maps")
 
 

@@ -10,7 +10,8 @@ from pimm_env.mapping.derived_maps import (
     fidelity_iou,
     load_derived_maps,
 )
-from pimm_env.mapping.occupancy import load_map_server, occupancy_from_world, save_map_server, tolerant_iou
+from pimm_env.mapping.map_server import load_map_server
+from pimm_env.mapping.occupancy import occupancy_from_world, save_map_server, tolerant_iou
 from pimm_env.world.files import load_world
 
 from .conftest import shared_file
@@ -107,23 +108,21 @@ def test_every_thesis_corner_has_a_derived_corner():
 
 
 def test_bad_map_server_and_corner_files_name_the_file_and_the_field(tmp_path):
-    from pimm_env.mapping.occupancy import load_map_server
-
-    (tmp_path / "map.pgm").write_bytes(b"P5\n4 3\n255\n" + bytes(12))
+    (tmp_path / "map.pgm").write_bytes(b"P5\n4 3\n255\n" + bytes([0, 254, 254, 0] * 3))
     good = "image: map.pgm\nresolution: 0.05\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
     (tmp_path / "map.yaml").write_text(good)
     assert load_map_server(tmp_path / "map.yaml").grid.shape == (3, 4)
     for bad, message in (
-        (good.replace("0.05", "-0.05"), "resolution: expected a positive number of metres, got -0.05"),
-        (good.replace("[0, 0, 0]", "[0, .nan, 0]"), "origin: expected"),
-        (good.replace("0.65", "1.5"), "occupied_thresh: expected a number in"),
+        (good.replace("0.05", "-0.05"), "resolution: must be positive, got -0.05"),
+        (good.replace("[0, 0, 0]", "[0, .nan, 0]"), "origin: expected a finite number"),
+        (good.replace("0.65", "1.5"), "free_thresh 0.196 and occupied_thresh 1.5"),
         ("image: [", "not valid YAML"),
     ):
         (tmp_path / "map.yaml").write_text(bad)
         with pytest.raises(ValueError, match=f"map.yaml: {message}" if "YAML" not in message else message):
             load_map_server(tmp_path / "map.yaml")
     (tmp_path / "map.yaml").write_text(good)
-    (tmp_path / "map.pgm").write_bytes(b"P5\n4 3\n255\n" + bytes(5))
+    (tmp_path / "map.pgm").write_bytes(b"P5\n4 3\n255\n" + bytes([254] * 5))
     with pytest.raises(ValueError, match=r"map.pgm: truncated: 5 bytes of pixels, the header says 4 x 3 = 12"):
         load_map_server(tmp_path / "map.yaml")
     corners = tmp_path / "corners.yaml"

@@ -214,8 +214,8 @@ def _room_furniture(plan: Plan, rng: np.random.Generator) -> list[dict[str, Any]
 def building_spec(seed: int) -> dict[str, Any]:
     """The ``pimm-world/1`` mapping of building ``seed`` (deterministic)."""
     from pimm_env.importers.floor_plan import CeilingArea, world_spec
-    from pimm_env.importers.ros_map import RasterMap
     from pimm_env.importers.vectorize import vectorize
+    from pimm_env.mapping.map_server import RasterMap
 
     family, plan = draw_plan(seed)
     rng = np.random.default_rng([seed, 1])

@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.importers.ros_map import MapImportError
 from pimm_env.importers.vectorize import FloorPlan
+from pimm_env.mapping.map_server import MapFileError
 
 SLAB = 0.1  # thickness of the floor and ceiling slabs (m)
 
@@ -40,26 +40,26 @@ def read_ceilings(path: Path, default: float) -> tuple[float, list[CeilingArea]]
     try:
         data = yaml.safe_load(Path(path).read_text())
     except (OSError, yaml.YAMLError) as error:
-        raise MapImportError(f"{path}: cannot read the ceilings file: {error}") from None
+        raise MapFileError(f"{path}: cannot read the ceilings file: {error}") from None
     if not isinstance(data, Mapping):
-        raise MapImportError(f"{path}: expected a mapping with 'default' and 'areas'")
+        raise MapFileError(f"{path}: expected a mapping with 'default' and 'areas'")
     height = data.get("default", default)
     if not isinstance(height, (int, float)) or height <= 0:
-        raise MapImportError(f"{path}: default: expected a positive height (m), got {height!r}")
+        raise MapFileError(f"{path}: default: expected a positive height (m), got {height!r}")
     areas = []
     for name, spec in (data.get("areas") or {}).items():
         where = f"{path}: areas.{name}"
         if not isinstance(spec, Mapping):
-            raise MapImportError(f"{where}: expected {{polygon: [[x, y], ...], height: H}}, got {spec!r}")
+            raise MapFileError(f"{where}: expected {{polygon: [[x, y], ...], height: H}}, got {spec!r}")
         try:
             polygon = np.asarray(spec.get("polygon"), dtype=float)
         except (TypeError, ValueError):
-            raise MapImportError(f"{where}.polygon: expected [[x, y], ...], got {spec.get('polygon')!r}") from None
+            raise MapFileError(f"{where}.polygon: expected [[x, y], ...], got {spec.get('polygon')!r}") from None
         if polygon.ndim != 2 or polygon.shape[1] != 2 or len(polygon) < 3 or not np.isfinite(polygon).all():
-            raise MapImportError(f"{where}.polygon: expected at least 3 finite [x, y] points")
+            raise MapFileError(f"{where}.polygon: expected at least 3 finite [x, y] points")
         area_height = spec.get("height")
         if not isinstance(area_height, (int, float)) or area_height <= 0:
-            raise MapImportError(f"{where}.height: expected a positive height (m), got {area_height!r}")
+            raise MapFileError(f"{where}.height: expected a positive height (m), got {area_height!r}")
         areas.append(CeilingArea(str(name), polygon, float(area_height)))
     return float(height), areas
 

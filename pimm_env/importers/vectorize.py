@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from pimm_env.importers.ros_map import MapImportError, RasterMap
+from pimm_env.mapping.map_server import MapFileError, RasterMap
 from pimm_env.world.polyline import douglas_peucker
 
 
@@ -135,7 +135,7 @@ def vectorize(raster: RasterMap, config: VectorizeConfig | None = None) -> Floor
     res = raster.resolution
     space = free_space(raster, config)
     if not space.any():
-        raise MapImportError(
+        raise MapFileError(
             f"{raster.source}: no free space: no component of free cells is {config.min_space_width_m} m wide "
             f"and {config.min_space_area_m2} m^2 large (check negate and the thresholds)"
         )

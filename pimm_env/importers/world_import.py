@@ -8,8 +8,8 @@ from typing import Any
 
 from pimm_env.importers.floor_plan import CeilingArea, read_ceilings, world_spec, write_world
 from pimm_env.importers.furnish import furnish
-from pimm_env.importers.ros_map import MapImportError, read_ros_map
 from pimm_env.importers.vectorize import vectorize
+from pimm_env.mapping.map_server import MapFileError, read_ros_map
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off", ".dae")
 #: Default name-to-class rules for meshes, first match wins (fnmatch, case-sensitive: both spellings listed).
@@ -38,16 +38,16 @@ def import_world(
     """Write ``maps_dir/name/world.yaml`` from a map_server ``.yaml`` or a mesh file; returns its path."""
     source = Path(source)
     if not source.is_file():
-        raise MapImportError(f"{source}: no such file")
+        raise MapFileError(f"{source}: no such file")
     if ceiling_height <= 0:
-        raise MapImportError(f"--ceiling-height: expected a positive height (m), got {ceiling_height}")
+        raise MapFileError(f"--ceiling-height: expected a positive height (m), got {ceiling_height}")
     folder = Path(maps_dir) / name
     if source.suffix.lower() in (".yaml", ".yml"):
         spec = _from_ros_map(source, name, ceiling_height, ceilings, furnish_count, seed)
     elif source.suffix.lower() in MESH_SUFFIXES:
         spec = _from_mesh(source, name, folder, rules or DEFAULT_MESH_RULES, up_axis)
     else:
-        raise MapImportError(f"{source}: expected a map_server .yaml or a mesh ({', '.join(MESH_SUFFIXES)})")
+        raise MapFileError(f"{source}: expected a map_server .yaml or a mesh ({', '.join(MESH_SUFFIXES)})")
     return write_world(spec, folder / "world.yaml")
 
 

@@ -16,9 +16,9 @@ import numpy as np
 from scipy import ndimage
 
 from pimm_env.mapping.corner_map import CornerMap, CornerMapConfig, derive_corner_map, load_corner_map, save_corner_map
+from pimm_env.mapping.map_server import load_map_server
 from pimm_env.mapping.occupancy import (
     OccupancyGrid,
-    load_map_server,
     occupancy_from_world,
     resample_occupied,
     save_map_server,

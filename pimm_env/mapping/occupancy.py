@@ -84,40 +84,6 @@ def read_pgm(path: Path) -> np.ndarray:
     return pixels.reshape(rows, cols)
 
 
-def load_map_server(yaml_path: Path) -> OccupancyGrid:
-    """Read a map_server map (``.yaml`` with its image), applying its thresholds and ``negate``."""
-    import yaml
-
-    yaml_path = Path(yaml_path)
-    try:
-        meta = yaml.safe_load(yaml_path.read_text())
-    except yaml.YAMLError as error:
-        raise ValueError(f"{yaml_path}: not valid YAML: {error}") from None
-    if not isinstance(meta, dict):
-        raise ValueError(f"{yaml_path}: expected a map_server mapping (image, resolution, origin, ...)")
-    for key in ("image", "resolution", "origin", "occupied_thresh", "free_thresh"):
-        if key not in meta:
-            raise ValueError(f"{yaml_path}: missing field {key!r}")
-    resolution, origin = meta["resolution"], meta["origin"]
-    if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) or not 0 < resolution < np.inf:
-        raise ValueError(f"{yaml_path}: resolution: expected a positive number of metres, got {resolution!r}")
-    if (
-        not isinstance(origin, list)
-        or len(origin) not in (2, 3)
-        or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in origin)
-    ):
-        raise ValueError(f"{yaml_path}: origin: expected [x, y, yaw] of finite numbers, got {origin!r}")
-    for key in ("occupied_thresh", "free_thresh"):
-        if not isinstance(meta[key], (int, float)) or not 0 <= meta[key] <= 1:
-            raise ValueError(f"{yaml_path}: {key}: expected a number in [0, 1], got {meta[key]!r}")
-    image = np.flipud(read_pgm(yaml_path.parent / meta["image"])).astype(float)
-    occupancy_prob = image / 255.0 if meta.get("negate", 0) else (255.0 - image) / 255.0
-    occupied = occupancy_prob > float(meta["occupied_thresh"])
-    free = occupancy_prob < float(meta["free_thresh"])
-    grid = GridSpec((float(meta["origin"][0]), float(meta["origin"][1])), float(meta["resolution"]), image.shape)
-    return OccupancyGrid(grid, occupied, free)
-
-
 def resample_occupied(source: OccupancyGrid, target: GridSpec) -> np.ndarray:
     """Occupied cells of ``source`` drawn onto the cells of ``target`` (any source pixel inside marks a cell)."""
     gx, gy = source.grid.cell_centers()

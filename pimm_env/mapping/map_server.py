@@ -17,9 +17,11 @@ from typing import Any
 
 import numpy as np
 
+from pimm_env.mapping.occupancy import OccupancyGrid, read_pgm
 
-class MapImportError(ValueError):
-    """A map or mesh to import is unusable; the message names the file, the field and the value."""
+
+class MapFileError(ValueError):
+    """A map (or a mesh to import) is unusable; the message names the file, the field and the value."""
 
 
 @dataclass(frozen=True)
@@ -44,7 +46,7 @@ class RasterMap:
 def _number(meta: Mapping[str, Any], key: str, path: Path, default: float | None = None) -> float:
     value = meta.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise MapImportError(f"{path}: {key}: expected a finite number, got {value!r}")
+        raise MapFileError(f"{path}: {key}: expected a finite number, got {value!r}")
     return float(value)
 
 
@@ -53,8 +55,6 @@ def read_image(path: Path) -> np.ndarray:
     if not path.is_file():
         raise FileNotFoundError(path)
     if path.suffix.lower() == ".pgm":
-        from pimm_env.mapping.occupancy import read_pgm
-
         return read_pgm(path)
     from PIL import Image
 
@@ -73,43 +73,43 @@ def read_ros_map(yaml_path: Path) -> RasterMap:
 
     yaml_path = Path(yaml_path)
     if not yaml_path.is_file():
-        raise MapImportError(f"{yaml_path}: no such map file")
+        raise MapFileError(f"{yaml_path}: no such map file")
     try:
         meta = yaml.safe_load(yaml_path.read_text())
     except yaml.YAMLError as error:
-        raise MapImportError(f"{yaml_path}: not valid YAML: {error}") from None
+        raise MapFileError(f"{yaml_path}: not valid YAML: {error}") from None
     if not isinstance(meta, Mapping):
-        raise MapImportError(f"{yaml_path}: expected a map_server mapping (image, resolution, origin, ...)")
+        raise MapFileError(f"{yaml_path}: expected a map_server mapping (image, resolution, origin, ...)")
     image_name = meta.get("image")
     if not isinstance(image_name, str) or not image_name:
-        raise MapImportError(f"{yaml_path}: image: expected the image file's name, got {image_name!r}")
+        raise MapFileError(f"{yaml_path}: image: expected the image file's name, got {image_name!r}")
     image_path = (yaml_path.parent / image_name).resolve()
     resolution = _number(meta, "resolution", yaml_path)
     if resolution <= 0:
-        raise MapImportError(f"{yaml_path}: resolution: must be positive, got {resolution}")
+        raise MapFileError(f"{yaml_path}: resolution: must be positive, got {resolution}")
     origin = meta.get("origin")
     if not isinstance(origin, list) or len(origin) not in (2, 3):
-        raise MapImportError(f"{yaml_path}: origin: expected [x, y, yaw], got {origin!r}")
+        raise MapFileError(f"{yaml_path}: origin: expected [x, y, yaw], got {origin!r}")
     ox, oy, yaw = (_number({"origin": v}, "origin", yaml_path) for v in [*origin, 0.0][:3])
     occupied_thresh = _number(meta, "occupied_thresh", yaml_path, 0.65)
     free_thresh = _number(meta, "free_thresh", yaml_path, 0.196)
     if not 0 <= free_thresh <= occupied_thresh <= 1:
-        raise MapImportError(
+        raise MapFileError(
             f"{yaml_path}: free_thresh {free_thresh} and occupied_thresh {occupied_thresh}: "
             "expected 0 <= free_thresh <= occupied_thresh <= 1"
         )
     mode = meta.get("mode", "trinary")
     if mode not in ("trinary", "scale", "raw"):
-        raise MapImportError(f"{yaml_path}: mode: expected trinary, scale or raw, got {mode!r}")
+        raise MapFileError(f"{yaml_path}: mode: expected trinary, scale or raw, got {mode!r}")
     negate = meta.get("negate", 0)
     if negate not in (0, 1, True, False):
-        raise MapImportError(f"{yaml_path}: negate: expected 0 or 1, got {negate!r}")
+        raise MapFileError(f"{yaml_path}: negate: expected 0 or 1, got {negate!r}")
     try:
         pixels = np.flipud(read_image(image_path)).astype(float)
     except FileNotFoundError:
-        raise MapImportError(f"{yaml_path}: image: file {image_path} does not exist") from None
+        raise MapFileError(f"{yaml_path}: image: file {image_path} does not exist") from None
     except (ValueError, OSError) as error:
-        raise MapImportError(f"{yaml_path}: image: cannot read {image_path}: {error}") from None
+        raise MapFileError(f"{yaml_path}: image: cannot read {image_path}: {error}") from None
     if mode == "raw":  # the value is the occupancy in percent; above 100 (255: -1) is unknown
         probability = np.where(pixels > 100, np.nan, pixels / 100.0)
     else:
@@ -117,20 +117,19 @@ def read_ros_map(yaml_path: Path) -> RasterMap:
     return RasterMap(probability > occupied_thresh, probability < free_thresh, resolution, (ox, oy, yaw), yaml_path)
 
 
-def read_occupancy(yaml_path: Path):  # -> OccupancyGrid
-    """A map_server map (PGM or PNG, thresholds and ``negate`` honoured) as an occupancy grid, for localizers
-    that need only the map. The grid is axis-aligned: an origin yaw other than 0 is refused (nav2's amcl
-    ignores it; we say so instead)."""
-    from pimm_env.mapping.occupancy import OccupancyGrid
+def load_map_server(yaml_path: Path, require_free: bool = True) -> OccupancyGrid:
+    """A map_server map (PGM or PNG, thresholds, ``negate`` and ``mode`` honoured) as an occupancy grid: the
+    derived maps of a world, or the map a map-only localizer runs on. The grid is axis-aligned: an origin yaw
+    other than 0 is refused (nav2's amcl ignores it; we say so instead)."""
     from pimm_env.world.grid import GridSpec
 
     raster = read_ros_map(yaml_path)
     x0, y0, yaw = raster.origin
     if abs(yaw) > 1e-9:
-        raise MapImportError(
-            f"{yaml_path}: origin: yaw {yaw} rad; a map-only localizer needs an axis-aligned map (yaw 0). "
+        raise MapFileError(
+            f"{yaml_path}: origin: yaw {yaw} rad; an occupancy grid here is axis-aligned (yaw 0). "
             "Import it as a world instead: python evaluate.py world import MAP.yaml --name NAME"
         )
-    if not raster.free.any():
-        raise MapImportError(f"{yaml_path}: the map has no free cell (check negate and the thresholds)")
+    if require_free and not raster.free.any():
+        raise MapFileError(f"{yaml_path}: the map has no free cell (check negate and the thresholds)")
     return OccupancyGrid(GridSpec((x0, y0), raster.resolution, raster.occupied.shape), raster.occupied, raster.free)
