@@ -118,10 +118,7 @@ def run(
     _check_sensors(sensors)
     if start not in ("global", "known"):
         raise typer.BadParameter(f"expected global or known, got {start!r}", param_hint="--start")
-    if backend not in ("local", "ray") or (address is not None and backend != "ray"):
-        raise typer.BadParameter(
-            f"expected local or ray (--address only with ray), got {backend!r}", param_hint="--backend"
-        )
+    _check_backend(backend, address)
     if video not in (None, "best", "worst", "all"):
         raise typer.BadParameter(f"expected best, worst or all, got {video!r}", param_hint="--video")
     workers = workers or os.cpu_count() or 1
@@ -203,6 +200,13 @@ def _localizer_configs(
         raise typer.BadParameter(str(error), param_hint="--params/--set") from None
 
 
+def _check_backend(backend: str, address: str | None) -> None:
+    if backend not in ("local", "ray") or (address is not None and backend != "ray"):
+        raise typer.BadParameter(
+            f"expected local or ray (--address only with ray), got {backend!r}", param_hint="--backend"
+        )
+
+
 def _check_sensors(sensors: str) -> None:
     from pimm_env.sim.sensors import sensor_layouts
 
@@ -260,10 +264,7 @@ def sweep(
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
-    if backend not in ("local", "ray") or (address is not None and backend != "ray"):
-        raise typer.BadParameter(
-            f"expected local or ray (--address only with ray), got {backend!r}", param_hint="--backend"
-        )
+    _check_backend(backend, address)
     try:
         study = read_sweep(spec)
         _check_sensors(study.sensors)
