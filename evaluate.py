@@ -221,12 +221,10 @@ def _write_videos(folder: Path, results: list, which: str, maps, quiet: bool) ->
     from tqdm import tqdm
 
     from pimm_agents.evaluation.metrics import best_and_worst
-    from pimm_agents.evaluation.report import file_safe
+    from pimm_agents.evaluation.report import file_safe, grouped
     from pimm_agents.evaluation.video import chosen_trials, collect_frames, write_video
 
-    groups: dict[tuple[str, str], list] = {}
-    for result in results:
-        groups.setdefault((result.spec.case, result.spec.name), []).append(result)
+    groups = grouped(results, [r.spec for r in results])
     jobs = []
     for (scenario, localizer), trials in groups.items():
         best, worst = best_and_worst([t.metrics for t in trials])

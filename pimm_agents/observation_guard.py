@@ -50,10 +50,14 @@ class ObservationGuard:
         """Raise ``ValueError`` naming the key unless every one of ``keys`` is present, shaped and finite."""
         shapes = {"odom": (3,), "time": (1,), "cloud_time": (1,), "scan_time": (1,)}
         for key in keys:
-            value = require(obs, key, shapes.get(key))
-            if not np.all(np.isfinite(value)):
-                bad = int(np.count_nonzero(~np.isfinite(value)))
-                raise ValueError(f"observation {key!r} (shape {value.shape}) has {bad} non-finite value(s)")
+            self.finite(key, require(obs, key, shapes.get(key)))
+
+    @staticmethod
+    def finite(key: str, value: np.ndarray) -> None:
+        """Raise ``ValueError`` naming ``key`` and the shape if ``value`` holds a NaN or an infinity."""
+        if not np.all(np.isfinite(value)):
+            bad = int(np.count_nonzero(~np.isfinite(value)))
+            raise ValueError(f"observation {key!r} (shape {value.shape}) has {bad} non-finite value(s)")
 
     def take(self, obs: Observation) -> Observation | None:
         """The observation with its odometry re-anchored, or None for a glitch (the localizer keeps its estimate)."""

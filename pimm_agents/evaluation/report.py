@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from pimm_agents.evaluation.metrics import (
     summarize,
     timing_summary,
 )
-from pimm_agents.evaluation.trials import TrialResult
+from pimm_agents.evaluation.trials import TrialResult, TrialSpec
 from pimm_env.mapping.occupancy import OccupancyGrid
 
 #: Thesis tables 4.2-4.5: convergence rate, mean convergence time (s), position (m) and angle (deg) error.
@@ -28,13 +28,22 @@ THESIS_RESULTS: dict[str, dict[str, tuple[float, float | None, float | None, flo
 }
 
 
+T = TypeVar("T")
+
+
+def grouped(items: Iterable[T], specs: Sequence[TrialSpec]) -> dict[tuple[str, str], list[T]]:
+    """``items`` (one per spec) by (scenario row, localizer label), in order of first appearance."""
+    groups: dict[tuple[str, str], list[T]] = {}
+    for item, spec in zip(items, specs, strict=True):
+        groups.setdefault((spec.case, spec.name), []).append(item)
+    return groups
+
+
 def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] | None = None) -> dict[str, Any]:
     """``{"scenarios": {scenario: {localizer: {...}}}}`` in the schema of ARCHITECTURE.md; each entry also has
     ``per_trial`` rows (seed, metrics, APE/RPE when ``errors`` gives them, wall time), the ``spread`` (std, min,
     max) of each metric over the trials that converged, and the mean of the trials' APE and RPE statistics."""
-    groups: dict[tuple[str, str], list[int]] = {}
-    for i, result in enumerate(results):
-        groups.setdefault((result.spec.case, result.spec.name), []).append(i)
+    groups = grouped(range(len(results)), [r.spec for r in results])
     scenarios: dict[str, dict[str, Any]] = {}
     for (scenario, localizer), indices in groups.items():
         trials = [results[i] for i in indices]
@@ -191,9 +200,7 @@ def write_results(
     summary = {**summary_of(results, errors), "start": run_record.get("start", "global"), **provenance()}
     (folder / "summary.json").write_text(json.dumps(summary, indent=2))
     (folder / "run.json").write_text(json.dumps(run_record, indent=2))
-    groups: dict[tuple[str, str], list[TrialResult]] = {}
-    for result in results:
-        groups.setdefault((result.spec.case, result.spec.name), []).append(result)
+    groups = grouped(results, [r.spec for r in results])
     figures = folder / "figures"
     figures.mkdir(exist_ok=True)
     for (scenario, localizer), trials in groups.items():
