@@ -79,3 +79,23 @@ def test_log_likelihoods_are_the_sum_of_log_pz_and_rank_poses_as_the_cubes_do():
         field.weight_factors(poses, ranges, bearings)
     )
     assert np.array_equal(field.log_likelihoods(poses, np.zeros(0), np.zeros(0)), np.zeros(2))
+
+
+def test_surfaces_only_scores_a_point_deep_in_a_solid_block_as_a_miss():
+    """A 1 m thick outer wall: nav2's field calls every point inside it a perfect hit; the surface field
+    measures the depth below the face that the free space sees."""
+    grid = GridSpec.covering(np.array([0.0, 0.0]), np.array([4.0, 4.0]), 0.1, margin=0.0)
+    gx, _ = grid.cell_centers()
+    occupied = gx > 3.0  # solid from x = 3 to the map's edge
+    occ = OccupancyGrid(grid, occupied, ~occupied)
+    assert occ.surfaces().sum() == occupied[:, np.argmax(occupied[0])].sum()  # one column of cells: the face
+    params = LikelihoodFieldParams(0.5, 0.5, 0.2, 2.0, 10.0)
+    nav2 = LikelihoodField(occ, params)
+    ours = LikelihoodField(occ, LikelihoodFieldParams(0.5, 0.5, 0.2, 2.0, 10.0, surfaces_only=True))
+    face, deep = np.array([[3.05, 2.0]]), np.array([[3.85, 2.0]])
+    assert nav2.distance_at(face)[0] == 0 and nav2.distance_at(deep)[0] == 0
+    assert ours.distance_at(face)[0] == 0
+    assert ours.distance_at(deep)[0] == pytest.approx(0.8)
+    # In free space both fields agree: the face is the nearest occupied cell.
+    free = np.array([[1.0, 1.0], [2.5, 3.0]])
+    np.testing.assert_allclose(ours.distance_at(free), nav2.distance_at(free))

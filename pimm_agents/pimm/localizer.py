@@ -52,6 +52,9 @@ class WallFieldConfig:
     sigma_hit: float = 0.2  # nav2 (m)
     max_distance: float = 2.0  # nav2 laser_likelihood_max_dist (m)
     range_max: float = 10.0  # the thesis's 3D LiDAR range (m)
+    # Ours: distances to the faces of the map's obstacles that free space can see (likelihood_field.py), so a
+    # pose that throws the wall points into a thick outer wall does not fit them perfectly. False: nav2's field.
+    surfaces_only: bool = True
     # Height band (m, relative to the sensor) of the wall points used: low enough that they are the walls the
     # occupancy map cuts (0.1-1.5 m above the floor with the sensor at 0.5 m), below lintels over doorways.
     min_z_m: float = -0.4
@@ -185,7 +188,7 @@ class PimmLocalizer:
         self.fingerprints = fingerprints
         walls = config.wall_field
         field_params = LikelihoodFieldParams(
-            walls.z_hit, walls.z_rand, walls.sigma_hit, walls.max_distance, walls.range_max
+            walls.z_hit, walls.z_rand, walls.sigma_hit, walls.max_distance, walls.range_max, walls.surfaces_only
         )
         self.filter = FeatureFilter(
             occupancy,

@@ -28,6 +28,19 @@ class OccupancyGrid:
             return np.full(self.grid.shape, np.inf)
         return ndimage.distance_transform_edt(~self.occupied) * self.grid.resolution
 
+    def surfaces(self) -> np.ndarray:
+        """Occupied cells that touch a free cell (8-neighbourhood): the faces a sensor in free space can see.
+        A solid block (a thick outer wall, a filled wall of an imported plan) keeps only its skin."""
+        return self.occupied & ndimage.binary_dilation(self.free, structure=np.ones((3, 3), dtype=bool))
+
+    def distance_to_surfaces(self) -> np.ndarray:
+        """Metres from every cell centre to the nearest visible face (``surfaces``); inside a solid block,
+        the depth below its skin. Falls back to every occupied cell where no occupied cell touches free space."""
+        surfaces = self.surfaces()
+        if not surfaces.any():
+            return self.distance_to_occupied()
+        return ndimage.distance_transform_edt(~surfaces) * self.grid.resolution
+
 
 def occupancy_from_world(world: World, resolution: float, height: float) -> OccupancyGrid:
     """Cells occupied at ``height`` above the floor by elements flagged for the occupancy map."""
