@@ -32,12 +32,22 @@ class BuiltIn:
     build: Callable[[World, Any, str, str | None], Localizer]  # world, config, name, sensor presets
 
 
+#: The AMCL presets: nav2's default, the two recoveries, and nav2's other two laser models.
+AMCL_PRESETS = ("amcl", "amcl-recovery", "amcl-recovery-nav2", "amcl-beam", "amcl-lfp")
+
+
 def _amcl_config(preset: str) -> Callable[[], Any]:
     def make() -> Any:
-        from pimm_agents.amcl.localizer import AMCL_RECOVERY, AMCL_RECOVERY_NAV2, AmclConfig
+        from pimm_agents.amcl.localizer import AMCL_BEAM, AMCL_LFP, AMCL_RECOVERY, AMCL_RECOVERY_NAV2, AmclConfig
 
-        extra = {"amcl": {}, "amcl-recovery": AMCL_RECOVERY, "amcl-recovery-nav2": AMCL_RECOVERY_NAV2}[preset]
-        return apply_params(AmclConfig(), extra, preset)
+        extra: dict[str, Mapping[str, Any]] = {
+            "amcl": {},
+            "amcl-recovery": AMCL_RECOVERY,
+            "amcl-recovery-nav2": AMCL_RECOVERY_NAV2,
+            "amcl-beam": AMCL_BEAM,
+            "amcl-lfp": AMCL_LFP,
+        }
+        return apply_params(AmclConfig(), extra[preset], preset)
 
     return make
 
@@ -70,7 +80,7 @@ def _build_pimm(world: World, config: Any, name: str, sensors: str | None) -> Lo
 
 BUILT_IN: dict[str, BuiltIn] = {
     "pimm": BuiltIn(_pimm_config, _build_pimm),
-    **{name: BuiltIn(_amcl_config(name), _build_amcl) for name in ("amcl", "amcl-recovery", "amcl-recovery-nav2")},
+    **{name: BuiltIn(_amcl_config(name), _build_amcl) for name in AMCL_PRESETS},
 }
 
 
@@ -126,7 +136,7 @@ def resolved_params(name: str, params: Mapping[str, Any] | None = None) -> Param
 
 
 #: The built-in localizers that need nothing but an occupancy map.
-MAP_ONLY = ("amcl", "amcl-recovery", "amcl-recovery-nav2")
+MAP_ONLY = AMCL_PRESETS
 
 
 def make_localizer(

@@ -1,4 +1,4 @@
-"""AMCL as nav2_amcl runs it: likelihood-field scan model, odometry motion model, KLD-sampling, recovery.
+"""AMCL as nav2_amcl runs it: its three laser models, odometry motion model, KLD-sampling, recovery.
 
 The thesis's baseline. Defaults are nav2's, which is what the thesis ran. ``amcl-recovery-nav2`` turns on
 nav2's recovery with the averages its documentation recommends; nav2 zeroes both averages after every
@@ -15,10 +15,11 @@ import numpy as np
 
 from pimm_agents.localizer import Observation, PoseEstimate, particle_sample, require
 from pimm_agents.observation_guard import ObservationGuard
+from pimm_agents.particles.beam_model import BeamModel, BeamModelParams
 from pimm_agents.particles.free_space import FreeSpace
 from pimm_agents.particles.initial_pose import gaussian_poses
 from pimm_agents.particles.kld import bin_keys, kld_sample_count
-from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
+from pimm_agents.particles.likelihood_field import BeamSkip, LikelihoodField, LikelihoodFieldParams
 from pimm_agents.particles.motion_model import odometry_delta, sample_differential
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import multinomial_resample
@@ -26,11 +27,16 @@ from pimm_env.geometry import carry, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.sim.lidar import Lidar2DConfig, beam_bearings_2d
 
+#: nav2's laser_model_type values.
+LASER_MODELS = ("likelihood_field", "beam", "likelihood_field_prob")
+
 
 @dataclass(frozen=True)
 class AmclConfig:
     """nav2_amcl's parameters, with its defaults (the values the thesis ran)."""
 
+    #: nav2's laser_model_type: likelihood_field (its default), beam, or likelihood_field_prob
+    laser_model_type: str = "likelihood_field"
     min_particles: int = 500
     max_particles: int = 2000
     pf_err: float = 0.05
@@ -40,6 +46,15 @@ class AmclConfig:
     sigma_hit: float = 0.2
     laser_likelihood_max_dist: float = 2.0
     max_beams: int = 60
+    # the beam model's (nav2 defaults); z_hit, z_rand and sigma_hit are shared with the likelihood fields
+    z_short: float = 0.05
+    z_max: float = 0.05
+    lambda_short: float = 0.1
+    # likelihood_field_prob's beam skipping (nav2 defaults; off unless asked, as in nav2)
+    do_beamskip: bool = False
+    beam_skip_distance: float = 0.5
+    beam_skip_threshold: float = 0.3
+    beam_skip_error_threshold: float = 0.9
     alpha1: float = 0.2
     alpha2: float = 0.2
     alpha3: float = 0.2
@@ -57,8 +72,14 @@ class AmclConfig:
     bin_theta: float = np.radians(10.0)
 
     def __post_init__(self) -> None:
+        if self.laser_model_type not in LASER_MODELS:
+            raise ValueError(
+                f"AmclConfig.laser_model_type must be one of {', '.join(LASER_MODELS)}, got {self.laser_model_type!r}"
+            )
         for f in fields(self):
             value = getattr(self, f.name)
+            if isinstance(value, str):
+                continue
             if not np.isfinite(value) or value < 0:
                 raise ValueError(f"AmclConfig.{f.name} must be finite and non-negative, got {value!r}")
         if not 1 <= self.min_particles <= self.max_particles:
@@ -76,6 +97,9 @@ class AmclConfig:
 
 #: nav2's recovery with the averages its documentation recommends, and nav2's reset after each injection.
 AMCL_RECOVERY_NAV2: dict[str, float | bool] = {"recovery_alpha_slow": 0.001, "recovery_alpha_fast": 0.1}
+#: nav2's other two laser models, with their defaults; beam skipping on for likelihood_field_prob (what it adds).
+AMCL_BEAM: dict[str, float | bool | str] = {"laser_model_type": "beam"}
+AMCL_LFP: dict[str, float | bool | str] = {"laser_model_type": "likelihood_field_prob", "do_beamskip": True}
 #: The recovery as the issue specifies it and the textbook's Augmented MCL runs it: the same averages, kept
 #: after an injection, so that particles keep coming while the scans fit badly.
 AMCL_RECOVERY: dict[str, float | bool] = {**AMCL_RECOVERY_NAV2, "reset_recovery_averages": False}
@@ -115,6 +139,20 @@ class Amcl:
         self.field = LikelihoodField(
             occupancy,
             LikelihoodFieldParams(c.z_hit, c.z_rand, c.sigma_hit, c.laser_likelihood_max_dist, self.lidar.max_range),
+        )
+        self.beam_model = (
+            BeamModel(
+                occupancy,
+                self.lidar.max_range,
+                BeamModelParams(c.z_hit, c.z_short, c.z_max, c.z_rand, c.sigma_hit, c.lambda_short),
+            )
+            if c.laser_model_type == "beam"
+            else None
+        )
+        self.beam_skip = (
+            BeamSkip(c.beam_skip_distance, c.beam_skip_threshold, c.beam_skip_error_threshold)
+            if c.do_beamskip
+            else None
         )
         self._beams = subsample_beams(self.lidar.beams, c.max_beams)
         self.guard = ObservationGuard()
@@ -201,20 +239,37 @@ class Amcl:
         )
 
     def measurement_update(self, scan: np.ndarray) -> None:
-        """Weigh the particles by the likelihood field of ``scan`` (all its beams, the configured subset used)
+        """Weigh the particles by the laser model of ``scan`` (all its beams, the configured subset used)
         and update the recovery averages."""
-        ranges = scan[self._beams]
-        usable = np.isfinite(ranges) & (ranges >= self.lidar.min_range) & (ranges < self.lidar.max_range)
-        factors = self.field.weight_factors(self.particles, ranges[usable], self._bearings[usable], self._mount)
+        factors = self.scan_factors(scan)
         weights = self.weights * factors
         total = float(weights.sum())
-        if not np.isfinite(total) or total <= 0:  # cannot happen with factors >= 1, but never divide by it
+        if not np.isfinite(total) or total <= 0:  # only the product of likelihood_field_prob can underflow
             weights, total = np.full(len(weights), 1.0 / len(weights)), 1.0
         self.weights = weights / total
         w_avg = total / len(weights)
         c = self.config
         self.w_slow = w_avg if self.w_slow == 0 else self.w_slow + c.recovery_alpha_slow * (w_avg - self.w_slow)
         self.w_fast = w_avg if self.w_fast == 0 else self.w_fast + c.recovery_alpha_fast * (w_avg - self.w_fast)
+
+    def scan_factors(self, scan: np.ndarray) -> np.ndarray:
+        """Each particle's weight factor from ``scan`` under ``laser_model_type``.
+
+        The likelihood fields skip beams with no return (inf or NaN, REP 117) and those at or past
+        ``range_max``, as nav2 does. The beam model weighs a no-return as a max-range reading (nav2 maps
+        readings under ``range_min`` to ``range_max`` as well, which is what amcl_node does before any model),
+        and skips NaN beams only."""
+        ranges, bearings, lidar = scan[self._beams], self._bearings, self.lidar
+        if self.beam_model is not None:
+            keep = ~np.isnan(ranges)
+            readings = np.where(ranges[keep] <= lidar.min_range, lidar.max_range, ranges[keep])
+            return self.beam_model.weight_factors(self.particles, readings, bearings[keep], self._mount)
+        usable = np.isfinite(ranges) & (ranges >= lidar.min_range) & (ranges < lidar.max_range)
+        if self.config.laser_model_type == "likelihood_field_prob":
+            return self.field.prob_factors(
+                self.particles, ranges[usable], bearings[usable], self._mount, self.beam_skip
+            )
+        return self.field.weight_factors(self.particles, ranges[usable], bearings[usable], self._mount)
 
     def _resample(self) -> None:
         """Draw with replacement, mixing in uniform particles with probability 1 - w_fast/w_slow (augmented

@@ -37,6 +37,18 @@ class LikelihoodFieldParams:
     surfaces_only: bool = False
 
 
+@dataclass(frozen=True)
+class BeamSkip:
+    """nav2's beam skipping for ``likelihood_field_prob`` (its defaults): a beam counts only if more than
+    ``threshold`` of the particles see its end point within ``distance`` of an obstacle; if ``error_threshold``
+    of the beams or more would be skipped, the filter has probably converged to a wrong pose, and every beam
+    counts."""
+
+    distance: float = 0.5
+    threshold: float = 0.3
+    error_threshold: float = 0.9
+
+
 class LikelihoodField:
     """Scores scans against an occupancy grid: a particle's weight factor is 1 + sum over beams of pz^3.
 
@@ -60,6 +72,7 @@ class LikelihoodField:
         pz = params.z_hit * np.exp(-(padded**2) / (2 * params.sigma_hit**2)) + params.z_rand / params.range_max
         self._cubes = (pz**3).astype(np.float32).ravel()
         self._log_pz = np.log(pz).astype(np.float32).ravel()
+        self._padded_distance = padded.astype(np.float32).ravel()
         self._cols = cols + 2
         self._limits = (np.float32(cols + 1), np.float32(rows + 1))
 
@@ -86,6 +99,31 @@ class LikelihoodField:
         if np.size(ranges) == 0:
             return np.zeros(len(poses))
         return np.take(self._log_pz, self._cells(poses, ranges, bearings)).sum(axis=1, dtype=np.float64)
+
+    def prob_factors(
+        self,
+        poses: np.ndarray,
+        ranges: np.ndarray,
+        bearings: np.ndarray,
+        origin: tuple[float, float] = (0.0, 0.0),
+        skip: BeamSkip | None = None,
+    ) -> np.ndarray:
+        """nav2's ``likelihood_field_prob``: the product of pz over the beams (exp of the summed logs, not the
+        ``likelihood_field`` sum of cubes), for each pose (N, 3), with beam skipping when ``skip`` is given.
+
+        Where nav2 would multiply in a beam's value left over from an earlier scan (a max-range beam, in the
+        error case), the caller has already left such beams out: ``ranges`` holds only the beams to weigh.
+        """
+        if np.size(ranges) == 0:
+            return np.ones(len(poses))
+        cells = self._cells(poses, ranges, bearings, origin)
+        log_pz = np.take(self._log_pz, cells)
+        if skip is not None:
+            near = np.take(self._padded_distance, cells) < skip.distance
+            agreed = near.mean(axis=0) > skip.threshold  # per beam: the share of particles whose map it fits
+            if np.count_nonzero(~agreed) < skip.error_threshold * len(agreed):
+                log_pz = log_pz[:, agreed]
+        return np.exp(log_pz.sum(axis=1, dtype=np.float64))
 
     def _cells(
         self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray, origin: tuple[float, float] = (0.0, 0.0)
