@@ -78,9 +78,33 @@ def _build_pimm(world: World, config: Any, name: str, sensors: str | None) -> Lo
     return PimmLocalizer(maps.occupancy, maps.corners, segmenter, fingerprints, config, name=name, lidar3d=lidar3d)
 
 
+def _registration_config() -> Any:
+    from pimm_agents.registration.localizer import RegistrationConfig
+
+    return RegistrationConfig()
+
+
+def _build_registration(world: World, config: Any, name: str, sensors: str | None) -> Localizer:
+    from pimm_agents.registration.localizer import RegistrationLocalizer
+    from pimm_agents.registration.map_cloud import build_map_cloud
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.sim.sensors import sensor_layouts
+
+    key = (str(world.source), world.source.stat().st_mtime if world.source else 0.0, config.voxel_m)
+    cloud = _MAP_CLOUDS.get(key)
+    if cloud is None:  # sampled and described once per process and world (~15 s for the iilab here)
+        cloud = _MAP_CLOUDS[key] = build_map_cloud(world, load_derived_maps(world).occupancy, config.voxel_m)
+    return RegistrationLocalizer(cloud, config, lidar3d=sensor_layouts(sensors)[0], name=name)
+
+
+#: Map clouds already built in this process, by world file, its modification time and the voxel size.
+_MAP_CLOUDS: dict[tuple[str, float, float], Any] = {}
+
+
 BUILT_IN: dict[str, BuiltIn] = {
     "pimm": BuiltIn(_pimm_config, _build_pimm),
     **{name: BuiltIn(_amcl_config(name), _build_amcl) for name in AMCL_PRESETS},
+    "registration": BuiltIn(_registration_config, _build_registration),
 }
 
 
