@@ -140,11 +140,11 @@ class RegistrationLocalizer:
         self, points: np.ndarray, predicted: np.ndarray, stamp: float, timings: dict[str, float]
     ) -> np.ndarray:
         start = time.perf_counter()
-        scan = self._prepare(points)
+        scan = self.prepare(points)
         timings["preprocess"] = 1000 * (time.perf_counter() - start)
         if self._tracking:
             start = time.perf_counter()
-            pose, fitness = self._refine(scan, predicted)
+            pose, fitness = self.refine(scan, predicted)
             timings["icp"] = 1000 * (time.perf_counter() - start)
             self.fitness = fitness
             if fitness >= self.config.min_fitness:
@@ -158,7 +158,7 @@ class RegistrationLocalizer:
             return predicted
         self._last_search = stamp
         start = time.perf_counter()
-        found, fitness = self._search(scan)
+        found, fitness = self.search(scan)
         timings["global_search"] = 1000 * (time.perf_counter() - start)
         self.fitness = fitness
         if found is not None and fitness >= self.config.min_fitness:
@@ -166,14 +166,14 @@ class RegistrationLocalizer:
             return found
         return predicted
 
-    def _prepare(self, points: np.ndarray) -> Any:
+    def prepare(self, points: np.ndarray) -> Any:
         """The scan thinned to one point per voxel, with normals facing the sensor."""
         cloud = to_open3d(points).voxel_down_sample(self.config.voxel_m)
         estimate_normals(cloud, self.config.voxel_m)
         cloud.orient_normals_towards_camera_location(np.array([0.0, 0.0, self.lidar3d.height]))
         return cloud
 
-    def _search(self, scan: Any) -> tuple[np.ndarray | None, float]:
+    def search(self, scan: Any) -> tuple[np.ndarray | None, float]:
         """Global search: the hypotheses of the RANSAC, each refined by ICP; the best by fitness."""
         features = fpfh(scan, self.config.voxel_m)
         points = np.asarray(scan.points)
@@ -182,12 +182,12 @@ class RegistrationLocalizer:
         best: np.ndarray | None = None
         best_fitness = 0.0
         for hypothesis in poses:
-            pose, fitness = self._refine(scan, hypothesis)
+            pose, fitness = self.refine(scan, hypothesis)
             if fitness > best_fitness:
                 best, best_fitness = pose, fitness
         return best, best_fitness
 
-    def _refine(self, scan: Any, guess: np.ndarray) -> tuple[np.ndarray, float]:
+    def refine(self, scan: Any, guess: np.ndarray) -> tuple[np.ndarray, float]:
         """Planar point-to-plane ICP of the scan against the map from ``guess``: the pose and its fitness."""
         points = np.asarray(scan.points)
         c = self.config
