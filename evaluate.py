@@ -56,6 +56,7 @@ def main(ctx: typer.Context) -> None:
             start="global",
             backend="local",
             address=None,
+            fault="",
         )
 
 
@@ -83,6 +84,9 @@ def run(
     start: str = typer.Option("global", help="global (pose unknown) or known (true start, nav2's covariance)"),
     backend: str = typer.Option("local", help="local (worker processes) or ray (a local Ray, or --address)"),
     address: str | None = typer.Option(None, help="a Ray cluster to join, e.g. ray://head:10001 or auto"),
+    fault: str = typer.Option(
+        "", "--fault", help="faults at set times: dropout@START:DUR, slip@START:DUR, kidnap@START (comma-separated)"
+    ),
 ) -> None:
     """Run localizers on scenarios: one simulation per trial feeds every localizer; trials in parallel. Prints
     the thesis's tables and writes logs and figures; each trial is saved as it finishes (see --resume)."""
@@ -110,12 +114,13 @@ def run(
         )
     localizers, configs = _localizer_configs(localizers, params, settings)
     specs = [  # trial-major: a stopped run has every scenario's first trials
-        TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer], sensors, start)
+        TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer], sensors, start, faults=fault)
         for trial in range(trials)
         for scenario in scenarios
         for localizer in localizers
     ]
     _check_sensors(sensors)
+    _check_faults(fault)
     if start not in ("global", "known"):
         raise typer.BadParameter(f"expected global or known, got {start!r}", param_hint="--start")
     _check_backend(backend, address)
@@ -205,6 +210,15 @@ def _check_backend(backend: str, address: str | None) -> None:
         raise typer.BadParameter(
             f"expected local or ray (--address only with ray), got {backend!r}", param_hint="--backend"
         )
+
+
+def _check_faults(faults: str) -> None:
+    from pimm_env.envs.faults import parse_faults
+
+    try:
+        parse_faults(faults)
+    except ValueError as error:
+        raise typer.BadParameter(str(error), param_hint="--fault") from None
 
 
 def _check_sensors(sensors: str) -> None:

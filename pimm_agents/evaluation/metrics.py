@@ -51,6 +51,26 @@ def excursions(
     return int(starts), float(dt[after].sum())
 
 
+def kidnap_recoveries(
+    log: TrialLog, position_threshold: float = POSITION_THRESHOLD_M, angle_threshold_deg: float = ANGLE_THRESHOLD_DEG
+) -> list[float | None]:
+    """For each kidnap in ``log.kidnap_rows``: the time (s) from it until the estimate came within both
+    thresholds and stayed there up to the next kidnap (or the end); None where it never did."""
+    good = (position_errors(log) < position_threshold) & (angle_errors_deg(log) < angle_threshold_deg)
+    rows = sorted(log.kidnap_rows)
+    out: list[float | None] = []
+    for k, start in enumerate(rows):
+        end = rows[k + 1] if k + 1 < len(rows) else len(log)
+        segment = good[start:end]
+        if segment.size == 0 or not segment[-1]:
+            out.append(None)
+            continue
+        bad = np.flatnonzero(~segment)
+        first = start + (int(bad[-1]) + 1 if bad.size else 0)
+        out.append(float(log.time[first] - log.time[start]))
+    return out
+
+
 def _first_held(time: np.ndarray, good: np.ndarray, held_s: float) -> int | None:
     """The first index of a run of ``good`` rows spanning at least ``held_s`` seconds."""
     run_start = None

@@ -32,6 +32,7 @@ class LocalizationRecorder(gym.Wrapper):
         self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = []
         self._timings: list[dict[str, float]] = []
         self._kidnap_index: int | None = None
+        self._kidnap_rows: list[int] = []
         self._corners: list[np.ndarray] = []  # (k, 3): row, x, y
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -43,13 +44,18 @@ class LocalizationRecorder(gym.Wrapper):
             else:
                 self.localizer.reset(seed=seed)
             self._rows, self._timings, self._kidnap_index, self._corners = [], [], None, []
+            self._kidnap_rows = []
         else:
             self._kidnap_index = len(self._rows)
+            self._kidnap_rows.append(self._kidnap_index)
         self._observe(obs, info, record=True)
         return obs, info
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
+        if info.get("kidnapped"):  # a fault wrapper teleported the robot: count from here, as after a reset
+            self._kidnap_index = len(self._rows)
+            self._kidnap_rows.append(self._kidnap_index)
         self._observe(obs, info, record=bool(info.get("fresh_scan") or info.get("fresh_cloud")))
         return obs, reward, terminated, truncated, info
 
@@ -82,4 +88,5 @@ class LocalizationRecorder(gym.Wrapper):
             self._kidnap_index,
             list(self._timings),
             np.vstack(self._corners) if self._corners else np.zeros((0, 3)),
+            tuple(self._kidnap_rows),
         )

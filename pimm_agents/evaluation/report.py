@@ -12,6 +12,7 @@ import numpy as np
 from pimm_agents.evaluation.metrics import (
     angle_errors_deg,
     best_and_worst,
+    kidnap_recoveries,
     position_errors,
     summarize,
     timing_summary,
@@ -71,6 +72,8 @@ def _trial_row(result: TrialResult, errors: dict[str, Any] | None) -> dict[str, 
         "completed": result.completed,
         "wall_s": round(result.wall_s, 2),
     }
+    if len(result.log.kidnap_rows) > 1:  # a fault run's kidnaps: how long each took to recover from
+        row["kidnap_recoveries_s"] = kidnap_recoveries(result.log)
     if errors is not None:
         row.update(errors)
     return row
@@ -228,6 +231,7 @@ def write_sidecar(path: Path, result: TrialResult) -> Path:
         "seed": s.seed,
         "world": s.world,
         "kidnap_row": result.log.kidnap_index,
+        "kidnap_rows": list(result.log.kidnap_rows),
         "rows": len(result.log),
     }
     Path(path).write_text(json.dumps(record, indent=1))
@@ -253,8 +257,8 @@ def plot_trial(
     if corners is not None and len(corners):
         ax_map.plot(corners[:, 0], corners[:, 1], "s", ms=3, mfc="none", mec="0.45", label="map corners")
     true_xy = log.true[:, :2]
-    if log.kidnap_index is not None:  # no line across the teleport
-        true_xy = np.insert(true_xy, log.kidnap_index, np.nan, axis=0)
+    if log.kidnap_rows:  # no line across a teleport
+        true_xy = np.insert(true_xy, list(log.kidnap_rows), np.nan, axis=0)
     ax_map.plot(true_xy[:, 0], true_xy[:, 1], "-", color="tab:green", lw=1.5, label="true path")
     ax_map.plot(log.estimate[:, 0], log.estimate[:, 1], ".", color="tab:red", ms=2, label="estimate")
     if len(log.corners):
@@ -262,9 +266,11 @@ def plot_trial(
                     label="detected corners (at the estimate)")  # fmt: skip
     if len(log):
         ax_map.plot(*log.true[0, :2], "^", color="tab:green", ms=10, mec="k", label="start")
-    if log.kidnap_index is not None:
-        ax_map.plot(*log.true[log.kidnap_index - 1, :2], "X", color="k", ms=10, label="kidnapped from")
-        ax_map.plot(*log.true[log.kidnap_index, :2], "X", color="tab:purple", ms=10, mec="k", label="kidnapped to")
+    for k, row in enumerate(log.kidnap_rows):
+        ax_map.plot(*log.true[row - 1, :2], "X", color="k", ms=10, label="kidnapped from" if k == 0 else None)
+        ax_map.plot(
+            *log.true[row, :2], "X", color="tab:purple", ms=10, mec="k", label="kidnapped to" if k == 0 else None
+        )
     ax_map.set_xlabel("x (m)")
     ax_map.set_ylabel("y (m)")
     ax_map.legend(loc="upper right", fontsize=8)
@@ -290,8 +296,8 @@ def plot_trial(
         ANGLE_THRESHOLD_DEG, color="tab:orange", ls=":", lw=0.8, label=f"{ANGLE_THRESHOLD_DEG:g} deg threshold"
     )
     ax_ang.set_ylabel("angle error (deg)", color="tab:orange")
-    if log.kidnap_index is not None:
-        ax_err.axvline(t[log.kidnap_index], color="k", ls="--", lw=1, label="kidnap")
+    for k, row in enumerate(log.kidnap_rows):
+        ax_err.axvline(t[row], color="k", ls="--", lw=1, label="kidnap" if k == 0 else None)
     if m.converged:
         start = t[0] + m.convergence_time_s + (t[log.kidnap_index] if log.kidnap_index is not None else 0.0)
         ax_err.axvline(start, color="tab:green", ls="--", lw=1, label="converged")

@@ -27,7 +27,9 @@ CSV_COLUMNS = (
 @dataclass
 class TrialLog:
     """Row i: sim time ``time[i]``, true pose ``true[i]``, estimate ``estimate[i]`` made at ``estimate_time[i]``
-    with covariance diagonal ``cov[i]``. ``kidnap_index`` is the first row after a kidnap, if there was one."""
+    with covariance diagonal ``cov[i]``. ``kidnap_index`` is the first row after the last kidnap, if there was
+    one (the metrics count from it); ``kidnap_rows`` the first row after each kidnap (a fault run may have
+    several)."""
 
     time: np.ndarray
     estimate_time: np.ndarray
@@ -39,6 +41,11 @@ class TrialLog:
     #: (K, 3): row, x, y of the corners the localizer detected at that row's scan, placed at its estimate
     #: (for figures; empty for localizers that detect none)
     corners: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
+    kidnap_rows: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.kidnap_index is not None and not self.kidnap_rows:
+            self.kidnap_rows = (self.kidnap_index,)
 
     def __len__(self) -> int:
         return len(self.time)

@@ -41,6 +41,8 @@ def trial_key(spec: TrialSpec) -> str:
         parts = (*parts, spec.sensors)
     if spec.start != "global":
         parts = (*parts, f"start-{spec.start}")
+    if spec.faults:
+        parts = (*parts, f"faults-{spec.faults}")
     return "__".join("".join(c if c.isalnum() or c in "._-" else "-" for c in part) for part in parts)
 
 
@@ -64,10 +66,12 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
             "start": spec.start,
             "label": spec.label,
             "row": spec.row,
+            "faults": spec.faults,
         },
         "wall_s": result.wall_s,
         "completed": result.completed,
         "kidnap_index": log.kidnap_index,
+        "kidnap_rows": list(log.kidnap_rows),
         "stages": stages,
     }
     partial = target.with_name(target.name + ".part")
@@ -105,6 +109,7 @@ def load_trial(path: Path) -> TrialResult:
                 meta["kidnap_index"],
                 timings,
                 data["corners"] if "corners" in data.files else np.zeros((0, 3)),
+                tuple(meta.get("kidnap_rows", [] if meta["kidnap_index"] is None else [meta["kidnap_index"]])),
             )
         spec = TrialSpec(**meta["spec"])
     except (OSError, KeyError, ValueError, TypeError) as error:

@@ -32,6 +32,7 @@ class TrialSpec:
     start: str = "global"  # or "known": the true start pose with nav2's covariance (recorder.STARTS)
     label: str = ""  # how reports name the localizer (a sweep's "amcl[max_particles=500]"); default its name
     row: str = ""  # how reports name the scenario (a sweep over worlds: "gen-900/route_1"); default its name
+    faults: str = ""  # pimm_env.envs.faults.parse_faults's form, e.g. "dropout@30:5,kidnap@60"
 
     @property
     def name(self) -> str:
@@ -42,9 +43,9 @@ class TrialSpec:
         return self.row or self.scenario
 
     @property
-    def simulation(self) -> tuple[str, str, int, int, str]:
+    def simulation(self) -> tuple[str, str, int, int, str, str]:
         """What the simulated stream depends on; specs that share it share one simulation."""
-        return (self.world, self.scenario, self.trial, self.seed, self.sensors)
+        return (self.world, self.scenario, self.trial, self.seed, self.sensors, self.faults)
 
 
 @dataclass
@@ -99,6 +100,10 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
         config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))  # nobody reads it: skip 14 400 rays
     recorders = []
     env: Any = IILabEnv(world=world, config=config, terminate_on_collision=False)
+    if first.faults:
+        from pimm_env.envs.faults import parse_faults, with_faults
+
+        env = with_faults(env, parse_faults(first.faults), route=scenario.waypoints)
     for spec, localizer in zip(specs, localizers, strict=True):
         env = LocalizationRecorder(env, localizer, spec.start)
         recorders.append(env)
@@ -116,7 +121,7 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
 
 def group_by_simulation(specs: Sequence[TrialSpec]) -> list[list[int]]:
     """Indices of ``specs`` grouped by the simulation they share, in order of first appearance."""
-    groups: dict[tuple[str, str, int, int, str], list[int]] = {}
+    groups: dict[tuple[str, str, int, int, str, str], list[int]] = {}
     for i, spec in enumerate(specs):
         groups.setdefault(spec.simulation, []).append(i)
     return list(groups.values())

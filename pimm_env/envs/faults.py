@@ -1,0 +1,173 @@
+"""Faults as Gymnasium wrappers: what breaks on a real robot, at set times of a run.
+
+- ``LidarDropout``: both LiDARs return nothing for a while (cloud all masked, scan at maximum range, the
+  stamps still advancing, as a driver that publishes empty scans does).
+- ``OdometrySlip``: for a while the wheels slip: the odometry over-reports the distance driven by
+  ``scale`` and turns by ``yaw_rate`` rad/s more than the robot does, so the heading it carries stays wrong.
+- ``Kidnaps``: at each given time the robot is teleported without the odometry knowing
+  (``reset(options={"kidnap": ...})`` of the env): given the route it is driving, to a random point further
+  along it (between a fifth and four fifths of the way from the robot to the route's end, heading along the
+  route, so that the driver carries on from there); without one, to a random free pose. ``info["kidnapped"]``
+  marks the step, so a recorder can count the metrics from it.
+
+``parse_faults("dropout@30:5,slip@20:3,kidnap@40,kidnap@70")`` reads the command line's form: NAME@START[:DURATION].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from pimm_env.geometry import compose, relative_motion, wrap_angle
+
+FAULTS = ("dropout", "slip", "kidnap")
+
+
+@dataclass(frozen=True)
+class Fault:
+    kind: str  # one of FAULTS
+    start_s: float
+    duration_s: float = 0.0
+
+    def active(self, t: float) -> bool:
+        return self.start_s <= t < self.start_s + self.duration_s
+
+
+def parse_faults(text: str) -> list[Fault]:
+    """Faults from ``NAME@START[:DURATION]`` items separated by commas (dropout and slip need a duration)."""
+    faults = []
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        name, _, when = item.partition("@")
+        if name not in FAULTS or not when:
+            raise ValueError(f"fault {item!r}: expected NAME@START[:DURATION] with NAME one of {', '.join(FAULTS)}")
+        start, _, duration = when.partition(":")
+        try:
+            fault = Fault(name, float(start), float(duration) if duration else 0.0)
+        except ValueError:
+            raise ValueError(f"fault {item!r}: START and DURATION must be numbers (seconds)") from None
+        if not (np.isfinite(fault.start_s) and fault.start_s >= 0 and np.isfinite(fault.duration_s)):
+            raise ValueError(f"fault {item!r}: START must be >= 0 s and DURATION finite")
+        if name in ("dropout", "slip") and fault.duration_s <= 0:
+            raise ValueError(f"fault {item!r}: a {name} needs a duration, e.g. {name}@30:5")
+        faults.append(fault)
+    return faults
+
+
+def with_faults(env: gym.Env, faults: list[Fault], route: np.ndarray | None = None) -> gym.Env:
+    """``env`` wrapped in one wrapper per kind of fault asked for (kidnaps land on ``route`` if given)."""
+    by_kind = {kind: [f for f in faults if f.kind == kind] for kind in FAULTS}
+    if by_kind["slip"]:
+        env = OdometrySlip(env, by_kind["slip"])
+    if by_kind["dropout"]:
+        env = LidarDropout(env, by_kind["dropout"])
+    if by_kind["kidnap"]:
+        env = Kidnaps(env, [f.start_s for f in by_kind["kidnap"]], route)
+    return env
+
+
+def _time(obs: dict[str, np.ndarray]) -> float:
+    return float(np.asarray(obs["time"]).reshape(-1)[0])
+
+
+class LidarDropout(gym.Wrapper):
+    def __init__(self, env: gym.Env, windows: list[Fault]) -> None:
+        super().__init__(env)
+        self.windows = windows
+        self.max_range = float(env.observation_space["scan"].high.max())  # type: ignore[index]
+
+    def _blank(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, np.ndarray]:
+        if not any(w.active(_time(obs)) for w in self.windows):
+            return obs
+        info["fault"] = "dropout"
+        obs = dict(obs)
+        obs["cloud"] = np.zeros_like(obs["cloud"])
+        obs["cloud_mask"] = np.zeros_like(obs["cloud_mask"])
+        obs["scan"] = np.full_like(obs["scan"], self.max_range)
+        return obs
+
+    def reset(self, **kwargs: Any):
+        obs, info = self.env.reset(**kwargs)
+        return self._blank(obs, info), info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._blank(obs, info), reward, terminated, truncated, info
+
+
+class OdometrySlip(gym.Wrapper):
+    def __init__(self, env: gym.Env, bursts: list[Fault], scale: float = 0.3, yaw_rate: float = 0.1) -> None:
+        super().__init__(env)
+        self.bursts, self.scale, self.yaw_rate = bursts, scale, yaw_rate
+        self._inner: np.ndarray | None = None  # the env's odometry at the last step
+        self._odom = np.zeros(3)  # what we report
+        self._time = 0.0
+
+    def reset(self, **kwargs: Any):
+        obs, info = self.env.reset(**kwargs)
+        options = kwargs.get("options") or {}
+        if options.get("kidnap") in (None, False):  # a full reset: the odometry starts again
+            self._odom = np.asarray(obs["odom"], dtype=float).copy()
+        self._inner, self._time = np.asarray(obs["odom"], dtype=float).copy(), _time(obs)
+        return self._report(obs), info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        inner, t = np.asarray(obs["odom"], dtype=float), _time(obs)
+        delta = relative_motion(self._inner, inner) if self._inner is not None else np.zeros(3)
+        if any(b.active(t) for b in self.bursts):
+            info["fault"] = "slip"
+            delta = delta * [1 + self.scale, 1 + self.scale, 1.0]
+            delta[2] += self.yaw_rate * max(t - self._time, 0.0)
+        self._odom = compose(self._odom, delta)[0]
+        self._odom[2] = wrap_angle(self._odom[2])
+        self._inner, self._time = inner.copy(), t
+        return self._report(obs), reward, terminated, truncated, info
+
+    def _report(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        obs = dict(obs)
+        obs["odom"] = self._odom.astype(obs["odom"].dtype)
+        return obs
+
+
+class Kidnaps(gym.Wrapper):
+    def __init__(self, env: gym.Env, times: list[float], route: np.ndarray | None = None) -> None:
+        super().__init__(env)
+        self.times = sorted(times)
+        self.route = None if route is None else np.asarray(route, dtype=float).reshape(-1, 2)
+        self._next = 0
+
+    def reset(self, **kwargs: Any):
+        options = kwargs.get("options") or {}
+        if options.get("kidnap") in (None, False):
+            self._next = 0
+        return self.env.reset(**kwargs)
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if self._next < len(self.times) and _time(obs) >= self.times[self._next]:
+            self._next += 1
+            target = True if self.route is None else self._along_route(np.asarray(info["true_pose"], dtype=float))
+            obs, kidnapped = self.env.reset(options={"kidnap": target})
+            info = {**info, **kidnapped, "kidnapped": True}
+        return obs, reward, terminated, truncated, info
+
+    def _along_route(self, pose: np.ndarray) -> list[float]:
+        """A random pose further along the route than the robot's nearest point on it, heading along it."""
+        assert self.route is not None
+        a, b = self.route[:-1], self.route[1:]
+        ab = b - a
+        lengths = np.hypot(ab[:, 0], ab[:, 1])
+        t = np.clip(np.einsum("ij,ij->i", pose[:2] - a, ab) / np.maximum(lengths**2, 1e-12), 0, 1)
+        gaps = np.hypot(*(a + t[:, None] * ab - pose[:2]).T)
+        i = int(np.argmin(gaps))
+        at = float(np.concatenate([[0.0], np.cumsum(lengths)])[i] + t[i] * lengths[i])
+        total = float(lengths.sum())
+        rng = self.env.unwrapped.np_random  # the env's seeded generator: the same trial lands in the same place
+        s = at + rng.uniform(0.2, 0.8) * (total - at)
+        j = int(np.clip(np.searchsorted(np.cumsum(lengths), s), 0, len(lengths) - 1))
+        u = (s - (np.cumsum(lengths)[j] - lengths[j])) / max(lengths[j], 1e-12)
+        point = a[j] + u * ab[j]
+        return [float(point[0]), float(point[1]), float(np.arctan2(ab[j, 1], ab[j, 0]))]
