@@ -48,6 +48,16 @@ def _simulator(env: LidarRobotEnv | gym.Wrapper) -> LidarRobotEnv:
     return base
 
 
+def rest_of_route(waypoints: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """The route from the point nearest ``pose`` (on its nearest segment) to its end."""
+    path = np.asarray(waypoints, dtype=float).reshape(-1, 2)
+    a, ab = path[:-1], np.diff(path, axis=0)
+    t = np.clip(np.einsum("ij,ij->i", pose[:2] - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+    nearest = a + t[:, None] * ab
+    j = int(np.argmin(np.hypot(*(nearest - pose[:2]).T)))
+    return np.vstack([nearest[j], path[j + 1 :]])
+
+
 def drive(
     env: LidarRobotEnv | gym.Wrapper,
     waypoints: np.ndarray,
@@ -66,6 +76,8 @@ def drive(
         odoms.append(np.asarray(obs["odom"], dtype=float))
         if on_step is not None:
             on_step(obs, info)
+        if info.get("kidnapped"):  # a fault teleported the robot onto the route: drive on from there
+            controller = PurePursuit(rest_of_route(waypoints, pose), PursuitConfig(speed=speed))
         if info["collision"]:
             return False, True, true_poses, odoms
         if controller.done:

@@ -5,9 +5,9 @@
 - ``OdometrySlip``: for a while the wheels slip: the odometry over-reports the distance driven by
   ``scale`` and turns by ``yaw_rate`` rad/s more than the robot does, so the heading it carries stays wrong.
 - ``Kidnaps``: at each given time the robot is teleported without the odometry knowing
-  (``reset(options={"kidnap": ...})`` of the env): given the route it is driving, to a random point further
-  along it (between a fifth and four fifths of the way from the robot to the route's end, heading along the
-  route, so that the driver carries on from there); without one, to a random free pose. ``info["kidnapped"]``
+  (``reset(options={"kidnap": ...})`` of the env): given the route it is driving, to a random point of it at
+  least 5 m (along the route) from where the robot is, heading along the route, and the driver carries on
+  from there (``driving.rollout.drive``); without one, to a random free pose. ``info["kidnapped"]``
   marks the step, so a recorder can count the metrics from it.
 
 ``parse_faults("dropout@30:5,slip@20:3,kidnap@40,kidnap@70")`` reads the command line's form: NAME@START[:DURATION].
@@ -133,6 +133,9 @@ class OdometrySlip(gym.Wrapper):
 
 
 class Kidnaps(gym.Wrapper):
+    #: the least distance along the route between where the robot was and where it lands
+    MIN_JUMP_M = 5.0
+
     def __init__(self, env: gym.Env, times: list[float], route: np.ndarray | None = None) -> None:
         super().__init__(env)
         self.times = sorted(times)
@@ -155,19 +158,21 @@ class Kidnaps(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
     def _along_route(self, pose: np.ndarray) -> list[float]:
-        """A random pose further along the route than the robot's nearest point on it, heading along it."""
+        """A random pose on the route, at least ``MIN_JUMP_M`` along it from the robot, heading along it."""
         assert self.route is not None
         a, b = self.route[:-1], self.route[1:]
         ab = b - a
         lengths = np.hypot(ab[:, 0], ab[:, 1])
+        ends = np.cumsum(lengths)
         t = np.clip(np.einsum("ij,ij->i", pose[:2] - a, ab) / np.maximum(lengths**2, 1e-12), 0, 1)
-        gaps = np.hypot(*(a + t[:, None] * ab - pose[:2]).T)
-        i = int(np.argmin(gaps))
-        at = float(np.concatenate([[0.0], np.cumsum(lengths)])[i] + t[i] * lengths[i])
-        total = float(lengths.sum())
+        i = int(np.argmin(np.hypot(*(a + t[:, None] * ab - pose[:2]).T)))
+        at = float(ends[i] - lengths[i] + t[i] * lengths[i])
         rng = self.env.unwrapped.np_random  # the env's seeded generator: the same trial lands in the same place
-        s = at + rng.uniform(0.2, 0.8) * (total - at)
-        j = int(np.clip(np.searchsorted(np.cumsum(lengths), s), 0, len(lengths) - 1))
-        u = (s - (np.cumsum(lengths)[j] - lengths[j])) / max(lengths[j], 1e-12)
-        point = a[j] + u * ab[j]
+        s = float(rng.uniform(0, ends[-1]))
+        for _ in range(20):
+            if abs(s - at) >= self.MIN_JUMP_M:
+                break
+            s = float(rng.uniform(0, ends[-1]))
+        j = int(np.clip(np.searchsorted(ends, s), 0, len(lengths) - 1))
+        point = a[j] + (s - (ends[j] - lengths[j])) / max(lengths[j], 1e-12) * ab[j]
         return [float(point[0]), float(point[1]), float(np.arctan2(ab[j, 1], ab[j, 0]))]
