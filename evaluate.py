@@ -57,6 +57,8 @@ def main(ctx: typer.Context) -> None:
             backend="local",
             address=None,
             fault="",
+            walkers=0,
+            unmapped=0,
         )
 
 
@@ -87,11 +89,14 @@ def run(
     fault: str = typer.Option(
         "", "--fault", help="faults at set times: dropout@START:DUR, slip@START:DUR, kidnap@START (comma-separated)"
     ),
+    walkers: int = typer.Option(0, min=0, help="people walking about (not in the maps)"),
+    unmapped: int = typer.Option(0, min=0, help="pieces of furniture along the walls that the maps do not have"),
 ) -> None:
     """Run localizers on scenarios: one simulation per trial feeds every localizer; trials in parallel. Prints
     the thesis's tables and writes logs and figures; each trial is saved as it finishes (see --resume)."""
     import os
     import time
+    from dataclasses import replace
 
     from tqdm import tqdm
 
@@ -114,7 +119,12 @@ def run(
         )
     localizers, configs = _localizer_configs(localizers, params, settings)
     specs = [  # trial-major: a stopped run has every scenario's first trials
-        TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer], sensors, start, faults=fault)
+        replace(
+            TrialSpec(scenario, localizer, trial, seed + trial, world, configs[localizer], sensors, start),
+            faults=fault,
+            walkers=walkers,
+            unmapped=unmapped,
+        )
         for trial in range(trials)
         for scenario in scenarios
         for localizer in localizers

@@ -43,6 +43,8 @@ def trial_key(spec: TrialSpec) -> str:
         parts = (*parts, f"start-{spec.start}")
     if spec.faults:
         parts = (*parts, f"faults-{spec.faults}")
+    if spec.walkers or spec.unmapped:
+        parts = (*parts, f"walkers{spec.walkers}-unmapped{spec.unmapped}")
     return "__".join("".join(c if c.isalnum() or c in "._-" else "-" for c in part) for part in parts)
 
 
@@ -67,6 +69,8 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
             "label": spec.label,
             "row": spec.row,
             "faults": spec.faults,
+            "walkers": spec.walkers,
+            "unmapped": spec.unmapped,
         },
         "wall_s": result.wall_s,
         "completed": result.completed,

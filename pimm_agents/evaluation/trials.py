@@ -33,6 +33,8 @@ class TrialSpec:
     label: str = ""  # how reports name the localizer (a sweep's "amcl[max_particles=500]"); default its name
     row: str = ""  # how reports name the scenario (a sweep over worlds: "gen-900/route_1"); default its name
     faults: str = ""  # pimm_env.envs.faults.parse_faults's form, e.g. "dropout@30:5,kidnap@60"
+    walkers: int = 0  # people walking about (pimm_env/sim/movers.py)
+    unmapped: int = 0  # furniture the maps do not have
 
     @property
     def name(self) -> str:
@@ -43,9 +45,18 @@ class TrialSpec:
         return self.row or self.scenario
 
     @property
-    def simulation(self) -> tuple[str, str, int, int, str, str]:
+    def simulation(self) -> tuple[str, str, int, int, str, str, int, int]:
         """What the simulated stream depends on; specs that share it share one simulation."""
-        return (self.world, self.scenario, self.trial, self.seed, self.sensors, self.faults)
+        return (
+            self.world,
+            self.scenario,
+            self.trial,
+            self.seed,
+            self.sensors,
+            self.faults,
+            self.walkers,
+            self.unmapped,
+        )
 
 
 @dataclass
@@ -95,7 +106,7 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
     from pimm_env.sim.sensors import with_sensors
 
     localizers = [make_localizer(spec.localizer, world, params=spec.params, sensors=spec.sensors) for spec in specs]
-    config = with_sensors(SimConfig(), first.sensors)
+    config = replace(with_sensors(SimConfig(), first.sensors), walkers=first.walkers, unmapped=first.unmapped)
     if not any("cloud" in getattr(loc, "sensors", ("cloud",)) for loc in localizers):
         config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))  # nobody reads it: skip 14 400 rays
     recorders = []
@@ -121,7 +132,7 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
 
 def group_by_simulation(specs: Sequence[TrialSpec]) -> list[list[int]]:
     """Indices of ``specs`` grouped by the simulation they share, in order of first appearance."""
-    groups: dict[tuple[str, str, int, int, str, str], list[int]] = {}
+    groups: dict[tuple[str, str, int, int, str, str, int, int], list[int]] = {}
     for i, spec in enumerate(specs):
         groups.setdefault(spec.simulation, []).append(i)
     return list(groups.values())

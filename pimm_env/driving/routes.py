@@ -13,10 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
-from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from pimm_env.mapping.free_graph import FreeGraph, NoFreeRegionError, free_graph, path_nodes
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
 from pimm_env.world.polyline import douglas_peucker
@@ -35,60 +34,6 @@ class RouteConfig:
 
 class RoutePlanningError(ValueError):
     """The world has no room for a route of the asked length and clearance."""
-
-
-@dataclass(frozen=True)
-class _Graph:
-    xy: np.ndarray  # (N, 2) node positions
-    clearance: np.ndarray  # (N,) metres
-    matrix: object  # sparse (N, N) step costs
-    cell_clearance: np.ndarray  # metres, every cell of the occupancy grid
-
-
-def _graph(occupancy: OccupancyGrid, config: RouteConfig) -> _Graph:
-    grid = occupancy.grid
-    clearance = ndimage.distance_transform_edt(occupancy.free) * grid.resolution
-    stride = max(1, round(config.step_m / grid.resolution))
-    sub = clearance[::stride, ::stride]
-    ok = sub >= config.clearance_m
-    labels, count = ndimage.label(ok, structure=np.ones((3, 3)))
-    if count == 0:
-        raise RoutePlanningError(f"no free place keeps {config.clearance_m} m from every obstacle")
-    largest = np.argmax(np.bincount(labels.ravel())[1:]) + 1
-    rows, cols = np.nonzero(labels == largest)
-    index = -np.ones(sub.shape, dtype=np.int64)
-    index[rows, cols] = np.arange(len(rows))
-    xy = np.column_stack(
-        [
-            grid.origin[0] + (cols * stride + 0.5) * grid.resolution,
-            grid.origin[1] + (rows * stride + 0.5) * grid.resolution,
-        ]
-    )
-    node_clearance = sub[rows, cols]
-    sources, targets, costs = [], [], []
-    step = stride * grid.resolution
-    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        r2, c2 = rows + dr, cols + dc
-        inside = (r2 >= 0) & (r2 < sub.shape[0]) & (c2 >= 0) & (c2 < sub.shape[1])
-        j = np.full(len(rows), -1)
-        j[inside] = index[r2[inside], c2[inside]]
-        linked = j >= 0
-        i = np.nonzero(linked)[0]
-        length = step * np.hypot(dr, dc)
-        cost = length * (1 + 1.0 / np.minimum(node_clearance[i], node_clearance[j[linked]]))
-        sources += [i, j[linked]]
-        targets += [j[linked], i]
-        costs += [cost, cost]
-    n = len(rows)
-    matrix = coo_matrix((np.concatenate(costs), (np.concatenate(sources), np.concatenate(targets))), shape=(n, n))
-    return _Graph(xy, node_clearance, matrix.tocsr(), clearance)
-
-
-def _path(predecessors: np.ndarray, goal: int) -> list[int]:
-    path = [goal]
-    while predecessors[path[-1]] >= 0:
-        path.append(int(predecessors[path[-1]]))
-    return path[::-1]
 
 
 def _length(xy: np.ndarray) -> float:
@@ -110,7 +55,9 @@ def thin(
     return points[kept]
 
 
-def _plan_route(graph: _Graph, occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator) -> np.ndarray:
+def _plan_route(
+    graph: FreeGraph, occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator
+) -> np.ndarray:
     """Waypoints (K, 2) of one route (see the module docstring)."""
     target = rng.uniform(config.min_length_m, config.max_length_m)
     current = int(rng.integers(len(graph.xy)))
@@ -132,7 +79,7 @@ def _plan_route(graph: _Graph, occupancy: OccupancyGrid, config: RouteConfig, rn
             raise RoutePlanningError(f"the free region around {graph.xy[current].round(2)} is too small for a route")
         weights = np.where(reachable, far + 1e-3, 0.0) ** 2
         goal = int(rng.choice(len(weights), p=weights / weights.sum()))
-        leg = _path(predecessors, goal)[1:]
+        leg = path_nodes(predecessors, goal)[1:]
         route += leg
         length += _length(graph.xy[[current, *leg]])
         visited.append(goal)
@@ -140,7 +87,7 @@ def _plan_route(graph: _Graph, occupancy: OccupancyGrid, config: RouteConfig, rn
     raise RoutePlanningError(f"no route of {config.min_length_m} m found in 100 legs")
 
 
-def _waypoints(xy: np.ndarray, graph: _Graph, occupancy: OccupancyGrid, config: RouteConfig) -> np.ndarray:
+def _waypoints(xy: np.ndarray, graph: FreeGraph, occupancy: OccupancyGrid, config: RouteConfig) -> np.ndarray:
     along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
     least = config.clearance_m - 0.5 * config.step_m
     return thin(xy[along <= config.max_length_m], occupancy.grid, graph.cell_clearance, least)
@@ -149,7 +96,10 @@ def _waypoints(xy: np.ndarray, graph: _Graph, occupancy: OccupancyGrid, config: 
 def plan_routes(occupancy: OccupancyGrid, config: RouteConfig, seed: int) -> list[np.ndarray]:
     """``config.count`` routes, reproducible for one seed."""
     rng = np.random.default_rng(seed)
-    graph = _graph(occupancy, config)  # built once: the free space is the same for every route
+    try:  # built once: the free space is the same for every route
+        graph = free_graph(occupancy, config.clearance_m, config.step_m)
+    except NoFreeRegionError as error:
+        raise RoutePlanningError(str(error)) from None
     return [_plan_route(graph, occupancy, config, rng) for _ in range(config.count)]
 
 

@@ -47,6 +47,10 @@ class SimConfig:
     #: "auto" (= "embree": Open3D's Embree scene, any world, 3-4 ms per 3D scan whatever the element count),
     #: "prism" (exact, boxes and cylinders only, its cost grows with the elements) or "bullet" (slowest)
     ray_caster: str = "auto"
+    #: people walking about and furniture that the derived maps do not have (``sim/movers.py``), drawn per
+    #: episode from the reset's seed; seen by both LiDARs as clutter, reported in ``info``
+    walkers: int = 0
+    unmapped: int = 0
 
 
 def action_space(config: SimConfig) -> spaces.Box:
@@ -111,6 +115,8 @@ class LidarRobotEnv(gym.Env):
         n = l3.num_points
         self.action_space = action_space(self.config)
         self.observation_space = observation_space(self.config)
+        self._walkers: Any = None
+        self._furniture: Any = None
         self._time = 0.0
         self._next_cloud = 0.0
         self._next_scan = 0.0
@@ -195,6 +201,7 @@ class LidarRobotEnv(gym.Env):
             pose = self._random_pose() if kidnap is True else self._checked_pose(kidnap, "kidnap")
             self.robot.teleport(pose)
         else:
+            self._place_movers()
             pose = (
                 self._checked_pose(options["pose"], "pose") if options.get("pose") is not None else self._random_pose()
             )
@@ -215,6 +222,8 @@ class LidarRobotEnv(gym.Env):
         action = np.clip(action, self.action_space.low, self.action_space.high)
         self._collided = self.robot.step(float(action[0]), float(action[1]), self.np_random, self._blocked)
         self._time += self.config.robot.control_dt
+        if self._walkers is not None:
+            self._walkers.step(self.config.robot.control_dt, self.robot.pose[:2])
         self.scene.place_robot(self.robot.pose)
         self._sense()
         obs = self._observation()
@@ -235,6 +244,7 @@ class LidarRobotEnv(gym.Env):
             self._azimuths2d,
             self.config.lidar2d.max_range,
             self.config.robot.footprint_radius,
+            None if (movers := self.movers()) is None else movers.as_array(),
         )
 
     def close(self) -> None:
@@ -278,6 +288,46 @@ class LidarRobotEnv(gym.Env):
         arr[2] = wrap_angle(arr[2])
         return arr
 
+    def _place_movers(self) -> None:
+        """This episode's walkers and unmapped furniture, from a stream of their own (the robot's and the
+        LiDARs' draws stay as they are without them)."""
+        from pimm_env.sim.movers import Walkers, place_furniture
+
+        c = self.config
+        self._walkers = self._furniture = None
+        if c.walkers or c.unmapped:
+            rng = self.np_random.spawn(1)[0]
+            self._furniture = place_furniture(self.maps.occupancy, c.unmapped, rng) if c.unmapped else None
+            self._walkers = Walkers(self.maps.occupancy, c.walkers, rng) if c.walkers else None
+
+    def movers(self) -> Any:
+        """The boxes of the walkers and the unmapped furniture now (``sim.movers.Boxes``), or None."""
+        from pimm_env.sim.movers import Boxes
+
+        parts = [b for b in (self._furniture, self._walkers.boxes() if self._walkers else None) if b is not None]
+        return Boxes.concatenate(parts) if parts else None
+
+    def _with_movers(
+        self,
+        origin: np.ndarray,
+        azimuths: np.ndarray,
+        elevations: np.ndarray,
+        ranges: np.ndarray,
+        labels: np.ndarray,
+        max_range: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The static world's ranges and labels (flattened), with the nearer hits on walkers and furniture."""
+        ranges, labels = ranges.reshape(-1), labels.reshape(-1)
+        boxes = self.movers()
+        if boxes is None:
+            return ranges, labels
+        from pimm_env.sim.movers import cast_boxes
+        from pimm_env.sim.raycast import _directions
+
+        near = cast_boxes(origin, _directions(azimuths, elevations).reshape(-1, 3), boxes, self.world.floor_z)
+        nearer = (near < ranges) & (near <= max_range)
+        return np.where(nearer, near, ranges), np.where(nearer, int(SemanticClass.CLUTTER), labels).astype(labels.dtype)
+
     def _sense(self) -> None:
         """Take the scans that are due at the current time."""
         assert self._noise is not None, "reset() first"
@@ -289,7 +339,9 @@ class LidarRobotEnv(gym.Env):
         if l3.enabled and self._time + eps >= self._next_cloud:
             origin = np.array([x, y, self.world.floor_z + l3.height])
             ranges, labels = self.caster.cast(origin, self._azimuths3d + theta, self._elevations, l3.max_range)
-            ranges, labels = ranges.reshape(-1), labels.reshape(-1)
+            ranges, labels = self._with_movers(
+                origin, self._azimuths3d + theta, self._elevations, ranges, labels, l3.max_range
+            )
             hit = np.isfinite(ranges)
             noisy = noisy_ranges(
                 np.where(hit, ranges, 0) / l3.max_range, hit, l3.max_range, l3.min_range, l3.noise_std, noise3d
@@ -305,8 +357,8 @@ class LidarRobotEnv(gym.Env):
             c, s = np.cos(theta), np.sin(theta)
             mx, my = x + c * l2.mount_x - s * l2.mount_y, y + s * l2.mount_x + c * l2.mount_y
             origin = np.array([mx, my, self.world.floor_z + l2.height])
-            ranges, _ = self.caster.cast(origin, self._azimuths2d + theta, np.zeros(1), l2.max_range)
-            ranges = ranges.reshape(-1)
+            ranges, labels2d = self.caster.cast(origin, self._azimuths2d + theta, np.zeros(1), l2.max_range)
+            ranges, _ = self._with_movers(origin, self._azimuths2d + theta, np.zeros(1), ranges, labels2d, l2.max_range)
             hit = np.isfinite(ranges)
             scan = noisy_ranges(
                 np.where(hit, ranges, 0) / l2.max_range, hit, l2.max_range, l2.min_range, l2.noise_std, noise2d
@@ -345,7 +397,16 @@ class LidarRobotEnv(gym.Env):
             "fresh_scan": self._fresh[1],
             "area": self.world.area_of(*self.robot.pose[:2]),
             "travelled": self.robot.travelled,
+            **self._movers_info(),
         }
+
+    def _movers_info(self) -> dict[str, np.ndarray]:
+        out = {}
+        if self._walkers is not None:
+            out["walkers"] = self._walkers.boxes().as_array()
+        if self._furniture is not None:
+            out["unmapped"] = self._furniture.as_array()
+        return out
 
     # ------------------------------------------------------------------ pickling
     def __getstate__(self) -> dict[str, Any]:

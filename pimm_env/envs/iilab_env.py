@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
+
+import numpy as np
 
 from pimm_env.envs.base_env import LidarRobotEnv, SimConfig
 from pimm_env.world.files import World
@@ -62,9 +65,13 @@ class IILabEnv(LidarRobotEnv):
     | `sensors`                | `None`    | LiDAR presets by name (`"hokuyo-utm30lx"`; see `sim/sensors.py`) |
     | `render_mode`            | `None`    | `"rgb_array"`: top-down map, robot and current scans            |
     | `terminate_on_collision` | `True`    | end the episode when the body touches an obstacle               |
+    | `walkers`                | `0`       | people walking about (clutter; not in the maps; see sim/movers) |
+    | `unmapped`               | `0`       | furniture along the walls that the derived maps do not have     |
 
     `info` holds `true_pose` (map frame), `labels` (semantic class per cloud point, -1 for no return),
-    `collision`, `fresh_cloud`, `fresh_scan`, `area` (A, B, C or None) and `travelled` (m).
+    `collision`, `fresh_cloud`, `fresh_scan`, `area` (A, B, C or None) and `travelled` (m); with walkers or
+    unmapped furniture, `walkers` and `unmapped`: one row per box, (x, y, yaw, length, width, height). Both
+    are drawn anew at every full reset from its seed; a kidnap keeps them.
 
     ## Version History
 
@@ -78,11 +85,20 @@ class IILabEnv(LidarRobotEnv):
         render_mode: str | None = None,
         terminate_on_collision: bool = True,
         sensors: str | None = None,
+        walkers: int | None = None,
+        unmapped: int | None = None,
     ) -> None:
         if sensors is not None:
             from pimm_env.sim.sensors import with_sensors
 
             config = with_sensors(config or SimConfig(), sensors)
+        for name, count in (("walkers", walkers), ("unmapped", unmapped)):
+            if count is not None and (not isinstance(count, int | np.integer) or count < 0):
+                raise ValueError(f"{name} must be a whole number >= 0, got {count!r}")
+        if walkers is not None:
+            config = replace(config or SimConfig(), walkers=int(walkers))
+        if unmapped is not None:
+            config = replace(config or SimConfig(), unmapped=int(unmapped))
         super().__init__(world=world, config=config, render_mode=render_mode)
         self._terminate_on_collision = terminate_on_collision
 

@@ -54,9 +54,11 @@ def draw_top_down(
     scan_angles: np.ndarray,
     scan_max_range: float,
     robot_radius: float,
+    boxes: np.ndarray | None = None,
 ) -> np.ndarray:
     """The map with the 3D cloud (sensor frame, ``labels`` -1 where no return) coloured by class, the 2D scan
-    (ranges at ``scan_angles`` in the robot frame) in red and the robot at ``pose`` in blue."""
+    (ranges at ``scan_angles`` in the robot frame) in red, the robot at ``pose`` in blue, and ``boxes`` (rows
+    of x, y, yaw, length, width, height: walkers and unmapped furniture) filled in orange."""
     image = map_image(occupancy)
     x, y, theta = pose
     c, s = np.cos(theta), np.sin(theta)
@@ -70,5 +72,10 @@ def draw_top_down(
     hit = scan < scan_max_range
     ends = np.stack([x + scan * np.cos(angles), y + scan * np.sin(angles)], axis=1)[hit]
     plot_points(image, occupancy, ends, (255, 0, 0), size=1)
+    for bx, by, yaw, length, width, _ in boxes if boxes is not None else []:
+        u, v = np.meshgrid(np.linspace(-0.5, 0.5, 8) * length, np.linspace(-0.5, 0.5, 6) * width)
+        cy, sy = np.cos(yaw), np.sin(yaw)
+        inside = np.stack([bx + cy * u.ravel() - sy * v.ravel(), by + sy * u.ravel() + cy * v.ravel()], axis=1)
+        plot_points(image, occupancy, inside, (255, 140, 0), size=1)
     draw_robot(image, occupancy, pose, robot_radius, (30, 60, 230))
     return np.ascontiguousarray(np.flipud(image))
