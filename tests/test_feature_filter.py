@@ -245,3 +245,39 @@ def test_wall_points_are_the_wall_band_spread_over_bearings():
         WallFieldConfig(min_z_m=1.0, max_z_m=0.0)
     with pytest.raises(ValueError, match="'product' or 'sum_of_cubes'"):
         WallFieldConfig(model="beam")
+
+
+def test_adaptive_set_shrinks_once_converged_and_finds_a_kidnapped_robot():
+    filt = make_filter(6000, adaptive=True, min_particles=500)
+    east = np.array([[x, 1.5, 0.0] for x in np.arange(1.0, 8.0, 0.15)])
+    sizes = []
+    for pose in east:
+        if filt.motion_update(pose):
+            filt.correct(features_from(pose), np.zeros((0, 2)))
+            sizes.append(len(filt.particles))
+    assert max(sizes) <= 6000 and min(sizes) >= 500 and sizes[-1] < 1500  # a tight cluster: KLD's few, + injected
+    assert np.hypot(*(filt.best_mean()[:2] - east[-1, :2])) < 0.3
+    # kidnapped to the west wing: the odometry drives on east at y = 1.5, the robot east at y = 4.5 from x = 1
+    estimate = None
+    for step, odom in enumerate(np.array([[x, 1.5, 0.0] for x in np.arange(8.0, 12.5, 0.15)])):
+        truth = np.array([1.0 + 0.15 * step, 4.5, 0.0])
+        if filt.motion_update(odom):
+            found = filt.correct(features_from(truth), truth[None, :2])  # the fingerprints point at the truth
+            if found is not None:
+                estimate, at = found, odom
+    assert estimate is not None
+    assert np.hypot(*(carry(estimate, at, odom)[:2] - truth[:2])) < 0.5
+    assert len(filt.particles) < 6000
+
+
+def test_adaptive_injection_joins_a_small_set_and_replaces_in_a_full_one():
+    filt = make_filter(2000, adaptive=True, min_particles=100)
+    filt.particles, filt.weights = filt.particles[:300], np.full(300, 1 / 300)
+    added = filt.inject(np.array([[2.0, 2.0]]))
+    assert len(filt.particles) == 400 and list(added) == list(range(300, 400))  # 5 % of 2000 joined
+    assert filt.weights.sum() == pytest.approx(1.0)
+    full = make_filter(2000, adaptive=True, min_particles=100)
+    full.inject(np.array([[2.0, 2.0]]))
+    assert len(full.particles) == 2000
+    with pytest.raises(ValueError, match="min_particles"):
+        FeatureFilterConfig(num_particles=100, min_particles=200, adaptive=True)

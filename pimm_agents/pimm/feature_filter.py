@@ -13,6 +13,7 @@ import numpy as np
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.particles.free_space import FreeSpace
 from pimm_agents.particles.initial_pose import gaussian_poses
+from pimm_agents.particles.kld import bin_keys, kld_sample_count
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
@@ -50,10 +51,24 @@ class FeatureFilterConfig:
     #: ours: heading bins of that grid; a feature is matched to the corner that best explains its position
     #: and heading (8: 45 deg bins), not only the nearest (1: the thesis's); see corners/lookup.py
     lookup_orientation_bins: int = 8
+    #: ours (the thesis's future work): KLD-sampling (Fox 2003, as nav2's AMCL) at each resampling, so that the
+    #: set shrinks to what its spread needs once it has converged; num_particles is then the most it holds.
+    #: The injection keeps its size of num_particles x replace_worst_fraction and joins the set while it is
+    #: smaller than num_particles (rather than replacing its worst), so a kidnap is searched for as before.
+    adaptive: bool = False
+    min_particles: int = 1000  # ours: KLD's floor (nav2's 500 is for a 2D scan's denser weighing)
+    kld_err: float = 0.05  # nav2 pf_err
+    kld_z: float = 0.99  # nav2 pf_z
+    kld_bin_xy: float = 0.5  # nav2's bins
+    kld_bin_theta: float = float(np.radians(10.0))
 
     def __post_init__(self) -> None:
         if self.num_particles < 1:
             raise ValueError(f"num_particles must be at least 1, got {self.num_particles}")
+        if not 1 <= self.min_particles <= self.num_particles and self.adaptive:
+            raise ValueError(
+                f"min_particles must be in [1, num_particles = {self.num_particles}], got {self.min_particles}"
+            )
         if not 0 < self.alpha <= 1:
             raise ValueError(f"alpha must be in (0, 1], got {self.alpha}")
         if self.estimate_bin_xy < 0 or self.estimate_bin_theta <= 0:
@@ -211,24 +226,41 @@ class FeatureFilter:
 
     # ------------------------------------------------------------------ resampling and injection
     def resample_if_degenerate(self) -> bool:
-        """Residual resampling when ESS <= tau * N (eq. 3.17). Returns whether it resampled."""
+        """Residual resampling when ESS <= tau * N (eq. 3.17); with ``adaptive``, num_particles draws of which
+        KLD's bound keeps as many as the bins they occupy need. Returns whether it resampled."""
         n = len(self.particles)
-        if self.ess > self.config.resample_ess_threshold * n:
+        c = self.config
+        if self.ess > c.resample_ess_threshold * n:
             return False
-        self.particles = self.particles[residual_resample(self.weights, self.rng)]
+        if not c.adaptive:
+            self.particles = self.particles[residual_resample(self.weights, self.rng)]
+        else:
+            drawn = self.particles[self.rng.permutation(residual_resample(self.weights, self.rng, c.num_particles))]
+            keys = bin_keys(drawn, c.kld_bin_xy, c.kld_bin_theta)
+            self.particles = drawn[: kld_sample_count(keys, c.kld_err, c.kld_z, c.min_particles, c.num_particles)]
+        n = len(self.particles)
         self.weights = np.full(n, 1.0 / n)
         return True
 
     def inject(self, suggestions: np.ndarray) -> np.ndarray:
         """Replace the worst ``replace_worst_fraction`` of the particles: ``smart_share`` of them around the
         suggested positions (Gaussian, ``smart_sigma_m``, random heading), the rest uniform over free space.
-        They take the mean weight. Returns the indices replaced."""
+        They take the mean weight. Returns the indices replaced (with ``adaptive`` and a set smaller than
+        num_particles, the indices of the particles added instead)."""
         c = self.config
         n = len(self.particles)
-        count = round(c.replace_worst_fraction * n)
+        count = round(c.replace_worst_fraction * (c.num_particles if c.adaptive else n))
         if count == 0:
             return np.zeros(0, dtype=int)
-        worst = np.argpartition(self.weights, count - 1)[:count]
+        grow = c.adaptive and n + count <= c.num_particles
+        if grow:  # a shrunk set: the new particles join it
+            self.particles = np.vstack([self.particles, np.zeros((count, 3))])
+            self.weights = np.concatenate([self.weights, np.zeros(count)])
+            worst = np.arange(n, n + count)
+            n += count
+        else:
+            count = min(count, n)
+            worst = np.argpartition(self.weights, count - 1)[:count]
         suggestions = np.asarray(suggestions, dtype=float).reshape(-1, 2)
         smart = round(c.smart_share * count) if len(suggestions) else 0
         new = np.empty((count, 3))
