@@ -5,7 +5,7 @@ Concrete environments (see :mod:`pimm_env.envs.iilab_env`) choose the world and 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import gymnasium as gym
@@ -51,6 +51,19 @@ class SimConfig:
     #: episode from the reset's seed; seen by both LiDARs as clutter, reported in ``info``
     walkers: int = 0
     unmapped: int = 0
+
+
+def with_sensors(config: SimConfig, spec: str | None) -> SimConfig:
+    """``config`` with the LiDARs that ``spec`` names (``sim/sensors.py``'s presets; their ``enabled`` flags
+    kept)."""
+    from pimm_env.sim.sensors import sensor_layouts
+
+    lidar3d, lidar2d = sensor_layouts(spec)
+    return replace(
+        config,
+        lidar3d=replace(lidar3d, enabled=config.lidar3d.enabled),
+        lidar2d=replace(lidar2d, enabled=config.lidar2d.enabled),
+    )
 
 
 def action_space(config: SimConfig) -> spaces.Box:

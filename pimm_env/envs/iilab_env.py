@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.envs.base_env import LidarRobotEnv, SimConfig
+from pimm_env.envs.base_env import LidarRobotEnv, SimConfig, with_sensors
 from pimm_env.world.files import World
 
 
@@ -89,8 +89,6 @@ class IILabEnv(LidarRobotEnv):
         unmapped: int | None = None,
     ) -> None:
         if sensors is not None:
-            from pimm_env.sim.sensors import with_sensors
-
             config = with_sensors(config or SimConfig(), sensors)
         for name, count in (("walkers", walkers), ("unmapped", unmapped)):
             if count is not None and (not isinstance(count, int | np.integer) or count < 0):

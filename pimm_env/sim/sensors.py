@@ -8,13 +8,7 @@ with commas. Geometry, range and rate come from the makers' datasheets; the rang
 
 from __future__ import annotations
 
-from dataclasses import replace
-from typing import TYPE_CHECKING
-
 from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig
-
-if TYPE_CHECKING:
-    from pimm_env.envs.base_env import SimConfig
 
 LIDAR_2D: dict[str, Lidar2DConfig] = {
     "thesis": Lidar2DConfig(),
@@ -47,13 +41,3 @@ def sensor_layouts(spec: str | None) -> tuple[Lidar3DConfig, Lidar2DConfig]:
         lidar3d = LIDAR_3D.get(name, lidar3d)
         lidar2d = LIDAR_2D.get(name, lidar2d)
     return lidar3d, lidar2d
-
-
-def with_sensors(config: SimConfig, spec: str | None) -> SimConfig:
-    """``config`` with the LiDARs ``spec`` names (their ``enabled`` flags kept)."""
-    lidar3d, lidar2d = sensor_layouts(spec)
-    return replace(
-        config,
-        lidar3d=replace(lidar3d, enabled=config.lidar3d.enabled),
-        lidar2d=replace(lidar2d, enabled=config.lidar2d.enabled),
-    )
