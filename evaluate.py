@@ -216,10 +216,12 @@ def _localizer_configs(
 
 
 def _check_backend(backend: str, address: str | None) -> None:
-    if backend not in ("local", "ray") or (address is not None and backend != "ray"):
-        raise typer.BadParameter(
-            f"expected local or ray (--address only with ray), got {backend!r}", param_hint="--backend"
-        )
+    from pimm_agents.engines import check_backend
+
+    try:
+        check_backend(backend, address)
+    except ValueError as error:
+        raise typer.BadParameter(str(error), param_hint="--backend") from None
 
 
 def _check_faults(faults: str) -> None:

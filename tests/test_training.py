@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from pimm_agents.evaluation.perception_quality import iou_per_class
-from pimm_agents.perception.pointnet import PointNetConfig, save_checkpoint
+from pimm_agents.perception.pointnet import PointNetConfig, PointNetSegmenter, save_checkpoint
 from pimm_agents.perception.segmenter import Segmenter
 from training.dataset import generate, load, save, split
 from training.fingerprints import build_fingerprint_map
@@ -98,3 +98,29 @@ def test_rebuild_command_makes_every_perception_file_for_a_world(room_file, tmp_
 
     segmenter, fmap = load_perception(str(room_file))
     assert len(fmap) >= 3 and fmap.dim == segmenter.descriptor_dim
+
+
+def test_scans_and_fingerprints_are_the_same_whichever_engine_takes_them(tmp_path):
+    """Split over two local processes, the data equal the serial run's (on Ray: the expensive test below)."""
+    serial = generate("iilab", 6, seed=3, progress=False)
+    split_up = generate("iilab", 6, seed=3, progress=False, workers=2)
+    for field in ("ranges", "labels", "poses", "areas"):
+        np.testing.assert_array_equal(getattr(split_up, field), getattr(serial, field))
+    model = PointNetSegmenter(TINY)
+    save_checkpoint(model, tmp_path / "pointnet.pt", {})
+    segmenter = Segmenter(tmp_path / "pointnet.pt")
+    one = build_fingerprint_map("iilab", segmenter, spacing=5.0, seed=1, progress=False)
+    two = build_fingerprint_map("iilab", segmenter, spacing=5.0, seed=1, progress=False, workers=2)
+    np.testing.assert_allclose(two.descriptors, one.descriptors, atol=1e-6)
+    np.testing.assert_array_equal(two.positions, one.positions)
+    with pytest.raises(ValueError, match="expected local or ray"):
+        generate("iilab", 2, seed=0, progress=False, backend="dask")
+
+
+@pytest.mark.expensive
+def test_scans_on_a_local_ray_equal_the_serial_ones():
+    pytest.importorskip("ray")
+    serial = generate("iilab", 4, seed=7, progress=False)
+    on_ray = generate("iilab", 4, seed=7, progress=False, workers=2, backend="ray")
+    np.testing.assert_array_equal(on_ray.ranges, serial.ranges)
+    np.testing.assert_array_equal(on_ray.poses, serial.poses)

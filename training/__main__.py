@@ -41,14 +41,19 @@ def dataset(
     scans: int = typer.Option(2300, min=10, help="scans for training + test (the thesis's 2300)"),
     validation: int = typer.Option(400, min=1, help="scans of the separate validation set (another seed)"),
     seed: int = typer.Option(0, help="seed of the poses and noise"),
+    workers: int = typer.Option(1, min=1, help="worker processes (or Ray CPUs); the scans are the same for any"),
+    backend: str = typer.Option("local", help="local (worker processes) or ray (a local Ray, or --address)"),
+    address: str | None = typer.Option(None, help="a Ray cluster to join, e.g. ray://head:10001 or auto"),
 ) -> None:
     """Labelled scans at random free poses, and a validation set from poses drawn with another seed."""
     from training.dataset import VALIDATION_SEED_OFFSET, generate, save
 
+    _check_backend(backend, address)
     _prepare(world)
     main_path, val_path = _dataset_paths(world)
-    save(generate(world, scans, seed), main_path)
-    save(generate(world, validation, seed + VALIDATION_SEED_OFFSET), val_path)
+    save(generate(world, scans, seed, workers=workers, backend=backend, address=address), main_path)
+    validation_seed = seed + VALIDATION_SEED_OFFSET
+    save(generate(world, validation, validation_seed, workers=workers, backend=backend, address=address), val_path)
     typer.echo(f"wrote {main_path} ({scans} scans) and {val_path} ({validation} scans)")
 
 
@@ -145,17 +150,31 @@ def fingerprints(
     world: str = typer.Option("iilab", help="world name or world file"),
     spacing: float = typer.Option(0.5, min=0.05, help="grid spacing of the map positions (m)"),
     seed: int = typer.Option(0, help="seed of the headings and noise"),
+    workers: int = typer.Option(1, min=1, help="worker processes (or Ray CPUs); the map is the same for any"),
+    backend: str = typer.Option("local", help="local (worker processes) or ray (a local Ray, or --address)"),
+    address: str | None = typer.Option(None, help="a Ray cluster to join, e.g. ray://head:10001 or auto"),
 ) -> None:
     """Descriptors of scans on a grid of free positions, saved as the world's fingerprint map."""
     from pimm_agents.perception.files import checkpoint_path, fingerprint_path
     from pimm_agents.perception.segmenter import Segmenter
     from training.fingerprints import build_fingerprint_map
 
+    _check_backend(backend, address)
     _prepare(world)
-    fmap = build_fingerprint_map(world, Segmenter(checkpoint_path(world)), spacing, seed)
+    segmenter = Segmenter(checkpoint_path(world))
+    fmap = build_fingerprint_map(world, segmenter, spacing, seed, workers=workers, backend=backend, address=address)
     target = fingerprint_path(world)
     fmap.save(target, {"spacing_m": str(spacing), "seed": str(seed)})
     typer.echo(f"wrote {target} ({len(fmap)} positions, {fmap.dim}-d descriptors)")
+
+
+def _check_backend(backend: str, address: str | None) -> None:
+    from pimm_agents.engines import check_backend
+
+    try:
+        check_backend(backend, address)
+    except ValueError as error:
+        raise typer.BadParameter(str(error), param_hint="--backend") from None
 
 
 @app.command()

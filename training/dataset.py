@@ -46,21 +46,53 @@ class ScanSet:
         return np.where(mask[:, None], directions * np.where(mask, ranges, 0)[:, None], 0).astype(np.float32), mask
 
 
-def generate(world: str, count: int, seed: int, progress: bool = True) -> ScanSet:
-    """``count`` scans at random free poses of ``world`` (uniform over free space, random heading), seeded."""
+def generate(
+    world: str,
+    count: int,
+    seed: int,
+    progress: bool = True,
+    workers: int = 1,
+    backend: str = "local",
+    address: str | None = None,
+) -> ScanSet:
+    """``count`` scans at random free poses of ``world`` (uniform over free space, random heading), seeded.
+    With ``workers`` > 1 or ``backend="ray"`` they are taken in chunks by ``pimm_agents.engines``; each scan
+    keeps its own seed, so the set is the same however it was split."""
+    from tqdm import tqdm
+
+    from pimm_agents.engines import run_jobs
+
+    if count < 1:
+        raise ValueError(f"scan count must be at least 1, got {count}")
+    seeds = np.random.SeedSequence(seed).generate_state(count)
+    serial = workers <= 1 and backend == "local"
+    chunks = [seeds] if serial else [c for c in np.array_split(seeds, 4 * max(1, workers)) if len(c)]
+    jobs = [(world, chunk, progress and serial) for chunk in chunks]
+    with tqdm(total=count, desc=f"scans of {world}", disable=not progress or serial, unit="scan") as bar:
+        parts = run_jobs(_scans, jobs, workers, backend, address, lambda i, _: bar.update(len(jobs[i][1])))
+    return ScanSet(
+        np.concatenate([p.ranges for p in parts]),
+        np.concatenate([p.labels for p in parts]),
+        np.concatenate([p.poses for p in parts]),
+        np.concatenate([p.areas for p in parts]),
+        parts[0].world,
+    )
+
+
+def _scans(job: tuple[str, np.ndarray, bool]) -> ScanSet:
+    """One scan per seed at a random free pose (one job of a data set)."""
     from tqdm import tqdm
 
     from pimm_env.envs.iilab_env import IILabEnv
 
-    if count < 1:
-        raise ValueError(f"scan count must be at least 1, got {count}")
+    world, seeds, progress = job
+    count = len(seeds)
     env = IILabEnv(world=world)
     l3 = env.config.lidar3d
     ranges = np.full((count, l3.layers, l3.points_per_layer), np.nan, dtype=np.float16)
     labels = np.full((count, l3.layers, l3.points_per_layer), -1, dtype=np.int8)
     poses = np.zeros((count, 3))
     areas = np.empty(count, dtype="<U8")
-    seeds = np.random.SeedSequence(seed).generate_state(count)
     try:
         for i in tqdm(range(count), desc=f"scans of {env.world.name}", disable=not progress, unit="scan"):
             obs, info = env.reset(seed=int(seeds[i]))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from pimm_agents.perception.fingerprint_map import FingerprintMap
@@ -10,26 +12,56 @@ from pimm_env.world.model import World
 
 
 def build_fingerprint_map(
-    world: str | World, segmenter: Segmenter, spacing: float = 0.5, seed: int = 0, progress: bool = True
+    world: str | World,
+    segmenter: Segmenter,
+    spacing: float = 0.5,
+    seed: int = 0,
+    progress: bool = True,
+    workers: int = 1,
+    backend: str = "local",
+    address: str | None = None,
 ) -> FingerprintMap:
-    """Scan at every ``spacing`` grid position where the robot fits, with a random heading (seeded)."""
+    """Scan at every ``spacing`` grid position where the robot fits, with a random heading (seeded). With
+    ``workers`` > 1 or ``backend="ray"`` the positions are scanned in chunks by ``pimm_agents.engines``; every
+    position keeps its own heading and noise seed, so the map is the same however it was split."""
     from tqdm import tqdm
 
+    from pimm_agents.engines import run_jobs
     from pimm_env.envs.iilab_env import IILabEnv
 
     env = IILabEnv(world=world)
     rng = np.random.default_rng(seed)
     try:
         positions = env.start_positions(spacing)
-        if len(positions) < 3:
-            raise ValueError(f"world {env.world.name!r} has {len(positions)} free grid positions at {spacing} m")
-        headings = rng.uniform(-np.pi, np.pi, len(positions))
-        noise_seeds = rng.integers(0, 2**31, len(positions))
-        descriptors = np.empty((len(positions), segmenter.descriptor_dim), dtype=np.float32)
-        for i in tqdm(range(len(positions)), desc="fingerprints", disable=not progress, unit="scan"):
-            pose = [positions[i, 0], positions[i, 1], headings[i]]
-            obs, _ = env.reset(seed=int(noise_seeds[i]), options={"pose": pose})
-            descriptors[i] = segmenter.segment(obs["cloud"], obs["cloud_mask"]).descriptor
+        name = env.world.name
     finally:
         env.close()
-    return FingerprintMap(descriptors, positions, headings, source=f"fingerprint map of {env.world.name}")
+    if len(positions) < 3:
+        raise ValueError(f"world {name!r} has {len(positions)} free grid positions at {spacing} m")
+    headings = rng.uniform(-np.pi, np.pi, len(positions))
+    noise_seeds = rng.integers(0, 2**31, len(positions))
+    poses = np.column_stack([positions, headings])
+    serial = workers <= 1 and backend == "local"
+    chunks = [np.arange(len(poses))] if serial else np.array_split(np.arange(len(poses)), 4 * max(1, workers))
+    jobs = [(world, segmenter, poses[c], noise_seeds[c], progress and serial) for c in chunks if len(c)]
+    with tqdm(total=len(poses), desc="fingerprints", disable=not progress or serial, unit="scan") as bar:
+        parts = run_jobs(_descriptors, jobs, workers, backend, address, lambda i, _: bar.update(len(jobs[i][2])))
+    return FingerprintMap(np.vstack(parts), positions, headings, source=f"fingerprint map of {name}")
+
+
+def _descriptors(job: tuple[Any, Segmenter, np.ndarray, np.ndarray, bool]) -> np.ndarray:
+    """The descriptors of scans taken at ``poses`` with these noise seeds (one job of the map)."""
+    from tqdm import tqdm
+
+    from pimm_env.envs.iilab_env import IILabEnv
+
+    world, segmenter, poses, noise_seeds, progress = job
+    env = IILabEnv(world=world)
+    out = np.empty((len(poses), segmenter.descriptor_dim), dtype=np.float32)
+    try:
+        for i in tqdm(range(len(poses)), desc="fingerprints", disable=not progress, unit="scan"):
+            obs, _ = env.reset(seed=int(noise_seeds[i]), options={"pose": list(poses[i])})
+            out[i] = segmenter.segment(obs["cloud"], obs["cloud_mask"]).descriptor
+    finally:
+        env.close()
+    return out

@@ -9,13 +9,12 @@ a simulation that casts the 3D cloud for one localizer gives the others the same
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from pimm_agents.engines import run_jobs
 from pimm_agents.evaluation.metrics import TrialMetrics, trial_metrics
 from pimm_agents.evaluation.trial_log import TrialLog
 
@@ -138,17 +137,6 @@ def group_by_simulation(specs: Sequence[TrialSpec]) -> list[list[int]]:
     return list(groups.values())
 
 
-def _limit_threads(threads: int) -> None:
-    """Keep each worker's torch to its share of the cores: oversubscribed threads slow every worker down."""
-    import torch
-
-    torch.set_num_threads(threads)
-
-
-#: Where trials run: ``local`` worker processes (the default, no Ray needed) or a Ray cluster.
-BACKENDS = ("local", "ray")
-
-
 def run_trials(
     specs: Sequence[TrialSpec],
     workers: int = 1,
@@ -159,66 +147,14 @@ def run_trials(
     """All trials, one simulation per group of specs that share it, in ``workers`` local processes (1: in this
     one) or as Ray tasks (``backend="ray"``: a local Ray with ``workers`` CPUs, or the cluster at ``address``);
     ``on_done`` sees each result as its simulation finishes; results come back in the order of ``specs``."""
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    results: dict[int, TrialResult] = {}
     groups = group_by_simulation(specs)
+    results: dict[int, TrialResult] = {}
 
-    def finish(indices: list[int], done: list[TrialResult]) -> None:
-        for i, result in zip(indices, done, strict=True):
+    def finish(group: int, done: list[TrialResult]) -> None:
+        for i, result in zip(groups[group], done, strict=True):
             results[i] = result
             if on_done:
                 on_done(result)
 
-    if backend == "ray":
-        _run_on_ray(specs, groups, workers, address, finish)
-    elif workers <= 1 or len(groups) <= 1:
-        for indices in groups:
-            finish(indices, run_shared([specs[i] for i in indices]))
-    else:
-        threads = max(1, (os.cpu_count() or 1) // workers)
-        with ProcessPoolExecutor(max_workers=workers, initializer=_limit_threads, initargs=(threads,)) as pool:
-            futures = {pool.submit(run_shared, [specs[i] for i in indices]): indices for indices in groups}
-            for future in as_completed(futures):
-                finish(futures[future], future.result())
+    run_jobs(run_shared, [[specs[i] for i in indices] for indices in groups], workers, backend, address, finish)
     return [results[i] for i in range(len(specs))]
-
-
-def _shared_on_one_thread(specs: list[TrialSpec]) -> list[TrialResult]:
-    """A Ray task: one CPU each, so torch keeps to one thread."""
-    _limit_threads(1)
-    return run_shared(specs)
-
-
-def _run_on_ray(
-    specs: Sequence[TrialSpec],
-    groups: list[list[int]],
-    workers: int,
-    address: str | None,
-    finish: Callable[[list[int], list[TrialResult]], None],
-) -> None:
-    """Each shared simulation as a Ray task (one CPU); results handed to ``finish`` as they complete. Starts a
-    local Ray with ``workers`` CPUs unless one is running or ``address`` names a cluster (then it joins it)."""
-    try:
-        import ray
-    except ImportError:
-        raise RuntimeError("--backend ray needs Ray: pip install 'ray>=2.9' (or the project's [ray] extra)") from None
-    started = not ray.is_initialized()
-    if started:
-        ray.init(
-            address=address,
-            num_cpus=None if address else max(1, workers),
-            include_dashboard=False,
-            log_to_driver=False,
-            configure_logging=False,
-        )
-    try:
-        task = ray.remote(num_cpus=1)(_shared_on_one_thread)
-        pending = {task.remote([specs[i] for i in indices]): indices for indices in groups}
-        while pending:
-            ready, _ = ray.wait(list(pending), num_returns=1)
-            for ref in ready:
-                finish(pending.pop(ref), ray.get(ref))
-    finally:
-        if started:
-            ray.shutdown()
