@@ -59,6 +59,17 @@ class ObservationGuard:
             bad = int(np.count_nonzero(~np.isfinite(value)))
             raise ValueError(f"observation {key!r} (shape {value.shape}) has {bad} non-finite value(s)")
 
+    def cloud(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """The observation's 3D cloud as float32 (N, 3) and its mask as bool (N,), checked: a missing key, a
+        wrong shape or a non-finite point raises, naming the key and the shape."""
+        if "cloud" not in obs:
+            raise KeyError(f"observation has no 'cloud' (keys: {sorted(obs)})")
+        cloud = np.asarray(obs["cloud"], dtype=np.float32)  # one conversion, checked here, not twice
+        if cloud.ndim != 2 or cloud.shape[1] != 3:
+            raise ValueError(f"observation 'cloud' has shape {cloud.shape}, expected (N, 3) points")
+        self.finite("cloud", cloud)
+        return cloud, require(obs, "cloud_mask", (len(cloud),)).astype(bool)
+
     def take(self, obs: Observation) -> Observation | None:
         """The observation with its odometry re-anchored, or None for a glitch (the localizer keeps its estimate)."""
         t = float(np.asarray(obs["time"]).reshape(-1)[0])

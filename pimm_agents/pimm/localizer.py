@@ -276,13 +276,7 @@ class PimmLocalizer:
         began = time.perf_counter()
         timings: dict[str, float] = {}
         self.guard.check(obs, ("odom", "time", "cloud_time"))
-        if "cloud" not in obs:
-            raise KeyError(f"observation has no 'cloud' (keys: {sorted(obs)})")
-        cloud = np.asarray(obs["cloud"], dtype=np.float32)  # one conversion, checked here, not twice
-        if cloud.ndim != 2 or cloud.shape[1] != 3:
-            raise ValueError(f"observation 'cloud' has shape {cloud.shape}, expected (N, 3) points")
-        self.guard.finite("cloud", cloud)
-        mask = require(obs, "cloud_mask", (len(cloud),)).astype(bool)
+        cloud, mask = self.guard.cloud(obs)
         taken = self.guard.take(obs)
         if taken is None and self._last is not None:  # a glitch: keep the estimate
             return self._last
