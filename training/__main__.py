@@ -271,7 +271,7 @@ def rebuild(
     """Dataset, then weights, then fingerprint map: everything perception needs for a world."""
     from pimm_agents.perception.pointnet import PointNetConfig
 
-    dataset(world=world, scans=scans, validation=validation, seed=seed)
+    dataset(world=world, scans=scans, validation=validation, seed=seed, workers=1, backend="local", address=None)
     train(
         worlds=[world],
         epochs=epochs,
@@ -282,7 +282,7 @@ def rebuild(
         out=None,
     )
     validate(world=world, checkpoint=None)
-    fingerprints(world=world, spacing=spacing, seed=seed)
+    fingerprints(world=world, spacing=spacing, seed=seed, workers=1, backend="local", address=None)
 
 
 if __name__ == "__main__":
