@@ -31,8 +31,7 @@ class LocalizationRecorder(gym.Wrapper):
         self.start = start
         self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = []
         self._timings: list[dict[str, float]] = []
-        self._kidnap_index: int | None = None
-        self._kidnap_rows: list[int] = []
+        self._kidnap_rows: list[int] = []  # the first row after each kidnap; metrics count from the last
         self._corners: list[np.ndarray] = []  # (k, 3): row, x, y
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -43,19 +42,16 @@ class LocalizationRecorder(gym.Wrapper):
                 self.localizer.reset(seed=seed, initial_pose=np.asarray(info["true_pose"], dtype=float))
             else:
                 self.localizer.reset(seed=seed)
-            self._rows, self._timings, self._kidnap_index, self._corners = [], [], None, []
-            self._kidnap_rows = []
+            self._rows, self._timings, self._kidnap_rows, self._corners = [], [], [], []
         else:
-            self._kidnap_index = len(self._rows)
-            self._kidnap_rows.append(self._kidnap_index)
+            self._kidnap_rows.append(len(self._rows))
         self._observe(obs, info, record=True)
         return obs, info
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
         if info.get("kidnapped"):  # a fault wrapper teleported the robot: count from here, as after a reset
-            self._kidnap_index = len(self._rows)
-            self._kidnap_rows.append(self._kidnap_index)
+            self._kidnap_rows.append(len(self._rows))
         self._observe(obs, info, record=bool(info.get("fresh_scan") or info.get("fresh_cloud")))
         return obs, reward, terminated, truncated, info
 
@@ -85,7 +81,7 @@ class LocalizationRecorder(gym.Wrapper):
             np.array(true),
             np.array(est),
             np.array(cov),
-            self._kidnap_index,
+            self._kidnap_rows[-1] if self._kidnap_rows else None,
             list(self._timings),
             np.vstack(self._corners) if self._corners else np.zeros((0, 3)),
             tuple(self._kidnap_rows),

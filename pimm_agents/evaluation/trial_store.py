@@ -113,7 +113,7 @@ def load_trial(path: Path) -> TrialResult:
                 meta["kidnap_index"],
                 timings,
                 data["corners"] if "corners" in data.files else np.zeros((0, 3)),
-                tuple(meta.get("kidnap_rows", [] if meta["kidnap_index"] is None else [meta["kidnap_index"]])),
+                tuple(meta.get("kidnap_rows", ())),  # older files: TrialLog derives it from kidnap_index
             )
         spec = TrialSpec(**meta["spec"])
     except (OSError, KeyError, ValueError, TypeError) as error:

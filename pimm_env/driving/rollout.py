@@ -14,6 +14,7 @@ from pimm_env.driving.scenarios import Scenario
 from pimm_env.envs.base_env import LidarRobotEnv, SimConfig
 from pimm_env.geometry import compose
 from pimm_env.world.model import World
+from pimm_env.world.polyline import nearest_on_path
 
 StepCallback = Callable[[dict[str, np.ndarray], dict[str, Any]], None]
 
@@ -51,11 +52,8 @@ def _simulator(env: LidarRobotEnv | gym.Wrapper) -> LidarRobotEnv:
 def rest_of_route(waypoints: np.ndarray, pose: np.ndarray) -> np.ndarray:
     """The route from the point nearest ``pose`` (on its nearest segment) to its end."""
     path = np.asarray(waypoints, dtype=float).reshape(-1, 2)
-    a, ab = path[:-1], np.diff(path, axis=0)
-    t = np.clip(np.einsum("ij,ij->i", pose[:2] - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
-    nearest = a + t[:, None] * ab
-    j = int(np.argmin(np.hypot(*(nearest - pose[:2]).T)))
-    return np.vstack([nearest[j], path[j + 1 :]])
+    j, point, _ = nearest_on_path(path, np.asarray(pose, dtype=float))
+    return np.vstack([point, path[j + 1 :]])
 
 
 def drive(

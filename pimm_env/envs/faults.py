@@ -22,6 +22,7 @@ import gymnasium as gym
 import numpy as np
 
 from pimm_env.geometry import compose, relative_motion, wrap_angle
+from pimm_env.world.polyline import nearest_on_path
 
 FAULTS = ("dropout", "slip", "kidnap")
 
@@ -160,13 +161,10 @@ class Kidnaps(gym.Wrapper):
     def _along_route(self, pose: np.ndarray) -> list[float]:
         """A random pose on the route, at least ``MIN_JUMP_M`` along it from the robot, heading along it."""
         assert self.route is not None
-        a, b = self.route[:-1], self.route[1:]
-        ab = b - a
+        a, ab = self.route[:-1], np.diff(self.route, axis=0)
         lengths = np.hypot(ab[:, 0], ab[:, 1])
         ends = np.cumsum(lengths)
-        t = np.clip(np.einsum("ij,ij->i", pose[:2] - a, ab) / np.maximum(lengths**2, 1e-12), 0, 1)
-        i = int(np.argmin(np.hypot(*(a + t[:, None] * ab - pose[:2]).T)))
-        at = float(ends[i] - lengths[i] + t[i] * lengths[i])
+        _, _, at = nearest_on_path(self.route, pose)
         rng = self.env.unwrapped.np_random  # the env's seeded generator: the same trial lands in the same place
         s = float(rng.uniform(0, ends[-1]))
         for _ in range(20):

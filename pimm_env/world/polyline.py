@@ -1,4 +1,5 @@
-"""Polyline simplification shared by the map importer (straight walls) and the route planner (waypoints)."""
+"""Polylines: simplification shared by the map importer (straight walls) and the route planner (waypoints), and
+the nearest point of a path, shared by the driver and the kidnap fault."""
 
 from __future__ import annotations
 
@@ -30,3 +31,14 @@ def douglas_peucker(
         keep.add(i + 1 + k)
         stack += [(i, i + 1 + k), (i + 1 + k, j)]
     return sorted(keep)
+
+
+def nearest_on_path(path: np.ndarray, xy: np.ndarray) -> tuple[int, np.ndarray, float]:
+    """The segment of the polyline ``path`` (K, 2) nearest ``xy``, the nearest point on it, and how far along
+    the whole path that point lies (m)."""
+    a, ab = path[:-1], np.diff(path, axis=0)
+    lengths = np.hypot(ab[:, 0], ab[:, 1])
+    t = np.clip(np.einsum("ij,ij->i", xy[:2] - a, ab) / np.maximum(lengths**2, 1e-12), 0, 1)
+    points = a + t[:, None] * ab
+    j = int(np.argmin(np.hypot(*(points - xy[:2]).T)))
+    return j, points[j], float(lengths[:j].sum() + t[j] * lengths[j])
