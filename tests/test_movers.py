@@ -44,7 +44,7 @@ def test_walkers_and_furniture_are_seeded_stay_in_free_space_and_walk_at_their_s
     rows, cols, inside = occupancy.grid.cells_of(first["unmapped"][:, :2])
     assert inside.all() and np.all(clearance[rows, cols] < 0.6)  # along walls, off the middle of the room
     env.reset(seed=3, options={"pose": START})
-    walkers = env._walkers
+    walkers = env.movers.walkers
     before = walkers.position.copy()
     steps = 50
     for _ in range(steps):
@@ -60,7 +60,7 @@ def test_walkers_and_furniture_are_seeded_stay_in_free_space_and_walk_at_their_s
 def test_a_walker_waits_while_the_robot_stands_ahead_of_it():
     env = IILabEnv(walkers=1, terminate_on_collision=False)
     env.reset(seed=0, options={"pose": START})
-    walkers: Walkers = env._walkers
+    walkers: Walkers = env.movers.walkers
     walkers.step(0.032, np.array([1e3, 1e3]))  # sets off, so it has a heading
     facing = np.array([np.cos(walkers.heading[0]), np.sin(walkers.heading[0])])
     robot = walkers.position[0] + 0.6 * facing
@@ -77,7 +77,7 @@ def test_both_lidars_see_unmapped_furniture_as_clutter_the_maps_do_not_have():
     env = IILabEnv(unmapped=1, terminate_on_collision=False)
     env.reset(seed=0, options={"pose": START})
     # a cabinet of our own 1.7 m ahead in place of the drawn one, and both scans taken again
-    env._furniture = one_box(x=START[0] + 2.0, y=START[1], length=0.6, width=0.6, height=1.2)
+    env.movers.furniture = one_box(x=START[0] + 2.0, y=START[1], length=0.6, width=0.6, height=1.2)
     env._next_cloud = env._next_scan = env.sim_time
     env._sense()
     obs, info = env._observation(), env._info()

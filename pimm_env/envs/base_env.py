@@ -128,8 +128,7 @@ class LidarRobotEnv(gym.Env):
         n = l3.num_points
         self.action_space = action_space(self.config)
         self.observation_space = observation_space(self.config)
-        self._walkers: Any = None
-        self._furniture: Any = None
+        self.movers: Any = None  # sim.movers.Movers while the config asks for walkers or unmapped furniture
         self._time = 0.0
         self._next_cloud = 0.0
         self._next_scan = 0.0
@@ -235,8 +234,8 @@ class LidarRobotEnv(gym.Env):
         action = np.clip(action, self.action_space.low, self.action_space.high)
         self._collided = self.robot.step(float(action[0]), float(action[1]), self.np_random, self._blocked)
         self._time += self.config.robot.control_dt
-        if self._walkers is not None:
-            self._walkers.step(self.config.robot.control_dt, self.robot.pose[:2])
+        if self.movers is not None:
+            self.movers.step(self.config.robot.control_dt, self.robot.pose[:2])
         self.scene.place_robot(self.robot.pose)
         self._sense()
         obs = self._observation()
@@ -257,7 +256,7 @@ class LidarRobotEnv(gym.Env):
             self._azimuths2d,
             self.config.lidar2d.max_range,
             self.config.robot.footprint_radius,
-            None if (movers := self.movers()) is None else movers.as_array(),
+            None if self.movers is None or (boxes := self.movers.boxes()) is None else boxes.as_array(),
         )
 
     def close(self) -> None:
@@ -304,21 +303,12 @@ class LidarRobotEnv(gym.Env):
     def _place_movers(self) -> None:
         """This episode's walkers and unmapped furniture, from a stream of their own (the robot's and the
         LiDARs' draws stay as they are without them)."""
-        from pimm_env.sim.movers import Walkers, place_furniture
+        from pimm_env.sim.movers import Movers
 
         c = self.config
-        self._walkers = self._furniture = None
+        self.movers = None
         if c.walkers or c.unmapped:
-            rng = self.np_random.spawn(1)[0]
-            self._furniture = place_furniture(self.maps.occupancy, c.unmapped, rng) if c.unmapped else None
-            self._walkers = Walkers(self.maps.occupancy, c.walkers, rng) if c.walkers else None
-
-    def movers(self) -> Any:
-        """The boxes of the walkers and the unmapped furniture now (``sim.movers.Boxes``), or None."""
-        from pimm_env.sim.movers import Boxes
-
-        parts = [b for b in (self._furniture, self._walkers.boxes() if self._walkers else None) if b is not None]
-        return Boxes.concatenate(parts) if parts else None
+            self.movers = Movers(self.maps.occupancy, c.walkers, c.unmapped, self.np_random.spawn(1)[0])
 
     def _with_movers(
         self,
@@ -331,15 +321,12 @@ class LidarRobotEnv(gym.Env):
     ) -> tuple[np.ndarray, np.ndarray]:
         """The static world's ranges and labels (flattened), with the nearer hits on walkers and furniture."""
         ranges, labels = ranges.reshape(-1), labels.reshape(-1)
-        boxes = self.movers()
-        if boxes is None:
+        if self.movers is None:
             return ranges, labels
-        from pimm_env.sim.movers import cast_boxes
         from pimm_env.sim.raycast import _directions
 
-        near = cast_boxes(origin, _directions(azimuths, elevations).reshape(-1, 3), boxes, self.world.floor_z)
-        nearer = (near < ranges) & (near <= max_range)
-        return np.where(nearer, near, ranges), np.where(nearer, int(SemanticClass.CLUTTER), labels).astype(labels.dtype)
+        directions = _directions(azimuths, elevations).reshape(-1, 3)
+        return self.movers.occlude(origin, directions, ranges, labels, max_range, self.world.floor_z)
 
     def _sense(self) -> None:
         """Take the scans that are due at the current time."""
@@ -410,16 +397,8 @@ class LidarRobotEnv(gym.Env):
             "fresh_scan": self._fresh[1],
             "area": self.world.area_of(*self.robot.pose[:2]),
             "travelled": self.robot.travelled,
-            **self._movers_info(),
+            **(self.movers.info() if self.movers is not None else {}),
         }
-
-    def _movers_info(self) -> dict[str, np.ndarray]:
-        out = {}
-        if self._walkers is not None:
-            out["walkers"] = self._walkers.boxes().as_array()
-        if self._furniture is not None:
-            out["unmapped"] = self._furniture.as_array()
-        return out
 
     # ------------------------------------------------------------------ pickling
     def __getstate__(self) -> dict[str, Any]:

@@ -180,3 +180,49 @@ class Walkers:
     def boxes(self) -> Boxes:
         n = len(self)
         return Boxes(self.position.copy(), self.heading.copy(), np.tile(PERSON[:2], (n, 1)), np.full(n, PERSON[2]))
+
+
+class Movers:
+    """This episode's walkers and unmapped furniture, as the env uses them: moved each step, occluding the
+    LiDARs' rays, reported in ``info``."""
+
+    def __init__(self, occupancy: OccupancyGrid, walkers: int, unmapped: int, rng: np.random.Generator) -> None:
+        self.furniture = place_furniture(occupancy, unmapped, rng) if unmapped else None
+        self.walkers = Walkers(occupancy, walkers, rng) if walkers else None
+
+    def step(self, dt: float, robot_xy: np.ndarray) -> None:
+        if self.walkers is not None:
+            self.walkers.step(dt, robot_xy)
+
+    def boxes(self) -> Boxes | None:
+        """Every box now, or None."""
+        parts = [b for b in (self.furniture, self.walkers.boxes() if self.walkers else None) if b is not None]
+        return Boxes.concatenate(parts) if parts else None
+
+    def info(self) -> dict[str, np.ndarray]:
+        out = {}
+        if self.walkers is not None:
+            out["walkers"] = self.walkers.boxes().as_array()
+        if self.furniture is not None:
+            out["unmapped"] = self.furniture.as_array()
+        return out
+
+    def occlude(
+        self,
+        origin: np.ndarray,
+        directions: np.ndarray,
+        ranges: np.ndarray,
+        labels: np.ndarray,
+        max_range: float,
+        floor_z: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The static world's ranges and labels (flattened, along ``directions``) with the nearer hits on the
+        boxes, labelled clutter."""
+        from pimm_env.world.semantics import SemanticClass
+
+        boxes = self.boxes()
+        if boxes is None:
+            return ranges, labels
+        near = cast_boxes(origin, directions, boxes, floor_z)
+        nearer = (near < ranges) & (near <= max_range)
+        return np.where(nearer, near, ranges), np.where(nearer, int(SemanticClass.CLUTTER), labels).astype(labels.dtype)
