@@ -4,9 +4,9 @@ caster against the room it casts in, and both models through AMCL."""
 import numpy as np
 import pytest
 
-from pimm_agents import make_localizer
 from pimm_agents.amcl.localizer import Amcl, AmclConfig
-from pimm_agents.particles.beam_model import BeamModel, BeamModelParams, RangeCaster, beam_probabilities
+from pimm_agents.factory import resolve_config
+from pimm_agents.particles.beam_model import BeamModel, BeamModelParams, RangeCaster, RangeTable, beam_probabilities
 from pimm_agents.particles.likelihood_field import BeamSkip, LikelihoodField, LikelihoodFieldParams
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
@@ -63,10 +63,44 @@ def test_beam_model_prefers_the_true_pose_and_counts_no_returns_as_max_readings(
     factors = model.weight_factors(np.stack([truth, off]), ranges, bearings)
     assert factors[0] > factors[1] > 1.0
     pz = beam_probabilities(ranges, ranges, 10.0)  # at the truth every beam is a hit
-    assert factors[0] == pytest.approx(1 + np.sum(pz**3), rel=1e-3)
+    assert factors[0] == pytest.approx(1 + np.sum(pz**3), rel=1e-9)
     # a beam with no return weighs as max range: z_max + hit part of a 10 m reading
     one = model.weight_factors(truth[None], np.array([10.0]), np.array([0.0]))[0]
     assert one == pytest.approx(1 + 0.05**3, rel=1e-6)
+
+
+def test_range_table_gives_the_cast_range_at_cell_centres_and_table_headings():
+    room = room_with_unknown()
+    table, caster = RangeTable(room, 10.0, headings=72), RangeCaster(room, 10.0)
+    assert table.table.dtype == np.uint8 and table.table.shape == (int(room.free.sum()), 72)
+    rng = np.random.default_rng(0)
+    rows, cols = np.nonzero(room.free)
+    pick = rng.choice(len(rows), 50, replace=False)
+    centres = np.stack([(cols[pick] + 0.5) * 0.05, (rows[pick] + 0.5) * 0.05, rng.uniform(-np.pi, np.pi, 50)], 1)
+    centres[:, 2] = np.round(centres[:, 2] / (2 * np.pi / 72)) * (2 * np.pi / 72)  # headings on the table's
+    bearings = np.arange(0, 72, 5) * (2 * np.pi / 72) - np.pi
+    np.testing.assert_allclose(table.ranges(centres, bearings), caster.ranges(centres, bearings), atol=0.025 + 1e-9)
+    # elsewhere the cell and the heading are rounded: within a cell and the heading's half step of arc
+    poses = np.stack([rng.uniform(0.1, 3.4, 200), rng.uniform(0.1, 2.9, 200), rng.uniform(-np.pi, np.pi, 200)], 1)
+    gap = np.abs(table.ranges(poses, bearings) - caster.ranges(poses, bearings))
+    assert np.median(gap) < 0.05
+    # a sensor in a wall or off the map reads 0, as the caster does
+    assert table.ranges(np.array([[0.01, 1.5, 0.0], [-1.0, 1.0, 0.0]]), bearings[:1]).tolist() == [[0.0], [0.0]]
+
+
+def test_beam_model_weighs_table_ranges_as_the_formula_does_and_agrees_with_exact_casting():
+    room = box_room()
+    table, exact = BeamModel(room, 10.0, headings=360), BeamModel(room, 10.0, headings=0)
+    rng = np.random.default_rng(1)
+    poses = np.stack([rng.uniform(0.2, 3.8, 300), rng.uniform(0.2, 2.8, 300), rng.uniform(-np.pi, np.pi, 300)], 1)
+    bearings = np.linspace(-np.pi, np.pi, 60, endpoint=False)
+    scan = exact.caster.ranges(np.array([[1.0, 1.5, 0.3]]), bearings)[0]
+    # the table's factors are the formula applied to the table's ranges (the per-cell gather loses nothing)
+    expected = 1 + (beam_probabilities(scan[None, :], table.caster.ranges(poses, bearings), 10.0) ** 3).sum(1)
+    np.testing.assert_allclose(table.weight_factors(poses, scan, bearings), expected, rtol=1e-9)
+    # and they rank the poses as exact casting does
+    a, b = table.weight_factors(poses, scan, bearings), exact.weight_factors(poses, scan, bearings)
+    assert np.corrcoef(np.log(a), np.log(b))[0, 1] > 0.95
 
 
 def field_one_wall() -> LikelihoodField:
@@ -97,7 +131,7 @@ def test_likelihood_field_prob_multiplies_pz_and_skips_beams_most_particles_do_n
 
 @pytest.mark.parametrize("name,model", [("amcl-beam", "beam"), ("amcl-lfp", "likelihood_field_prob")])
 def test_presets_run_through_the_contract_without_nan(name, model):
-    config = make_localizer(name).config
+    config = resolve_config(name)
     assert config.laser_model_type == model and config.do_beamskip == (name == "amcl-lfp")
     assert (config.z_short, config.z_max, config.lambda_short, config.beam_skip_distance) == (0.05, 0.05, 0.1, 0.5)
     amcl = Amcl(box_room(), AmclConfig(**{**config.__dict__, "max_particles": 300, "min_particles": 100}))

@@ -21,11 +21,13 @@ CLOUD_N = SPACE["cloud"].shape[0]
 BEAMS = SPACE["scan"].shape[0]
 FAST = [name for name in available_localizers() if name != "registration"]
 _BUILT: dict[str, object] = {}
+#: a coarse range table keeps the beam model's one-off cast to seconds; what is tested here does not need 1 degree
+QUICK = {"amcl-beam": {"beam_range_headings": 36}}
 
 
 def localizer(name: str):
     if name not in _BUILT:
-        _BUILT[name] = make_localizer(name, world="iilab")
+        _BUILT[name] = make_localizer(name, world="iilab", **QUICK.get(name, {}))
     return _BUILT[name]
 
 

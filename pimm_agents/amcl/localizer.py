@@ -50,6 +50,9 @@ class AmclConfig:
     z_short: float = 0.05
     z_max: float = 0.05
     lambda_short: float = 0.1
+    #: the beam model's expected ranges: looked up in a table of this many headings per free cell (360: 1 degree;
+    #: nav2 casts every beam, from the particle's cell, at its own heading); 0 casts every beam exactly (slower)
+    beam_range_headings: int = 360
     # likelihood_field_prob's beam skipping (nav2 defaults; off unless asked, as in nav2)
     do_beamskip: bool = False
     beam_skip_distance: float = 0.5
@@ -145,6 +148,7 @@ class Amcl:
                 occupancy,
                 self.lidar.max_range,
                 BeamModelParams(c.z_hit, c.z_short, c.z_max, c.z_rand, c.sigma_hit, c.lambda_short),
+                c.beam_range_headings,
             )
             if c.laser_model_type == "beam"
             else None
