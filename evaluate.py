@@ -358,7 +358,11 @@ def replay(
     settings: list[str] = typer.Option([], "--set", help="NAME.KEY=VALUE"),
     out: Path = typer.Option(Path("results"), help="where the timestamped results folder goes"),
     json_out: bool = typer.Option(False, "--json", help="print the summary as one JSON object"),
-    sensors: str | None = typer.Option(None, help="LiDAR presets of the bag (default: what it was recorded with)"),
+    sensors: str | None = typer.Option(
+        None,
+        help="LiDAR presets or a sensors .yaml of the bag (default: what `record` wrote it with, else read from its "
+        "first scan and cloud into the results folder's sensors.yaml)",
+    ),
 ) -> None:
     """Feed a bag to localizers and write the same results folder as run (metrics where it has ground truth)."""
     from pimm_agents.evaluation.replay import replay_bag, replay_specs
@@ -374,9 +378,10 @@ def replay(
     localizers, configs = _localizer_configs(localizers, params, settings)
     if sensors is not None:
         _check_sensors(sensors)
-    specs = replay_specs(bag, localizers, configs, seed, world, sensors)
     topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic)
+    folder = _results_dir(out, "replay")
     try:
+        specs = replay_specs(bag, localizers, configs, seed, world, sensors, topics, folder)
         if map_path is not None:
             occupancy, corners = load_map_server(map_path), None
         else:
@@ -386,10 +391,10 @@ def replay(
     except (BagError, MapFileError, ValueError) as error:
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(1) from None
-    folder = _results_dir(out, "replay")
     write_params_file(folder / "config.yaml", configs)
     record = {"bag": str(bag), "world": None if map_path else world, "map": str(map_path) if map_path else None,
-              "localizers": localizers, "seed": seed, "ground_truth": has_truth}  # fmt: skip
+              "localizers": localizers, "seed": seed, "ground_truth": has_truth,
+              "sensors": specs[0].sensors if specs else sensors}  # fmt: skip
     if not has_truth:
         (folder / "run.json").write_text(json.dumps(record, indent=2))
         for result in results:

@@ -61,20 +61,43 @@ def replay_bag(
 
 
 def replay_specs(
-    bag: Path, localizers: Sequence[str], params: dict[str, dict], seed: int, world: str, sensors: str | None = None
+    bag: Path,
+    localizers: Sequence[str],
+    params: dict[str, dict],
+    seed: int,
+    world: str,
+    sensors: str | None = None,
+    topics: Any = None,
+    folder: Path | None = None,
 ) -> list[TrialSpec]:
-    """One spec per localizer, named after the scenario the bag's record file gives (else the bag's name), with
-    the sensors it was recorded with unless ``sensors`` says otherwise."""
+    """One spec per localizer, named after the scenario the bag's record file gives (else the bag's name). The
+    LiDAR layouts: ``sensors`` if given, else the presets the bag was recorded with (its record file), else
+    read from the bag's first scan and cloud into ``folder``/sensors.yaml (``pimm_env/bags/layout.py``)."""
     from pimm_env.bags.record import RECORD_FILE
 
-    scenario, recorded = Path(bag).name, "thesis"
+    scenario, recorded = Path(bag).name, None
     record_file = Path(bag) / RECORD_FILE
     if record_file.is_file():
         import yaml
 
         record = yaml.safe_load(record_file.read_text()) or {}
-        scenario, recorded = str(record.get("scenario", scenario)), str(record.get("sensors", recorded))
+        scenario, recorded = str(record.get("scenario", scenario)), str(record.get("sensors", "thesis"))
+    chosen = sensors or recorded or layouts_file(Path(bag), topics, folder)
     return [
-        replace(TrialSpec(scenario, name, 0, seed, world), params=params.get(name, {}), sensors=sensors or recorded)
+        replace(TrialSpec(scenario, name, 0, seed, world), params=params.get(name, {}), sensors=chosen)
         for name in localizers
     ]
+
+
+def layouts_file(bag: Path, topics: Any, folder: Path | None) -> str:
+    """The bag's LiDAR layouts, read from its messages and written as a sensors file in ``folder``; its path."""
+    from pimm_env.bags.layout import layouts_from_bag
+    from pimm_env.bags.read import BagTopics
+    from pimm_env.sim.sensors import write_sensors_file
+
+    if folder is None:
+        raise ValueError(f"{bag}: no record file says its LiDARs; give sensors, or a folder for the layouts read")
+    topics = topics or BagTopics()
+    lidar3d, lidar2d = layouts_from_bag(bag, topics.scan, topics.points)
+    note = f"LiDAR layouts read from the first messages of {bag} ({topics.scan}, {topics.points})"
+    return str(write_sensors_file(Path(folder) / "sensors.yaml", lidar3d, lidar2d, note))

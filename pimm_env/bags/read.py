@@ -1,9 +1,11 @@
 """Read a bag (rosbag2 or ROS 1: whatever ``rosbags`` reads) back as the env's observations.
 
-Messages are taken in the bag's order (receive time). Every odometry message closes a step: it yields one
-observation holding that odometry and the latest scan and cloud (with their stamps, so that a localizer
-tells a fresh scan from a repeated one, as with the live env), the latest true pose if the bag has one, and
-whether a scan or cloud arrived since the previous step. A ``kidnap`` event marks the next step.
+Messages are taken in the bag's order (receive time). Each cloud is placed into the 3D LiDAR layout's grid
+by its points' angles (``layout.organize``), so a driver's ring order or azimuth origin does not matter.
+Every odometry message closes a step: it yields one observation holding that odometry and the latest scan
+and cloud (with their stamps, so that a localizer tells a fresh scan from a repeated one, as with the live
+env), the latest true pose if the bag has one, and whether a scan or cloud arrived since the previous step. A
+``kidnap`` event marks the next step.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from pimm_env.bags.layout import organize
 from pimm_env.bags.messages import (
     KIDNAP,
     TOPICS,
@@ -92,14 +95,7 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
                 scan = scan_ranges(msg, lidar2d.beams, lidar2d.max_range, where)
                 scan_time, fresh_scan = stamp_seconds(msg), True
             elif topic == topics.points:
-                points = cloud_points(msg, where)
-                if len(points) > n3:
-                    raise BagError(f"{where}: {len(points)} points, the 3D LiDAR layout holds {n3} (see --sensors)")
-                returned = np.all(np.isfinite(points), axis=1)
-                cloud = np.zeros((n3, 3), np.float32)
-                cloud[: len(points)][returned] = points[returned]
-                mask = np.zeros(n3, np.int8)
-                mask[: len(points)] = returned
+                cloud, mask = organize(cloud_points(msg, where), lidar3d, where)
                 cloud_time, fresh_cloud = stamp_seconds(msg), True
             elif topic == topics.odom:
                 t = stamp_seconds(msg)

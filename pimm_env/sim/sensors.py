@@ -4,11 +4,21 @@
 preset's name swaps the 2D LiDAR and keeps the thesis's 3D one (``--sensors hokuyo-utm30lx``); names join
 with commas. Geometry, range and rate come from the makers' datasheets; the range noise is the simulator's
 0.01 m for all of them.
+
+An entry may also be a sensors file (``.yaml``): ``lidar3d:`` and/or ``lidar2d:`` sections whose keys are
+``Lidar3DConfig`` / ``Lidar2DConfig`` fields, applied over what the names before it gave. ``replay`` writes one
+when it reads a bag's layout from its messages; a user writes one for a LiDAR with no preset.
 """
 
 from __future__ import annotations
 
+from dataclasses import asdict, fields, replace
+from pathlib import Path
+from typing import Any
+
 from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig
+
+SENSORS_FILE_SUFFIXES = (".yaml", ".yml")
 
 LIDAR_2D: dict[str, Lidar2DConfig] = {
     "thesis": Lidar2DConfig(),
@@ -35,9 +45,68 @@ def sensor_layouts(spec: str | None) -> tuple[Lidar3DConfig, Lidar2DConfig]:
     lidar3d, lidar2d = LIDAR_3D["thesis"], LIDAR_2D["thesis"]
     for name in (spec or "thesis").split(","):
         name = name.strip()
+        if name.endswith(SENSORS_FILE_SUFFIXES):
+            lidar3d, lidar2d = read_sensors_file(Path(name), lidar3d, lidar2d)
+            continue
         if name not in LIDAR_2D and name not in LIDAR_3D:
             valid = sorted(set(LIDAR_2D) | set(LIDAR_3D))
-            raise ValueError(f"unknown sensor preset {name!r}; valid: {', '.join(valid)}")
+            raise ValueError(f"unknown sensor preset {name!r}; valid: {', '.join(valid)}, or a sensors .yaml file")
         lidar3d = LIDAR_3D.get(name, lidar3d)
         lidar2d = LIDAR_2D.get(name, lidar2d)
     return lidar3d, lidar2d
+
+
+def read_sensors_file(
+    path: Path, lidar3d: Lidar3DConfig = LIDAR_3D["thesis"], lidar2d: Lidar2DConfig = LIDAR_2D["thesis"]
+) -> tuple[Lidar3DConfig, Lidar2DConfig]:
+    """``lidar3d`` and ``lidar2d`` with the sections of the sensors file at ``path`` applied; errors name the
+    file and the section or field."""
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except OSError as error:
+        raise ValueError(f"{path}: cannot read the sensors file ({error.strerror})") from None
+    except yaml.YAMLError as error:
+        raise ValueError(f"{path}: not YAML ({error})") from None
+    if not isinstance(data, dict) or not set(data) <= {"lidar3d", "lidar2d"} or not data:
+        raise ValueError(f"{path}: a sensors file holds a lidar3d and/or a lidar2d section, got {data!r}")
+    return _section(path, "lidar3d", data.get("lidar3d"), lidar3d), _section(
+        path, "lidar2d", data.get("lidar2d"), lidar2d
+    )
+
+
+def _section(path: Path, name: str, values: Any, base: Any) -> Any:
+    if values is None:
+        return base
+    if not isinstance(values, dict):
+        raise ValueError(f"{path}: {name} must be a mapping of fields, got {values!r}")
+    known = {f.name: f for f in fields(base)}
+    for key, value in values.items():
+        if key not in known:
+            raise ValueError(f"{path}: {name}.{key} is not a field; fields: {', '.join(known)}")
+        kind = type(getattr(base, key))
+        fits = (
+            isinstance(value, bool) if kind is bool else isinstance(value, (int, float)) and not isinstance(value, bool)
+        )
+        if fits and kind is int:
+            fits = float(value).is_integer()
+        if not fits:
+            raise ValueError(f"{path}: {name}.{key} must be a {kind.__name__}, got {value!r}")
+    try:
+        return replace(base, **{k: type(getattr(base, k))(v) for k, v in values.items()})
+    except ValueError as error:
+        raise ValueError(f"{path}: {name}: {error}") from None
+
+
+def write_sensors_file(
+    path: Path, lidar3d: Lidar3DConfig | None, lidar2d: Lidar2DConfig | None, note: str = ""
+) -> Path:
+    """A sensors file with the given sections (``sensor_layouts`` reads it back to the same configs)."""
+    import yaml
+
+    data = {k: asdict(v) for k, v in (("lidar3d", lidar3d), ("lidar2d", lidar2d)) if v is not None}
+    header = "".join(f"# {line}\n" for line in note.splitlines())
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    Path(path).write_text(header + yaml.safe_dump(data, sort_keys=False))
+    return Path(path)

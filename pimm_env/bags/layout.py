@@ -1,0 +1,174 @@
+"""A bag's LiDAR layouts read from its own messages, and a point cloud placed into a layout's grid.
+
+- 2D, from the first ``sensor_msgs/LaserScan``: beams, angle_min / angle_max (a scan whose beams close the circle
+  is a full circle), range_min / range_max, and the rate from ``scan_time``.
+- 3D, from the first ``sensor_msgs/PointCloud2``: rings are the rows of an organized cloud, or the values of its
+  ``ring`` field; columns are the points per ring; the vertical field is the spread of the rings' median
+  elevations, which must be evenly spaced and centred on the horizon (what ``Lidar3DConfig`` describes).
+  Range and rate are not in the message: the rate comes from the first two clouds' stamps, the range is the
+  thesis's unless the cloud reaches further.
+
+The mount offsets are not read (no ``/tf_static``): a sensor off the robot's centre needs a sensors file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pimm_env.bags.messages import BagError, cloud_points, stamp_seconds, typestore
+from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig, elevations_3d
+
+_FIELD_TYPES = {
+    1: np.int8,
+    2: np.uint8,
+    3: np.int16,
+    4: np.uint16,
+    5: np.int32,
+    6: np.uint32,
+    7: np.float32,
+    8: np.float64,
+}
+
+
+def scan_layout(msg: Any, where: str) -> Lidar2DConfig:
+    """The 2D LiDAR a LaserScan describes."""
+    beams = len(msg.ranges)
+    increment = float(msg.angle_increment)
+    if beams < 1 or (beams > 1 and increment <= 0):
+        raise BagError(f"{where}: {beams} ranges with angle_increment {increment}: no layout to read")
+    # the message's float32 fields, rounded back to the decimals they were written with (-180 deg, not
+    # -180.000005): a layout read from a bag then gives the same bearings as the one it was recorded with
+    low = round(float(np.degrees(msg.angle_min)), 4)
+    span = float(np.degrees(increment)) * beams
+    full_circle = abs(span - 360.0) < 0.5 * float(np.degrees(increment))
+    high = low + 360.0 if full_circle else round(float(np.degrees(msg.angle_max)), 4)
+    rate = round(1.0 / msg.scan_time, 3) if msg.scan_time > 0 else Lidar2DConfig().rate_hz
+    try:
+        return Lidar2DConfig(
+            beams=beams,
+            angle_min_deg=low,
+            angle_max_deg=high,
+            min_range=round(float(msg.range_min), 4),
+            max_range=round(float(msg.range_max), 4),
+            rate_hz=float(rate),
+        )
+    except ValueError as error:
+        raise BagError(f"{where}: {error}") from None
+
+
+def field_values(msg: Any, name: str) -> np.ndarray | None:
+    """One numeric field of a PointCloud2 (``ring``), or None if it has none."""
+    field = next((f for f in msg.fields if f.name == name), None)
+    if field is None or field.datatype not in _FIELD_TYPES:
+        return None
+    dtype = np.dtype(_FIELD_TYPES[field.datatype])
+    count = msg.width * msg.height
+    rows = np.asarray(msg.data, dtype=np.uint8)[: count * msg.point_step].reshape(count, msg.point_step)
+    return rows[:, field.offset : field.offset + dtype.itemsize].copy().view(dtype).reshape(-1)
+
+
+def ring_of_points(msg: Any, count: int, where: str) -> np.ndarray:
+    """Each point's ring: its row in an organized cloud, else its ``ring`` field."""
+    if msg.height > 1:
+        return np.repeat(np.arange(msg.height), msg.width)
+    rings = field_values(msg, "ring")
+    if rings is None:
+        raise BagError(
+            f"{where}: an unorganized PointCloud2 (height 1) without a ring field does not tell its rings; "
+            "give the 3D LiDAR with --sensors (a preset or a sensors .yaml file)"
+        )
+    return rings.astype(np.int64)[:count]
+
+
+def cloud_layout(msg: Any, points: np.ndarray, where: str) -> Lidar3DConfig:
+    """The 3D LiDAR a PointCloud2 (and its x/y/z ``points``) describes."""
+    rings = ring_of_points(msg, len(points), where)
+    layers = int(rings.max()) + 1 if len(rings) else 0
+    if layers < 2 or len(points) % layers:
+        raise BagError(f"{where}: {len(points)} points in {layers} rings is not a grid of rings x columns")
+    returned = np.all(np.isfinite(points), axis=1) & (np.abs(points).sum(axis=1) > 0)
+    elevation = np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1]))
+    medians = np.full(layers, np.nan)
+    for ring in np.unique(rings[returned]):
+        medians[ring] = np.median(elevation[returned & (rings == ring)])
+    if np.isnan(medians).any():
+        raise BagError(f"{where}: rings {np.flatnonzero(np.isnan(medians)).tolist()} have no return to measure")
+    ordered = np.sort(medians)
+    spacing = (ordered[-1] - ordered[0]) / (layers - 1)
+    even = np.abs(ordered - np.linspace(ordered[0], ordered[-1], layers)).max() <= spacing / 2
+    centred = abs(ordered[0] + ordered[-1]) / 2 <= spacing / 2
+    if not (even and centred):
+        raise BagError(
+            f"{where}: rings from {np.degrees(ordered[0]):.1f} to {np.degrees(ordered[-1]):.1f} deg are not evenly "
+            "spaced about the horizon, which is the only 3D layout this project models"
+        )
+    fov = round(float(np.degrees(ordered[-1] - ordered[0])), 1)
+    reach = float(np.hypot(*points[returned].T).max()) if returned.any() else 0.0
+    max_range = max(Lidar3DConfig().max_range, float(np.ceil(reach)))
+    return Lidar3DConfig(layers=layers, points_per_layer=len(points) // layers, vertical_fov_deg=fov,
+                         max_range=max_range)  # fmt: skip
+
+
+def layouts_from_bag(path: Path, scan_topic: str | None, points_topic: str | None) -> tuple[Any, Any]:
+    """(Lidar3DConfig or None, Lidar2DConfig or None) from the first messages on those topics."""
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([Path(path)], default_typestore=typestore()) as reader:
+        have = {c.topic: c for c in reader.connections}
+        lidar2d = lidar3d = None
+        if scan_topic in have:
+            for connection, _, raw in reader.messages(connections=[have[scan_topic]]):
+                lidar2d = scan_layout(reader.deserialize(raw, connection.msgtype), f"{path}: {scan_topic} message 0")
+                break
+        if points_topic in have:
+            stamps = []
+            for connection, _, raw in reader.messages(connections=[have[points_topic]]):
+                msg = reader.deserialize(raw, connection.msgtype)
+                if lidar3d is None:
+                    where = f"{path}: {points_topic} message 0"
+                    lidar3d = cloud_layout(msg, cloud_points(msg, where), where)
+                stamps.append(stamp_seconds(msg))
+                if len(stamps) == 2:
+                    break
+            if lidar3d is not None and len(stamps) == 2 and stamps[1] > stamps[0]:
+                lidar3d = replace(lidar3d, rate_hz=round(1.0 / (stamps[1] - stamps[0]), 3))
+    return lidar3d, lidar2d
+
+
+def organize(points: np.ndarray, layout: Lidar3DConfig, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The cloud in ``layout``'s grid (rings from the lowest, columns from azimuth -pi), whatever order the
+    points came in (top ring first, another azimuth origin, unorganized): each returned point goes to the
+    nearest ray by elevation and azimuth, the nearer return where two share one. Refuses a cloud that does
+    not fit the layout (fewer than 90 % of its returns placed) rather than dropping points silently."""
+    n = layout.num_points
+    cloud, mask = np.zeros((n, 3), np.float32), np.zeros(n, np.int8)
+    points = np.asarray(points, dtype=np.float32)
+    returned = np.all(np.isfinite(points), axis=1)
+    p = points[returned]
+    if not len(p):
+        return cloud, mask
+    horizontal = np.hypot(p[:, 0], p[:, 1])
+    elevation, azimuth = np.arctan2(p[:, 2], horizontal), np.arctan2(p[:, 1], p[:, 0])
+    rings = elevations_3d(layout)
+    spacing = float(rings[1] - rings[0]) if layout.layers > 1 else np.inf
+    ring = np.zeros(len(p), dtype=np.int64) if layout.layers == 1 else np.rint((elevation - rings[0]) / spacing)
+    ring = np.asarray(ring, dtype=np.int64)
+    inside = (ring >= 0) & (ring < layout.layers)
+    inside &= np.abs(elevation - rings[np.clip(ring, 0, layout.layers - 1)]) <= spacing / 2 + 1e-6
+    step = 2 * np.pi / layout.points_per_layer
+    column = np.rint((azimuth + np.pi) / step).astype(np.int64) % layout.points_per_layer
+    index = ring * layout.points_per_layer + column
+    order = np.argsort(-np.hypot(horizontal, p[:, 2])[inside], kind="stable")  # far first: the nearer one stays
+    cells, values = index[inside][order], p[inside][order]
+    cloud[cells], mask[cells] = values, 1
+    placed = int(mask.sum())
+    if placed < 0.9 * len(p):
+        raise BagError(
+            f"{where}: only {placed} of {len(p)} returns fit the 3D LiDAR layout ({layout.layers} rings x "
+            f"{layout.points_per_layer} over {layout.vertical_fov_deg} deg): see --sensors"
+        )
+    return cloud, mask
