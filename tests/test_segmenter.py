@@ -162,3 +162,15 @@ def test_a_damaged_checkpoint_is_caught_by_its_checksum(tmp_path):
     copy.write_bytes(bytes(data))
     with pytest.raises(ValueError, match=r"pointnet.pt: SHA-256 .* differs from .*pointnet.json"):
         load_checkpoint(copy)
+
+
+def test_the_thesis_network_the_bench_times_has_its_size_and_shapes():
+    import torch
+
+    from pimm_agents.perception.thesis_pointnet import ThesisPointNet, parameter_count
+
+    model = ThesisPointNet().eval()
+    assert 3.4e6 < parameter_count(model) < 3.6e6  # the thesis: 3.5 M parameters
+    with torch.inference_mode():
+        scores = model(torch.zeros(2, 3, 300))
+    assert scores.shape == (2, 4, 300)  # four classes per point

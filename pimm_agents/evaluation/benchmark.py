@@ -66,8 +66,32 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     figures["corners_ms"] = corners_benchmark(repeats)
     figures.update(perception_benchmarks(repeats))
     figures.update(pimm_benchmarks(repeats))
+    figures["thesis_pointnet_ms"] = thesis_pointnet_benchmark(max(3, repeats // 10))
+    # same run, same load: how many times the thesis's network alone costs our whole pipeline and segmentation
+    figures["thesis_pointnet_over_pipeline"] = figures["thesis_pointnet_ms"] / figures["pimm_pipeline_ms"]
+    figures["thesis_pointnet_over_segmentation"] = figures["thesis_pointnet_ms"] / figures["segmentation_ms"]
     figures.update(registration_benchmarks(repeats))
     return figures
+
+
+def thesis_pointnet_benchmark(repeats: int) -> float:
+    """The thesis's segmentation network (3.5 M parameters, ``perception/thesis_pointnet.py``) on one scan of
+    10 000 points, inference only, as the thesis ran it: the yardstick for our perception's cost."""
+    import torch
+
+    from pimm_agents.perception.thesis_pointnet import ThesisPointNet
+
+    with torch.random.fork_rng():  # the layers' initial weights, seeded without touching torch's global stream
+        torch.manual_seed(0)
+        model = ThesisPointNet().eval()
+    points = torch.randn(1, 3, 10_000, generator=torch.Generator().manual_seed(0))
+    with torch.inference_mode():
+        model(points)  # the first call allocates
+
+        def forward() -> object:
+            return model(points)
+
+        return median_ms(forward, repeats)
 
 
 def registration_benchmarks(repeats: int) -> dict[str, float]:
