@@ -74,6 +74,12 @@ def boundary_faces(free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.vstack([vertical_a, horizontal_a]).astype(float), np.vstack([vertical_b, horizontal_b]).astype(float))
 
 
+def sensor_positions(poses: np.ndarray, origin: tuple[float, float]) -> np.ndarray:
+    """(N, 2) map positions of a sensor mounted at ``origin`` (robot frame) on each pose (N, 3)."""
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    return np.stack([poses[:, 0] + c * origin[0] - s * origin[1], poses[:, 1] + s * origin[0] + c * origin[1]], 1)
+
+
 class RangeCaster:
     """Ranges along rays in an occupancy grid to the first cell that is not free (nav2's ``map_calc_range``:
     occupied, unknown or off the map), capped at ``range_max``.
@@ -113,16 +119,15 @@ class RangeCaster:
 
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         bearings = np.asarray(bearings, dtype=np.float64).ravel()
-        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        sx = poses[:, 0] + c * origin[0] - s * origin[1]
-        sy = poses[:, 1] + s * origin[0] + c * origin[1]
+        sensor = sensor_positions(poses, origin)
+        sx, sy = sensor.T
         angle = poses[:, 2:3] + bearings[None, :]
         rays = np.zeros((len(poses), len(bearings), 6), dtype=np.float32)
         rays[:, :, 0], rays[:, :, 1] = sx[:, None], sy[:, None]
         rays[:, :, 3], rays[:, :, 4] = np.cos(angle), np.sin(angle)
         hit = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays.reshape(-1, 6)))["t_hit"].numpy()
         ranges = np.minimum(hit.reshape(len(poses), len(bearings)).astype(np.float64), self.range_max)
-        rows, cols, valid = self.grid.cells_of(np.stack([sx, sy], axis=1))
+        rows, cols, valid = self.grid.cells_of(sensor)
         inside = np.zeros(len(poses), dtype=bool)
         inside[valid] = self._inside[rows[valid], cols[valid]]
         ranges[~inside] = 0.0  # nav2: a ray that starts in a blocked cell stops there
@@ -160,11 +165,7 @@ class RangeTable:
         that is not in a free cell (nav2: a ray that starts in a blocked cell stops there)."""
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         bearings = np.asarray(bearings, dtype=np.float64).ravel()
-        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        sensor = np.stack(
-            [poses[:, 0] + c * origin[0] - s * origin[1], poses[:, 1] + s * origin[0] + c * origin[1]], axis=1
-        )
-        rows, cols, valid = self.grid.cells_of(sensor)
+        rows, cols, valid = self.grid.cells_of(sensor_positions(poses, origin))
         index = np.full(len(poses), -1, dtype=np.int64)
         index[valid] = self._row_of_cell[rows[valid], cols[valid]]
         # the nearest heading, in float32 and int32 (the table's 61 million entries fit): this is the hot loop
