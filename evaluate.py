@@ -389,6 +389,9 @@ def replay(
             occupancy, corners = maps.occupancy, maps.corners.xy
         results, has_truth = replay_bag(bag, specs, map_path, topics)
     except (BagError, MapFileError, ValueError) as error:
+        import shutil
+
+        shutil.rmtree(folder, ignore_errors=True)  # made before the layouts were read into it: no empty results
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(1) from None
     write_params_file(folder / "config.yaml", configs)

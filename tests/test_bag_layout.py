@@ -58,7 +58,8 @@ def test_organize_puts_top_first_shuffled_and_unorganized_clouds_back_in_the_gri
     grid = with_nan.reshape(layout.layers, layout.points_per_layer, 3)
     top_first = np.roll(grid[::-1], 100, axis=1).reshape(-1, 3)  # as Ouster's driver: ring 0 on top, azimuth shifted
     shuffled = with_nan[np.random.default_rng(1).permutation(len(with_nan))]
-    for points in (with_nan, top_first, shuffled):
+    with_zeros = np.nan_to_num(with_nan)  # a driver that marks no return with zeros (Ouster's)
+    for points in (with_nan, top_first, shuffled, with_zeros):
         placed, placed_mask = organize(points, layout, "test")
         assert np.array_equal(placed_mask, mask) and np.array_equal(placed, cloud)
     # two returns on one ray: the nearer stays

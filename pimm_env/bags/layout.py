@@ -19,19 +19,14 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.bags.messages import BagError, cloud_points, stamp_seconds, typestore
+from pimm_env.bags.messages import BagError, cloud_points, field_of, point_rows, stamp_seconds, typestore
 from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig, elevations_3d
 
-_FIELD_TYPES = {
-    1: np.int8,
-    2: np.uint8,
-    3: np.int16,
-    4: np.uint16,
-    5: np.int32,
-    6: np.uint32,
-    7: np.float32,
-    8: np.float64,
-}
+
+def returns(points: np.ndarray) -> np.ndarray:
+    """Which points are returns: finite and not at the sensor (drivers mark no return with NaN, as ours, or
+    with zeros, as Ouster's)."""
+    return np.all(np.isfinite(points), axis=1) & np.any(points != 0, axis=1)
 
 
 def scan_layout(msg: Any, where: str) -> Lidar2DConfig:
@@ -60,22 +55,11 @@ def scan_layout(msg: Any, where: str) -> Lidar2DConfig:
         raise BagError(f"{where}: {error}") from None
 
 
-def field_values(msg: Any, name: str) -> np.ndarray | None:
-    """One numeric field of a PointCloud2 (``ring``), or None if it has none."""
-    field = next((f for f in msg.fields if f.name == name), None)
-    if field is None or field.datatype not in _FIELD_TYPES:
-        return None
-    dtype = np.dtype(_FIELD_TYPES[field.datatype])
-    count = msg.width * msg.height
-    rows = np.asarray(msg.data, dtype=np.uint8)[: count * msg.point_step].reshape(count, msg.point_step)
-    return rows[:, field.offset : field.offset + dtype.itemsize].copy().view(dtype).reshape(-1)
-
-
 def ring_of_points(msg: Any, count: int, where: str) -> np.ndarray:
     """Each point's ring: its row in an organized cloud, else its ``ring`` field."""
     if msg.height > 1:
         return np.repeat(np.arange(msg.height), msg.width)
-    rings = field_values(msg, "ring")
+    rings = field_of(msg, point_rows(msg, where), "ring")
     if rings is None:
         raise BagError(
             f"{where}: an unorganized PointCloud2 (height 1) without a ring field does not tell its rings; "
@@ -90,7 +74,7 @@ def cloud_layout(msg: Any, points: np.ndarray, where: str) -> Lidar3DConfig:
     layers = int(rings.max()) + 1 if len(rings) else 0
     if layers < 2 or len(points) % layers:
         raise BagError(f"{where}: {len(points)} points in {layers} rings is not a grid of rings x columns")
-    returned = np.all(np.isfinite(points), axis=1) & (np.abs(points).sum(axis=1) > 0)
+    returned = returns(points)
     elevation = np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1]))
     medians = np.full(layers, np.nan)
     for ring in np.unique(rings[returned]):
@@ -147,8 +131,7 @@ def organize(points: np.ndarray, layout: Lidar3DConfig, where: str) -> tuple[np.
     n = layout.num_points
     cloud, mask = np.zeros((n, 3), np.float32), np.zeros(n, np.int8)
     points = np.asarray(points, dtype=np.float32)
-    returned = np.all(np.isfinite(points), axis=1)
-    p = points[returned]
+    p = points[returns(points)]
     if not len(p):
         return cloud, mask
     horizontal = np.hypot(p[:, 0], p[:, 1])

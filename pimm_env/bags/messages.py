@@ -130,6 +130,39 @@ def point_cloud(store, seconds: float, cloud: np.ndarray, mask: np.ndarray, ring
     )
 
 
+#: sensor_msgs/PointField datatypes as numpy types
+FIELD_TYPES = {
+    1: np.int8,
+    2: np.uint8,
+    3: np.int16,
+    4: np.uint16,
+    5: np.int32,
+    6: np.uint32,
+    7: np.float32,
+    8: np.float64,
+}
+
+
+def point_rows(msg: Any, where: str) -> np.ndarray:
+    """A PointCloud2's data as (points, point_step) bytes, checked against its size."""
+    if msg.is_bigendian:
+        raise BagError(f"{where}: big-endian PointCloud2 is not supported")
+    count = msg.width * msg.height
+    raw = np.asarray(msg.data, dtype=np.uint8)
+    if len(raw) < count * msg.point_step:
+        raise BagError(f"{where}: {len(raw)} data bytes, {count} points of {msg.point_step} bytes need more")
+    return raw[: count * msg.point_step].reshape(count, msg.point_step)
+
+
+def field_of(msg: Any, rows: np.ndarray, name: str) -> np.ndarray | None:
+    """One numeric field (x, ring, ...) of every point, from ``point_rows``; None if the cloud has no such field."""
+    field = next((f for f in msg.fields if f.name == name), None)
+    if field is None or field.datatype not in FIELD_TYPES:
+        return None
+    dtype = np.dtype(FIELD_TYPES[field.datatype])
+    return rows[:, field.offset : field.offset + dtype.itemsize].copy().view(dtype).reshape(-1)
+
+
 def cloud_points(msg: Any, where: str) -> np.ndarray:
     """(N, 3) float32 x/y/z of a PointCloud2 of any field layout, NaN rows kept (no return)."""
     offsets = {f.name: f for f in msg.fields}
@@ -138,13 +171,10 @@ def cloud_points(msg: Any, where: str) -> np.ndarray:
         raise BagError(f"{where}: PointCloud2 has no field(s) {missing} (fields: {sorted(offsets)})")
     if any(offsets[n].datatype != _FLOAT32 for n in "xyz"):
         raise BagError(f"{where}: PointCloud2 x/y/z must be float32")
-    if msg.is_bigendian:
-        raise BagError(f"{where}: big-endian PointCloud2 is not supported")
-    count = msg.width * msg.height
-    raw = np.asarray(msg.data, dtype=np.uint8)
-    if len(raw) < count * msg.point_step:
-        raise BagError(f"{where}: {len(raw)} data bytes, {count} points of {msg.point_step} bytes need more")
-    rows = raw[: count * msg.point_step].reshape(count, msg.point_step)
-    return np.column_stack(
-        [rows[:, offsets[n].offset : offsets[n].offset + 4].copy().view(np.float32).reshape(-1) for n in "xyz"]
-    )
+    rows = point_rows(msg, where)
+    columns: list[np.ndarray] = []
+    for name in "xyz":
+        column = field_of(msg, rows, name)
+        assert column is not None  # checked above: float32 x, y and z exist
+        columns.append(column)
+    return np.column_stack(columns)
