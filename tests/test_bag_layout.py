@@ -117,8 +117,9 @@ def test_sensors_files_name_the_file_and_the_field(tmp_path):
     assert sensor_layouts(str(path)) == (LIDAR_3D["os0-64"], LIDAR_2D["sick-lms200"])
     assert sensor_layouts(f"hokuyo-utm30lx,{path}")[1] == LIDAR_2D["sick-lms200"]  # later entries win
     cases = {
-        "lidar2d: {beam: 10}": r"lidar2d.beam is not a field",
-        "lidar3d: {layers: 10.5}": r"lidar3d.layers must be a int, got 10.5",
+        "lidar2d: {beam: 10}": r"lidar2d: unknown key 'beam'",
+        "lidar3d: {layers: 10.5}": r"lidar3d.layers: expected a int, got 10.5",
+        "lidar2d: 5": r"lidar2d: expected a mapping of settings, got 5",
         "lidar2d: {angle_min_deg: 10, angle_max_deg: 0}": r"lidar2d: 2D LiDAR: need beams >= 1",
         "lidars: {}": r"holds a lidar3d and/or a lidar2d section",
         "lidar2d: [1": r"not YAML",

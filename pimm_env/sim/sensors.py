@@ -12,10 +12,10 @@ when it reads a bag's layout from its messages; a user writes one for a LiDAR wi
 
 from __future__ import annotations
 
-from dataclasses import asdict, fields, replace
+from dataclasses import asdict
 from pathlib import Path
-from typing import Any
 
+from pimm_env.settings import apply_params
 from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig
 
 SENSORS_FILE_SUFFIXES = (".yaml", ".yml")
@@ -71,32 +71,10 @@ def read_sensors_file(
         raise ValueError(f"{path}: not YAML ({error})") from None
     if not isinstance(data, dict) or not set(data) <= {"lidar3d", "lidar2d"} or not data:
         raise ValueError(f"{path}: a sensors file holds a lidar3d and/or a lidar2d section, got {data!r}")
-    return _section(path, "lidar3d", data.get("lidar3d"), lidar3d), _section(
-        path, "lidar2d", data.get("lidar2d"), lidar2d
+    return (
+        apply_params(lidar3d, data.get("lidar3d", {}), f"{path}: lidar3d"),
+        apply_params(lidar2d, data.get("lidar2d", {}), f"{path}: lidar2d"),
     )
-
-
-def _section(path: Path, name: str, values: Any, base: Any) -> Any:
-    if values is None:
-        return base
-    if not isinstance(values, dict):
-        raise ValueError(f"{path}: {name} must be a mapping of fields, got {values!r}")
-    known = {f.name: f for f in fields(base)}
-    for key, value in values.items():
-        if key not in known:
-            raise ValueError(f"{path}: {name}.{key} is not a field; fields: {', '.join(known)}")
-        kind = type(getattr(base, key))
-        fits = (
-            isinstance(value, bool) if kind is bool else isinstance(value, (int, float)) and not isinstance(value, bool)
-        )
-        if fits and kind is int:
-            fits = float(value).is_integer()
-        if not fits:
-            raise ValueError(f"{path}: {name}.{key} must be a {kind.__name__}, got {value!r}")
-    try:
-        return replace(base, **{k: type(getattr(base, k))(v) for k, v in values.items()})
-    except ValueError as error:
-        raise ValueError(f"{path}: {name}: {error}") from None
 
 
 def write_sensors_file(
