@@ -31,3 +31,19 @@ def test_orientation_bins_tell_the_two_sides_of_a_jamb_apart():
         grid.cells(x, y)
     with pytest.raises(ValueError, match="orientation_bins"):
         NearestCornerGrid(JAMB, orientation_bins=0)
+
+
+@pytest.mark.parametrize("bins", [1, 6, 8])
+def test_cells_are_the_clipped_cell_and_the_wrapped_heading_bin_inside_the_grid_and_out(bins):
+    grid = NearestCornerGrid(JAMB, resolution=0.25, margin=2.0, orientation_bins=bins)
+    rng = np.random.default_rng(0)
+    rows, cols = grid.shape
+    x = rng.uniform(grid.origin[0] - 3, grid.origin[0] + cols * 0.25 + 3, 5000).astype(np.float32)
+    y = rng.uniform(grid.origin[1] - 3, grid.origin[1] + rows * 0.25 + 3, 5000).astype(np.float32)
+    theta = rng.uniform(-4 * np.pi, 4 * np.pi, 5000).astype(np.float32)
+    # the plain formula: the flat cell, clipped into the grid, then the heading's bin modulo a full turn
+    flat = np.floor((y - np.float32(grid.origin[1])) / np.float32(0.25)) * cols
+    flat += np.floor((x - np.float32(grid.origin[0])) / np.float32(0.25))
+    expected = np.clip(flat, 0, rows * cols - 1).astype(np.int64) * bins
+    expected += np.floor(theta * np.float32(bins / (2 * np.pi))).astype(np.int64) % bins
+    assert np.array_equal(grid.cells(x, y, theta), expected)

@@ -79,19 +79,28 @@ class NearestCornerGrid:
         edge one; the filter measures the true distance to that cell's corner, so such a point (more than
         ``margin`` from every corner) only ever scores low, as it should.
         """
+        # The filter's hot spot: np.clip and a float np.mod took 5x the time of the rest of this function, so
+        # the bounds are two in-place extrema and the heading bin wraps in integers (a mask for 2^k bins).
         inv = np.float32(1.0 / self.resolution)
         flat = np.floor((y - np.float32(self.origin[1])) * inv)
         flat *= np.float32(self.shape[1])
         flat += np.floor((x - np.float32(self.origin[0])) * inv)
-        np.clip(flat, 0, self.shape[0] * self.shape[1] - 1, out=flat)
+        np.maximum(flat, 0, out=flat)
+        np.minimum(flat, self.shape[0] * self.shape[1] - 1, out=flat)
+        cell = flat.astype(np.int32)
         if self.bins == 1:
-            return flat.astype(np.int32)
+            return cell
         if theta is None:
             raise ValueError("this lookup has orientation bins: cells() needs the headings too")
-        flat *= np.float32(self.bins)
+        cell *= self.bins
         turns = np.asarray(theta, dtype=np.float32) * np.float32(self.bins / (2 * np.pi))
-        flat += np.mod(np.floor(turns), np.float32(self.bins))
-        return flat.astype(np.int32)
+        heading = np.floor(turns).astype(np.int32)
+        if self.bins & (self.bins - 1) == 0:
+            heading &= self.bins - 1  # two's complement: the floor modulo for negative turns too
+        else:
+            np.remainder(heading, self.bins, out=heading)
+        cell += heading
+        return cell
 
     def nearest(self, x: np.ndarray, y: np.ndarray, theta: np.ndarray | None = None) -> np.ndarray:
         """Index of the chosen corner for points ``x``, ``y`` (headings ``theta``) of any equal shape."""
