@@ -175,13 +175,7 @@ def pimm_benchmarks(repeats: int) -> dict[str, float]:
     features = np.column_stack(
         [rng.uniform(-6, 6, (5, 2)), rng.uniform(-np.pi, np.pi, 5), np.full(5, 0.3), np.full(5, 0.2)]
     )
-    weights = pimm.filter.weights.copy()
-
-    def measurement() -> None:
-        pimm.filter.weights = weights.copy()
-        pimm.filter.measurement_update(features)
-
-    figures = {"pf_update_ms": median_ms(measurement, repeats)}
+    figures = {"pf_update_ms": measurement_update_ms(pimm.filter, features, repeats)}
     figures.update(converged_update_benchmark(pimm.filter, features, repeats))
     env = IILabEnv(terminate_on_collision=False)
     obs, _ = env.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
@@ -212,13 +206,21 @@ def converged_update_benchmark(filt: FeatureFilter, features: np.ndarray, repeat
     adaptive.ess = 1.0  # taken as degenerate: the resampling draws from particles 0.1 m about the pose, few bins
     adaptive.resample_if_degenerate()
     adaptive.inject(np.zeros((0, 2)))
-    weights = adaptive.weights.copy()
+    return {
+        "pf_update_converged_ms": measurement_update_ms(adaptive, features, repeats),
+        "pf_converged_particles": float(len(adaptive.particles)),
+    }
+
+
+def measurement_update_ms(filt: FeatureFilter, features: np.ndarray, repeats: int) -> float:
+    """Median ms of ``filt``'s measurement update with ``features``, each time from its present weights."""
+    weights = filt.weights.copy()
 
     def measurement() -> None:
-        adaptive.weights = weights.copy()
-        adaptive.measurement_update(features)
+        filt.weights = weights.copy()
+        filt.measurement_update(features)
 
-    return {"pf_update_converged_ms": median_ms(measurement, repeats), "pf_converged_particles": float(len(weights))}
+    return median_ms(measurement, repeats)
 
 
 def perception_benchmarks(repeats: int) -> dict[str, float]:
