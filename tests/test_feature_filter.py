@@ -279,5 +279,5 @@ def test_adaptive_injection_joins_a_small_set_and_replaces_in_a_full_one():
     full = make_filter(2000, adaptive=True, min_particles=100)
     full.inject(np.array([[2.0, 2.0]]))
     assert len(full.particles) == 2000
-    with pytest.raises(ValueError, match="min_particles"):
-        FeatureFilterConfig(num_particles=100, min_particles=200, adaptive=True)
+    with pytest.raises(ValueError, match="min_particles must be at least 1, got 0"):
+        FeatureFilterConfig(num_particles=100, min_particles=0)

@@ -45,9 +45,8 @@ def test_a_stamp_from_the_future_and_a_nan_do_not_stop_pimm(pimm):
     env = IILabEnv()
     obs, _ = env.reset(seed=2, options={"pose": [-18.5, 14.0, 1.57]})
     pimm.reset(seed=2)
-    perceived_after = fresh_after = 0
-    fresh = True
-    for step in range(40):
+    perceived_after = weighed_after = 0
+    for step in range(70):
         if step == 10:  # one observation stamped a billion seconds ahead: set aside
             future = dict(obs, time=obs["time"] + 1e9, cloud_time=obs["cloud_time"] + 1e9)
             assert np.isfinite(pimm.update(future).pose).all()
@@ -57,11 +56,10 @@ def test_a_stamp_from_the_future_and_a_nan_do_not_stop_pimm(pimm):
         estimate = pimm.update(obs)
         assert np.isfinite(estimate.pose).all()
         perceived_after += step > 12 and "segmentation" in estimate.timings
-        fresh_after += step > 12 and fresh
-        obs, _, _, _, info = env.step(np.array([0.3, 0.0], dtype=np.float32))
-        fresh = info["fresh_cloud"]
+        weighed_after += step > 12 and "measurement_update" in estimate.timings
+        obs, *_ = env.step(np.array([0.3, 0.0], dtype=np.float32))
     env.close()
-    assert perceived_after == fresh_after >= 8  # every later 3D scan was still taken
+    assert perceived_after == weighed_after >= 4  # later 3D scans were still taken, each before it weighed
     assert pimm.guard.glitches == 1
 
 
@@ -80,6 +78,26 @@ def test_each_scan_weighs_the_particles_once(pimm, monkeypatch):
         moved["cloud_time"] = np.array([0.1 * (k - k % 3)])
         pimm.update(moved)
     assert len(weighed) == 2  # steps 1 and 3 (step 0 only sets the odometry reference; 2, 4, 5 reuse a scan)
+
+
+def test_perceiving_a_scan_only_when_it_weighs_gives_the_same_estimates_in_half_the_perceptions(pimm):
+    eager = make_localizer("pimm", filter={"num_particles": 2000}, lazy_perception=False)
+    runs = []
+    for localizer in (pimm, eager):
+        env = IILabEnv()
+        obs, _ = env.reset(seed=4, options={"pose": [-10.0, 4.2, 0.0]})
+        localizer.reset(seed=4)
+        poses, perceived = [], 0
+        for _ in range(60):
+            estimate = localizer.update(obs)
+            poses.append(estimate.pose)
+            perceived += "segmentation" in estimate.timings
+            obs, *_ = env.step(np.array([0.3, 0.0], dtype=np.float32))
+        env.close()
+        runs.append((np.array(poses), perceived))
+    (lazy_poses, lazy_count), (eager_poses, eager_count) = runs
+    assert np.array_equal(lazy_poses, eager_poses)
+    assert lazy_count <= 0.7 * eager_count  # scans a newer one replaced before the robot moved 0.1 m: skipped
 
 
 def test_unknown_pimm_setting_lists_the_valid_ones():
@@ -117,7 +135,8 @@ def test_pimm_converges_in_area_b():
 
 
 def test_pimm_reads_an_os0_64_through_the_networks_layout():
-    pimm = make_localizer("pimm", filter={"num_particles": 1000}, sensors="os0-64")
+    # every scan perceived on arrival, so that 15 steps see several of them
+    pimm = make_localizer("pimm", filter={"num_particles": 1000}, sensors="os0-64", lazy_perception=False)
     env = IILabEnv(sensors="os0-64")
     obs, _ = env.reset(seed=0, options={"pose": [-18.5, 14.0, 1.57]})
     assert obs["cloud"].shape == (64 * 1024, 3)

@@ -60,14 +60,16 @@ class LocalizationRecorder(gym.Wrapper):
         info["estimate"] = estimate
         if estimate.timings:
             self._timings.append(dict(estimate.timings))
+        if "corners" in estimate.timings and hasattr(self.localizer, "snapshot"):
+            # corners found in this update (PIMM perceives a scan when it weighs with it, not always on arrival),
+            # kept with this row, or with the last row when this step records none
+            corners = self.localizer.snapshot(max_particles=0).get("corners")
+            if corners is not None and len(corners):
+                row = np.full((len(corners), 1), float(len(self._rows) if record else max(len(self._rows) - 1, 0)))
+                self._corners.append(np.hstack([row, np.asarray(corners, dtype=float)[:, :2]]))
         if record:
             cov = np.diag(np.asarray(estimate.covariance, dtype=float))
             time = float(np.asarray(obs["time"]).reshape(-1)[0])
-            if info.get("fresh_cloud") and hasattr(self.localizer, "snapshot"):
-                corners = self.localizer.snapshot(max_particles=0).get("corners")
-                if corners is not None and len(corners):
-                    row = np.full((len(corners), 1), float(len(self._rows)))
-                    self._corners.append(np.hstack([row, np.asarray(corners, dtype=float)[:, :2]]))
             self._rows.append((time, float(estimate.stamp), np.asarray(info["true_pose"], float), estimate.pose, cov))
 
     def trial_log(self) -> TrialLog:

@@ -38,7 +38,7 @@ class TrialLog:
     cov: np.ndarray
     kidnap_index: int | None = None
     timings: list[dict[str, float]] = field(default_factory=list, repr=False)
-    #: (K, 3): row, x, y of the corners the localizer detected at that row's scan, placed at its estimate
+    #: (K, 3): row, x, y of the corners the localizer detected in the update of that row, placed at its estimate
     #: (for figures; empty for localizers that detect none)
     corners: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
     kidnap_rows: tuple[int, ...] = ()

@@ -55,8 +55,11 @@ class FeatureFilterConfig:
     #: set shrinks to what its spread needs once it has converged; num_particles is then the most it holds.
     #: The injection keeps its size of num_particles x replace_worst_fraction and joins the set while it is
     #: smaller than num_particles (rather than replacing its worst), so a kidnap is searched for as before.
-    adaptive: bool = False
-    min_particles: int = 1000  # ours: KLD's floor (nav2's 500 is for a 2D scan's denser weighing)
+    #: On by default since it held the iiLab table (10 trials) and the held-out one (README); False: the thesis's.
+    adaptive: bool = True
+    min_particles: int = (
+        1000  # ours: KLD's floor (nav2's 500 is for a 2D scan's denser weighing), capped at num_particles
+    )
     kld_err: float = 0.05  # nav2 pf_err
     kld_z: float = 0.99  # nav2 pf_z
     kld_bin_xy: float = 0.5  # nav2's bins
@@ -65,10 +68,8 @@ class FeatureFilterConfig:
     def __post_init__(self) -> None:
         if self.num_particles < 1:
             raise ValueError(f"num_particles must be at least 1, got {self.num_particles}")
-        if not 1 <= self.min_particles <= self.num_particles and self.adaptive:
-            raise ValueError(
-                f"min_particles must be in [1, num_particles = {self.num_particles}], got {self.min_particles}"
-            )
+        if self.min_particles < 1:  # above num_particles it is num_particles: a small set is kept whole
+            raise ValueError(f"min_particles must be at least 1, got {self.min_particles}")
         if not 0 < self.alpha <= 1:
             raise ValueError(f"alpha must be in (0, 1], got {self.alpha}")
         if self.estimate_bin_xy < 0 or self.estimate_bin_theta <= 0:
@@ -237,7 +238,9 @@ class FeatureFilter:
         else:
             drawn = self.particles[self.rng.permutation(residual_resample(self.weights, self.rng, c.num_particles))]
             keys = bin_keys(drawn, c.kld_bin_xy, c.kld_bin_theta)
-            self.particles = drawn[: kld_sample_count(keys, c.kld_err, c.kld_z, c.min_particles, c.num_particles)]
+            self.particles = drawn[
+                : kld_sample_count(keys, c.kld_err, c.kld_z, min(c.min_particles, c.num_particles), c.num_particles)
+            ]
         n = len(self.particles)
         self.weights = np.full(n, 1.0 / n)
         return True

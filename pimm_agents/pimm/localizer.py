@@ -93,6 +93,11 @@ class PimmConfig:
     # 0.01 rad): in a turn one scan's corners then count up to ten times and 5 % of the particles are
     # replaced each time, which let a look-alike place win in rows of identical offices. False: the thesis's.
     measure_once_per_scan: bool = True
+    # Ours: a scan is segmented, and its corners found, only when the filter is about to weigh with it. The
+    # filter weighs at most once per motion update (0.1 m or 0.01 rad), so a scan that a newer one replaces
+    # before the robot has moved that far was perceived for nothing: about half of them while driving at
+    # 0.3 m/s with 10 Hz scans. The estimates are the same either way (a test). False: every scan on arrival.
+    lazy_perception: bool = True
     latency_compensation: bool = True
     odometry_history_s: float = 5.0  # how far back a feature's scan time can be looked up
     # Floors on the feature uncertainty the filter uses (ours; the thesis tuned its covariances by hand).
@@ -236,7 +241,8 @@ class PimmLocalizer:
         self._features_stamp = 0.0
         self._suggestions = np.zeros((0, 2))
         self._walls: np.ndarray | None = None  # the last scan's wall points until the filter has used them
-        self._unused_scan = False  # a scan has been perceived that no measurement update has used yet
+        self._unused_scan = False  # a scan has arrived that no measurement update has used yet
+        self._pending: tuple[np.ndarray, np.ndarray, float] | None = None  # that scan, if not yet perceived
         self._last_cloud_time = -np.inf
         self._estimate: np.ndarray | None = None
         self._estimate_odom: np.ndarray | None = None
@@ -260,7 +266,13 @@ class PimmLocalizer:
         self._suggestions = retrieval.suggestions if self.config.use_suggestions else np.zeros((0, 2))
         if self.config.wall_field.enabled:
             self._walls = wall_points(cloud, segmented.labels, self.config.wall_field)
-        self._unused_scan = True
+
+    def _perceive_pending(self, timings: dict[str, float]) -> None:
+        """Perceive the scan that arrived last, unless it has been already."""
+        if self._pending is not None:
+            cloud, mask, stamp = self._pending
+            self._pending = None
+            self.perceive(cloud, mask, stamp, timings)
 
     def snapshot(self, max_particles: int = 500) -> dict[str, np.ndarray]:
         """Particles, the latest scan's corners placed at the current estimate, and the fingerprint suggestions."""
@@ -290,10 +302,14 @@ class PimmLocalizer:
             if self.resample is not None:  # another sensor's layout, read as the network's (perception/resample.py)
                 cloud, mask = self.resample(cloud, mask)
             if np.any(valid_returns(cloud, mask)):
-                self.perceive(cloud, mask, cloud_time, timings)
+                self._pending = (np.array(cloud), np.array(mask), cloud_time)
+                self._unused_scan = True
+                if not self.config.lazy_perception:
+                    self._perceive_pending(timings)
         moved = self.filter.motion_update(odom)
         if moved and (self._unused_scan or not self.config.measure_once_per_scan):
             self._unused_scan = False
+            self._perceive_pending(timings)
             features, walls = self._features, self._walls
             if self.config.latency_compensation:
                 at_scan = self.history.at(self._features_stamp)
