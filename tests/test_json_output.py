@@ -48,7 +48,9 @@ def test_perception_and_bench_print_one_json_document(room_world):
     assert 0.0 <= perception["segmentation"]["miou"] <= 1.0
     bench = _one_document(_stdout("bench", "--repeats", "3"))
     assert bench["pimm_pipeline_ms"] > 0
-    assert {"pimm_stage_segmentation_ms", "pimm_stage_corners_ms"} <= set(bench)  # where the time goes
+    assert {"pimm_stage_segmentation_ms", "pimm_stage_corners_ms", "pimm_per_scan_ms"} <= set(
+        bench
+    )  # where the time goes
     assert bench["pf_converged_particles"] < 10_000  # KLD shrank the converged set the bench times
 
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from pimm_env.sim.lidar import Lidar3DConfig, cast_rays, directions_3d
-from pimm_env.sim.raycast import BulletRayCaster, EmbreeRayCaster, PrismRayCaster
+from pimm_env.sim.raycast import BulletRayCaster, EmbreeRayCaster, PrismRayCaster, _directions
 from pimm_env.sim.scene import BulletScene
 from pimm_env.world.files import load_world
 from pimm_env.world.model import Element
@@ -23,6 +23,15 @@ def test_directions_are_organized_and_unit():
     assert dirs.shape == (14400, 3)
     assert np.allclose(np.linalg.norm(dirs, axis=1), 1.0)
     assert np.degrees(np.arcsin(dirs[:, 2])).min() == pytest.approx(-60.0)
+
+
+def test_ray_directions_are_each_rays_own_sines_and_cosines_to_the_bit():
+    rng = np.random.default_rng(0)
+    azimuths, elevations = rng.uniform(-4, 4, 7), rng.uniform(-1, 1, 3)
+    dirs = _directions(azimuths, elevations)
+    for i, el in enumerate(elevations):
+        for j, az in enumerate(azimuths):
+            assert dirs[i, j].tolist() == [np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]
 
 
 def test_ray_batches_are_chunked(iilab):

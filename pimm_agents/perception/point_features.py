@@ -145,8 +145,7 @@ def with_context(
     rows, cols = np.divmod(index, points_per_layer)
     r = rows[:, None] + steps[:, 0]
     neighbour = np.clip(r, 0, layers - 1) * points_per_layer + (cols[:, None] + steps[:, 1]) % points_per_layer
-    outside = (r < 0) | (r >= layers)
-    # one gather for all neighbours; rows beyond the scan read a zero row appended at the end
-    padded = np.concatenate([features, np.zeros((1, features.shape[1]), dtype=features.dtype)])
-    neighbour[outside] = len(features)
-    return padded[neighbour].reshape(len(index), -1).astype(np.float32, copy=False)
+    # one gather for all neighbours, then zeros where a neighbour lies beyond the scan
+    gathered = np.asarray(features, dtype=np.float32).take(neighbour, axis=0)
+    gathered[(r < 0) | (r >= layers)] = 0.0
+    return gathered.reshape(len(index), -1)

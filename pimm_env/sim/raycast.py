@@ -34,8 +34,13 @@ class RayCaster(Protocol):
 
 
 def _directions(azimuths: np.ndarray, elevations: np.ndarray) -> np.ndarray:
-    el, az = np.meshgrid(elevations, azimuths, indexing="ij")
-    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+    """Unit vectors (E, A, 3) of the rays; each sine and cosine taken once per angle, not once per ray."""
+    cos_el, sin_el = np.cos(elevations)[:, None], np.sin(elevations)[:, None]
+    out = np.empty((len(elevations), len(azimuths), 3))
+    np.multiply(cos_el, np.cos(azimuths)[None, :], out=out[..., 0])
+    np.multiply(cos_el, np.sin(azimuths)[None, :], out=out[..., 1])
+    out[..., 2] = sin_el
+    return out
 
 
 class BulletRayCaster:
