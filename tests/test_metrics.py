@@ -64,7 +64,10 @@ def test_summary_best_and_worst():
 
 def test_timing_summary():
     t = timing_summary([{"sensor": 1.0, "total": 2.0}, {"sensor": 3.0, "total": 4.0}, {}])
-    assert t == {"sensor": {"mean": 2.0, "max": 3.0}, "total": {"mean": 3.0, "max": 4.0}}
+    assert t == {
+        "sensor": {"mean": 2.0, "max": 3.0, "seconds": 0.004},
+        "total": {"mean": 3.0, "max": 4.0, "seconds": 0.006},
+    }
 
 
 def test_csv_round_trip_and_malformed_files_name_the_line(tmp_path):

@@ -2,14 +2,14 @@ from pimm_agents.evaluation.report import format_tables, format_timings
 
 
 def test_tables_keep_their_columns_for_long_localizer_and_stage_names():
-    timing = {"mean": 1.0, "max": 2.0}
+    timing = {"mean": 1.0, "max": 2.0, "seconds": 0.25}
     row = {
         "trials": 3,
         "convergence_rate": 2 / 3,
         "convergence_time_s": 12.5,
         "position_error_m": 0.1,
         "angle_error_deg": 1.5,
-        "timings_ms": {"measurement_update": timing, "total": timing},
+        "timings_ms": {"measurement_update": timing, "total": dict(timing, seconds=1.0)},
     }
     summary = {"scenarios": {"area_b": {"amcl": row, "amcl-recovery-nav2": row}}}
     table = format_tables(summary).splitlines()
@@ -20,3 +20,4 @@ def test_tables_keep_their_columns_for_long_localizer_and_stage_names():
     timings = [line for line in format_timings(summary).splitlines() if line.strip()]
     assert len({len(line) for line in timings}) == 1  # every column lines up
     assert "measurement_update  " in timings[1]
+    assert timings[1].split()[-3:] == ["0.2", "25", "%"]  # its seconds in all, and its share of the total's

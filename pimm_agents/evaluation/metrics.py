@@ -139,9 +139,12 @@ def best_and_worst(trials: list[TrialMetrics]) -> tuple[int | None, int | None]:
 
 
 def timing_summary(timings: list[dict[str, float]]) -> dict[str, dict[str, float]]:
-    """Mean and peak ms of every stage over the updates that reported it."""
+    """Mean and peak ms of every stage over the updates that reported it, and the seconds it took in all."""
     stages: dict[str, list[float]] = {}
     for entry in timings:
         for stage, ms in entry.items():
             stages.setdefault(stage, []).append(ms)
-    return {s: {"mean": float(np.mean(v)), "max": float(np.max(v))} for s, v in stages.items()}
+    return {
+        s: {"mean": float(np.mean(v)), "max": float(np.max(v)), "seconds": float(np.sum(v)) / 1000}
+        for s, v in stages.items()
+    }

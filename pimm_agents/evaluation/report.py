@@ -149,20 +149,25 @@ def format_tables(summary: dict[str, Any]) -> str:
 
 
 def format_timings(summary: dict[str, Any]) -> str:
-    """Mean and peak ms per stage and localizer, over all scenarios (thesis section 4.6)."""
-    stages: dict[str, dict[str, list[tuple[float, float]]]] = {}
+    """Mean and peak ms per stage and localizer over all scenarios (thesis section 4.6), and where the time went:
+    each stage's seconds in all and their share of the localizer's ``total`` stage."""
+    stages: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
     for by_localizer in summary["scenarios"].values():
         for localizer, row in by_localizer.items():
             for stage, t in row["timings_ms"].items():
-                stages.setdefault(localizer, {}).setdefault(stage, []).append((t["mean"], t["max"]))
+                entry = (t["mean"], t["max"], t.get("seconds", float("nan")))
+                stages.setdefault(localizer, {}).setdefault(stage, []).append(entry)
     w = _name_width(stages, 16)
     sw = _name_width((stage for by_stage in stages.values() for stage in by_stage), 14)
-    lines = [f"\n  {'localizer':<{w}}{'stage':<{sw}}{'mean ms':>10}{'peak ms':>10}"]
+    lines = [f"\n  {'localizer':<{w}}{'stage':<{sw}}{'mean ms':>10}{'peak ms':>10}{'total s':>10}{'share':>8}"]
     for localizer, by_stage in stages.items():
+        whole = float(np.sum([v[2] for v in by_stage.get("total", [])])) or float("nan")
         for stage, values in by_stage.items():
             mean = float(np.mean([v[0] for v in values]))
             peak = float(np.max([v[1] for v in values]))
-            lines.append(f"  {localizer:<{w}}{stage:<{sw}}{mean:>10.2f}{peak:>10.2f}")
+            seconds = float(np.sum([v[2] for v in values]))
+            share = f"{100 * seconds / whole:.0f} %" if np.isfinite(seconds / whole) else "-"
+            lines.append(f"  {localizer:<{w}}{stage:<{sw}}{mean:>10.2f}{peak:>10.2f}{seconds:>10.1f}{share:>8}")
     return "\n".join(lines)
 
 
