@@ -57,9 +57,8 @@ class FeatureFilterConfig:
     #: smaller than num_particles (rather than replacing its worst), so a kidnap is searched for as before.
     #: On by default since it held the iiLab table (10 trials) and the held-out one (README); False: the thesis's.
     adaptive: bool = True
-    min_particles: int = (
-        1000  # ours: KLD's floor (nav2's 500 is for a 2D scan's denser weighing), capped at num_particles
-    )
+    #: ours: KLD's floor (nav2's 500 is for a 2D scan's denser weighing); a smaller num_particles is kept whole
+    min_particles: int = 1000
     kld_err: float = 0.05  # nav2 pf_err
     kld_z: float = 0.99  # nav2 pf_z
     kld_bin_xy: float = 0.5  # nav2's bins

@@ -275,7 +275,8 @@ class PimmLocalizer:
             self.perceive(cloud, mask, stamp, timings)
 
     def snapshot(self, max_particles: int = 500) -> dict[str, np.ndarray]:
-        """Particles, the latest scan's corners placed at the current estimate, and the fingerprint suggestions."""
+        """Particles, the last perceived scan's corners placed at the current estimate, and its fingerprint
+        suggestions."""
         pose = self._estimate if self._estimate is not None else self.filter.best_mean()
         corners = compose(pose, self._features[:, :3])[:, :2] if len(self._features) else np.zeros((0, 2))
         return {
