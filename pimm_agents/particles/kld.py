@@ -19,9 +19,11 @@ def kld_bound(k: np.ndarray | int, epsilon: float, z: float) -> np.ndarray:
 
 
 def kld_limit(k: np.ndarray | int, epsilon: float, z: float, min_particles: int, max_particles: int) -> np.ndarray:
-    """The bound clamped to [min_particles, max_particles]; ``max_particles`` while k <= 1, as in nav2."""
+    """The bound clamped to [min_particles, max_particles]; ``max_particles`` while k <= 1, as in nav2. A floor
+    above ``max_particles`` is ``max_particles``: a set smaller than the floor is kept whole."""
     bound = kld_bound(k, epsilon, z)
-    return np.where(np.isinf(bound), max_particles, np.clip(bound, min_particles, max_particles)).astype(int)
+    floor = min(min_particles, max_particles)
+    return np.where(np.isinf(bound), max_particles, np.clip(bound, floor, max_particles)).astype(int)
 
 
 def bin_indices(poses: np.ndarray, xy_size: float, theta_size: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:

@@ -237,9 +237,7 @@ class FeatureFilter:
         else:
             drawn = self.particles[self.rng.permutation(residual_resample(self.weights, self.rng, c.num_particles))]
             keys = bin_keys(drawn, c.kld_bin_xy, c.kld_bin_theta)
-            self.particles = drawn[
-                : kld_sample_count(keys, c.kld_err, c.kld_z, min(c.min_particles, c.num_particles), c.num_particles)
-            ]
+            self.particles = drawn[: kld_sample_count(keys, c.kld_err, c.kld_z, c.min_particles, c.num_particles)]
         n = len(self.particles)
         self.weights = np.full(n, 1.0 / n)
         return True

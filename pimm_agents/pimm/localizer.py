@@ -304,10 +304,11 @@ class PimmLocalizer:
             if self.resample is not None:  # another sensor's layout, read as the network's (perception/resample.py)
                 cloud, mask = self.resample(cloud, mask)
             if np.any(valid_returns(cloud, mask)):
-                self._pending = (np.array(cloud), np.array(mask), cloud_time)
                 self._unused_scan = True
-                if not self.config.lazy_perception:
-                    self._perceive_pending(timings)
+                if self.config.lazy_perception:  # kept (a copy: the caller may reuse its buffers) until weighed
+                    self._pending = (np.array(cloud), np.array(mask), cloud_time)
+                else:
+                    self.perceive(cloud, mask, cloud_time, timings)
         moved = self.filter.motion_update(odom)
         if moved and (self._unused_scan or not self.config.measure_once_per_scan):
             self._unused_scan = False
