@@ -547,6 +547,7 @@ def bench(
 ) -> None:
     """Time each stage on this machine (medians, ms) and the real-time factor of an area_a rollout."""
     from pimm_agents.evaluation.benchmark import run_benchmarks
+    from pimm_agents.evaluation.report import machine
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
@@ -555,6 +556,8 @@ def bench(
     if json_out:
         typer.echo(json.dumps(figures))
         return
+    here = machine()
+    typer.echo(f"machine: {here['cpu'] or 'unknown CPU'}, {here['cores']} logical cores, torch {here['torch']}")
     for key, value in figures.items():
         typer.echo(f"{key:<24}{value:>10.3f}")
 

@@ -1,6 +1,7 @@
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from typer.testing import CliRunner
@@ -60,7 +61,8 @@ def test_run_one_trial_end_to_end_then_score_its_log(tmp_path):
         "per_trial", "spread", "ape_m", "rpe_m",
     }  # fmt: skip
     assert [r["seed"] for r in row["per_trial"]] == [0] and row["ape_m"]["rmse"] >= row["ape_m"]["min"] >= 0
-    assert set(data) >= {"version", "commit"} and len(data["commit"].split("+")[0]) == 40
+    assert set(data) >= {"version", "commit", "machine"} and len(data["commit"].split("+")[0]) == 40
+    assert data["machine"]["cores"] >= 1 and data["machine"]["numpy"] == np.__version__
     assert row["trials"] == 1 and 0.0 <= row["convergence_rate"] <= 1.0
     assert set(row["timings_ms"]) >= {"sensor", "total"} and row["timings_ms"]["sensor"]["max"] > 0
     folder = Path(data["folder"])

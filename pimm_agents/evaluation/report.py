@@ -113,6 +113,45 @@ def provenance() -> dict[str, str | None]:
     return {"version": package, "commit": commit}
 
 
+def machine() -> dict[str, str | int | None]:
+    """Where results were made: CPU model, logical cores, OS and architecture, and the versions of Python,
+    numpy and torch. PIMM's float32 paths (the network, the filter's likelihoods) round differently on CPUs
+    with other vector units, so its trials repeat exactly on one CPU type, not across them (README)."""
+    import os
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    def installed(name: str) -> str | None:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return None
+
+    return {
+        "cpu": cpu_model(),
+        "cores": os.cpu_count(),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "numpy": installed("numpy"),
+        "torch": installed("torch"),
+    }
+
+
+def cpu_model(cpuinfo: Path = Path("/proc/cpuinfo")) -> str | None:
+    """The CPU's model name from ``cpuinfo`` (Linux), else what :func:`platform.processor` says (None if
+    nothing)."""
+    import platform
+
+    try:
+        for line in cpuinfo.read_text().splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "model name" and value.strip():
+                return value.strip()
+    except OSError:
+        pass
+    return platform.processor() or None
+
+
 def _cell(value: float | None, fmt: str) -> str:
     return "-" if value is None else format(value, fmt)
 
@@ -188,7 +227,7 @@ def write_results(
     occupancy: OccupancyGrid | None,
     corners: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """summary.json (with the version and commit), run.json (what was run: world, scenarios, seeds), per trial
+    """summary.json (with the version, commit and machine), run.json (what was run: world, scenarios, seeds), per trial
     the thesis's CSV with a JSON sidecar (what the trial was, where the kidnap happened) and a TUM pair, and the
     best/worst figures on ``occupancy`` (with the map's ``corners`` (N, 2) when given; one figure when the best
     trial is also the worst; none without a map, as for a sweep over several worlds) and a summary figure;
@@ -205,7 +244,12 @@ def write_results(
         write_sidecar(logs / f"{stem}.json", result)
         write_trial_tum(tum / stem, result.log)
         errors.append(trajectory_errors(result.log.after_kidnap()))
-    summary = {**summary_of(results, errors), "start": run_record.get("start", "global"), **provenance()}
+    summary = {
+        **summary_of(results, errors),
+        "start": run_record.get("start", "global"),
+        **provenance(),
+        "machine": machine(),
+    }
     (folder / "summary.json").write_text(json.dumps(summary, indent=2))
     (folder / "run.json").write_text(json.dumps(run_record, indent=2))
     groups = grouped(results, [r.spec for r in results])
