@@ -547,7 +547,7 @@ def bench(
 ) -> None:
     """Time each stage on this machine (medians, ms) and the real-time factor of an area_a rollout."""
     from pimm_agents.evaluation.benchmark import run_benchmarks
-    from pimm_agents.evaluation.report import machine
+    from pimm_agents.evaluation.provenance import machine
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 

@@ -1,4 +1,4 @@
-from pimm_agents.evaluation.report import cpu_model, format_tables, format_timings
+from pimm_agents.evaluation.report import format_tables, format_timings
 
 
 def test_tables_keep_their_columns_for_long_localizer_and_stage_names():
@@ -21,11 +21,3 @@ def test_tables_keep_their_columns_for_long_localizer_and_stage_names():
     assert len({len(line) for line in timings}) == 1  # every column lines up
     assert "measurement_update  " in timings[1]
     assert timings[1].split()[-3:] == ["0.2", "25", "%"]  # its seconds in all, and its share of the total's
-
-
-def test_the_cpu_model_is_read_from_cpuinfo_and_a_missing_file_falls_back(tmp_path):
-    info = tmp_path / "cpuinfo"
-    info.write_text("processor\t: 0\nvendor_id\t: AuthenticAMD\nmodel name\t: AMD EPYC 9R14\nflags\t\t: fpu avx512f\n")
-    assert cpu_model(info) == "AMD EPYC 9R14"
-    fallback = cpu_model(tmp_path / "missing")
-    assert fallback is None or (isinstance(fallback, str) and fallback)
