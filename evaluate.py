@@ -557,7 +557,8 @@ def bench(
         typer.echo(json.dumps(figures))
         return
     here = machine()
-    typer.echo(f"machine: {here['cpu'] or 'unknown CPU'}, {here['cores']} logical cores, torch {here['torch']}")
+    cpu = f"{here['cpu'] or 'unknown CPU'} ({here['vector'] or 'vector unit unknown'})"
+    typer.echo(f"machine: {cpu}, {here['cores']} logical cores, torch {here['torch']}")
     for key, value in figures.items():
         typer.echo(f"{key:<24}{value:>10.3f}")
 

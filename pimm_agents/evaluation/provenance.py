@@ -28,9 +28,10 @@ def provenance() -> dict[str, str | None]:
 
 
 def machine() -> dict[str, str | int | None]:
-    """Where results were made: CPU model, logical cores, OS and architecture, and the versions of Python,
-    numpy and torch. PIMM's float32 paths (the network, the filter's likelihoods) round differently on CPUs
-    with other vector units, so its trials repeat exactly on one CPU type, not across them (README)."""
+    """Where results were made: CPU model and widest vector extension, logical cores, OS and architecture,
+    and the versions of Python, numpy and torch. PIMM's float32 paths (Embree's ray casting, the network, the
+    filter's likelihoods) may round differently on CPUs with other vector units, so its trials repeat exactly
+    on one CPU type, not across them (README)."""
     import os
     import platform
     from importlib.metadata import PackageNotFoundError, version
@@ -41,8 +42,10 @@ def machine() -> dict[str, str | int | None]:
         except PackageNotFoundError:
             return None
 
+    cpu, vector = cpu_description()
     return {
-        "cpu": cpu_model(),
+        "cpu": cpu,
+        "vector": vector,
         "cores": os.cpu_count(),
         "platform": platform.platform(),
         "python": platform.python_version(),
@@ -51,16 +54,24 @@ def machine() -> dict[str, str | int | None]:
     }
 
 
-def cpu_model(cpuinfo: Path = Path("/proc/cpuinfo")) -> str | None:
-    """The CPU's model name from ``cpuinfo`` (Linux), else what :func:`platform.processor` says (None if
-    nothing)."""
+#: Vector extensions that decide which kernels numpy, torch and Embree run, widest first (asimd: ARM's NEON).
+VECTOR_EXTENSIONS = ("avx512f", "avx2", "avx", "sse4_2", "asimd")
+
+
+def cpu_description(cpuinfo: Path = Path("/proc/cpuinfo")) -> tuple[str | None, str | None]:
+    """The CPU's model name and its widest vector extension of ``VECTOR_EXTENSIONS``, from the first processor
+    of ``cpuinfo`` (Linux); elsewhere what :func:`platform.processor` says and None."""
     import platform
 
+    fields: dict[str, str] = {}
     try:
         for line in cpuinfo.read_text().splitlines():
+            if not line.strip() and fields:
+                break  # the first processor's block is enough
             key, _, value = line.partition(":")
-            if key.strip() == "model name" and value.strip():
-                return value.strip()
+            fields.setdefault(key.strip(), value.strip())
     except OSError:
         pass
-    return platform.processor() or None
+    model = fields.get("model name") or platform.processor() or None
+    flags = set((fields.get("flags") or fields.get("Features") or "").split())
+    return model, next((v for v in VECTOR_EXTENSIONS if v in flags), None)
