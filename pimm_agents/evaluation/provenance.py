@@ -31,7 +31,8 @@ def machine() -> dict[str, str | int | None]:
     """Where results were made: CPU model and widest vector extension, logical cores, OS and architecture,
     and the versions of Python, numpy and torch. PIMM's float32 paths (Embree's ray casting, the network, the
     filter's likelihoods) may round differently on CPUs with other vector units, so its trials repeat exactly
-    on one CPU type, not across them (README)."""
+    on one CPU type, not across them (README). This is the machine that calls it: trials run on a Ray cluster
+    ran on its nodes."""
     import os
     import platform
     from importlib.metadata import PackageNotFoundError, version
