@@ -8,12 +8,7 @@ from pathlib import Path
 def provenance() -> dict[str, str | None]:
     """The package version and the git commit (with ``+dirty`` when the tree has changes) results were made with."""
     import subprocess
-    from importlib.metadata import PackageNotFoundError, version
 
-    try:
-        package = version("pimm")
-    except PackageNotFoundError:
-        package = None
     root = Path(__file__).resolve().parents[2]
     try:
         commit = subprocess.run(
@@ -24,7 +19,7 @@ def provenance() -> dict[str, str | None]:
         commit += "+dirty" if dirty else ""
     except (OSError, subprocess.CalledProcessError):
         commit = None
-    return {"version": package, "commit": commit}
+    return {"version": installed("pimm"), "commit": commit}
 
 
 def machine() -> dict[str, str | int | None]:
@@ -35,13 +30,6 @@ def machine() -> dict[str, str | int | None]:
     ran on its nodes."""
     import os
     import platform
-    from importlib.metadata import PackageNotFoundError, version
-
-    def installed(name: str) -> str | None:
-        try:
-            return version(name)
-        except PackageNotFoundError:
-            return None
 
     cpu, vector = cpu_description()
     return {
@@ -53,6 +41,16 @@ def machine() -> dict[str, str | int | None]:
         "numpy": installed("numpy"),
         "torch": installed("torch"),
     }
+
+
+def installed(distribution: str) -> str | None:
+    """The installed version of ``distribution``, or None."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(distribution)
+    except PackageNotFoundError:
+        return None
 
 
 #: Vector extensions that decide which kernels numpy, torch and Embree run, widest first (asimd: ARM's NEON).
