@@ -100,10 +100,12 @@ def run(
 
     from tqdm import tqdm
 
-    from pimm_agents.evaluation.report import format_tables, format_timings, write_results
-    from pimm_agents.evaluation.trial_store import load_stored, save_trial
-    from pimm_agents.evaluation.trials import TrialResult, TrialSpec, run_trials
+    from pimm_agents.experiments.runner import run_trials
+    from pimm_agents.experiments.trial_store import load_stored, save_trial
     from pimm_agents.params import write_params_file
+    from pimm_agents.results.folder import write_results
+    from pimm_agents.results.tables import format_tables, format_timings
+    from pimm_agents.scoring.trial import TrialResult, TrialSpec
     from pimm_env.driving.scenarios import load_scenarios
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
@@ -196,7 +198,8 @@ def _localizer_configs(
     """The localizers to run (default: the params file's sections, else every registered one) and each one's
     resolved settings; a bad name or setting fails here, in the main process, naming it."""
     from pimm_agents.factory import available_localizers, check_name, resolved_params
-    from pimm_agents.params import ParamsError, merge_params, parse_settings, read_params_file
+    from pimm_agents.params import merge_params, parse_settings, read_params_file
+    from pimm_env.errors import ParamsError
 
     try:
         from_file = read_params_file(params) if params is not None else {}
@@ -216,7 +219,7 @@ def _localizer_configs(
 
 
 def _check_backend(backend: str, address: str | None) -> None:
-    from pimm_agents.engines import check_backend
+    from pimm_agents.experiments.engines import check_backend
 
     try:
         check_backend(backend, address)
@@ -246,9 +249,11 @@ def _write_videos(folder: Path, results: list, which: str, maps, quiet: bool) ->
     """Replay the chosen trials of every scenario and localizer as animations under ``folder/videos``."""
     from tqdm import tqdm
 
-    from pimm_agents.evaluation.metrics import best_and_worst
-    from pimm_agents.evaluation.report import file_safe, grouped
-    from pimm_agents.evaluation.video import chosen_trials, collect_frames, write_video
+    from pimm_agents.experiments.frames import collect_frames
+    from pimm_agents.results.folder import file_safe
+    from pimm_agents.results.video import chosen_trials, write_video
+    from pimm_agents.scoring.metrics import best_and_worst
+    from pimm_agents.scoring.summaries import grouped
 
     groups = grouped(results, [r.spec for r in results])
     jobs = []
@@ -280,11 +285,13 @@ def sweep(
 
     from tqdm import tqdm
 
-    from pimm_agents.evaluation.report import format_tables, write_results
-    from pimm_agents.evaluation.sweep import read_sweep, sweep_specs
-    from pimm_agents.evaluation.trial_store import load_stored, save_trial
-    from pimm_agents.evaluation.trials import TrialResult, run_trials
-    from pimm_agents.params import ParamsError
+    from pimm_agents.experiments.runner import run_trials
+    from pimm_agents.experiments.sweep import read_sweep, sweep_specs
+    from pimm_agents.experiments.trial_store import load_stored, save_trial
+    from pimm_agents.results.folder import write_results
+    from pimm_agents.results.tables import format_tables
+    from pimm_agents.scoring.trial import TrialResult
+    from pimm_env.errors import ParamsError
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
@@ -365,14 +372,15 @@ def replay(
     ),
 ) -> None:
     """Feed a bag to localizers and write the same results folder as run (metrics where it has ground truth)."""
-    from pimm_agents.evaluation.replay import replay_bag, replay_specs
-    from pimm_agents.evaluation.report import format_tables, write_results
-    from pimm_agents.evaluation.trajectories import write_tum
+    from pimm_agents.experiments.replay import replay_bag, replay_specs
     from pimm_agents.params import write_params_file
-    from pimm_env.bags.messages import BagError
+    from pimm_agents.results.folder import write_results
+    from pimm_agents.results.tables import format_tables
+    from pimm_agents.results.tum import write_tum
     from pimm_env.bags.read import BagTopics
+    from pimm_env.errors import BagError, MapFileError
     from pimm_env.mapping.derived_maps import ensure_derived_maps
-    from pimm_env.mapping.map_server import MapFileError, load_map_server
+    from pimm_env.mapping.map_server import load_map_server
     from pimm_env.world.files import load_world
 
     localizers, configs = _localizer_configs(localizers, params, settings)
@@ -423,7 +431,7 @@ def score(
 ) -> None:
     """The thesis's metrics from trial logs made anywhere (columns timestamp_real ... cov_theta), grouped by
     scenario and localizer where the sidecars or file names say so; reports faults a recorded log may have."""
-    from pimm_agents.evaluation.scoring import find_logs, group_summaries, score_log
+    from pimm_agents.results.scored_logs import find_logs, group_summaries, score_log
 
     try:
         scored = [score_log(p, drop_repeated, drop_uninitialised) for p in find_logs(paths)]
@@ -546,8 +554,8 @@ def bench(
     repeats: int = typer.Option(30, help="timed repetitions per figure"),
 ) -> None:
     """Time each stage on this machine (medians, ms) and the real-time factor of an area_a rollout."""
-    from pimm_agents.evaluation.benchmark import run_benchmarks
-    from pimm_agents.evaluation.provenance import machine
+    from pimm_agents.measurement.benchmark import run_benchmarks
+    from pimm_agents.results.provenance import machine
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
@@ -573,10 +581,11 @@ def perception(
 ) -> None:
     """Measure perception on fresh scans no training or map used: segmentation IoU, fingerprint retrieval,
     and the corner detector on true and on predicted labels (parts whose trained files are missing are left out)."""
-    from pimm_agents.evaluation.corner_quality import collect_scans
-    from pimm_agents.evaluation.perception_quality import format_perception, perception_report
+    from pimm_agents.measurement.corner_quality import collect_scans
+    from pimm_agents.measurement.perception_quality import perception_report
     from pimm_agents.perception.files import checkpoint_path, fingerprint_path, load_perception
     from pimm_agents.perception.segmenter import Segmenter
+    from pimm_agents.results.tables import format_perception
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
@@ -620,10 +629,9 @@ def world_import(
     prepare: bool = typer.Option(True, help="also prepare the world (maps, fingerprints, routes)"),
 ) -> None:
     """Write maps/NAME/world.yaml from a ROS map or a mesh, then prepare it."""
+    from pimm_env.errors import MapFileError, WorldFileError
     from pimm_env.importers.world_import import import_world
-    from pimm_env.mapping.map_server import MapFileError
     from pimm_env.world.files import MAPS_DIR
-    from pimm_env.world.model import WorldFileError
 
     try:
         path = import_world(
@@ -646,8 +654,9 @@ def world_prepare(
     new_routes: bool = typer.Option(False, help="replace an existing scenarios.yaml with generated routes"),
 ) -> None:
     """Rebuild a world's derived maps and fingerprint map; generate routes if it has no scenarios."""
-    from pimm_env.driving.routes import RouteConfig, RoutePlanningError
-    from training.prepare import prepare_world
+    from pimm_agents.preparation.prepare import prepare_world
+    from pimm_env.driving.routes import RouteConfig
+    from pimm_env.errors import RoutePlanningError
 
     try:
         done = prepare_world(name, RouteConfig(count=routes), seed, spacing, new_routes)
@@ -691,10 +700,9 @@ def cli() -> int:
     try:
         return app(args=expand_list_options(sys.argv[1:]))
     except Exception as error:
-        from pimm_env.mapping.derived_maps import StaleMapsError  # here, so that --help stays instant
-        from pimm_env.world.model import WorldFileError
+        from pimm_env.errors import PimmError  # here, so that --help stays instant
 
-        if os.environ.get("PIMM_DEBUG") or not isinstance(error, FileNotFoundError | WorldFileError | StaleMapsError):
+        if os.environ.get("PIMM_DEBUG") or not isinstance(error, PimmError):
             raise
         typer.echo(f"error: {error}", err=True)
         return 1

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from pimm_agents.localizer import Localizer
-from pimm_agents.params import Params, ParamsError, apply_params, config_to_params, merge_params
+from pimm_agents.params import Params, apply_params, config_to_params, merge_params
+from pimm_env.errors import LocalizerError, ParamsError
 from pimm_env.world.files import load_world
 from pimm_env.world.model import World
 
@@ -127,15 +128,17 @@ def plugin_factory(name: str) -> PluginFactory:
     if name in installed:
         return installed[name].load()
     if not is_plugin_spec(name):
-        raise ValueError(f"unknown localizer {name!r}; valid: {', '.join(available_localizers())} or module:factory")
+        raise LocalizerError(
+            f"unknown localizer {name!r}; valid: {', '.join(available_localizers())} or module:factory"
+        )
     module_name, _, attribute = name.partition(":")
     try:
         module = importlib.import_module(module_name)
     except ImportError as error:
-        raise ValueError(f"localizer {name!r}: cannot import module {module_name!r}: {error}") from None
+        raise LocalizerError(f"localizer {name!r}: cannot import module {module_name!r}: {error}") from None
     factory = getattr(module, attribute, None)
     if not callable(factory):
-        raise ValueError(f"localizer {name!r}: module {module_name!r} has no callable {attribute!r}")
+        raise LocalizerError(f"localizer {name!r}: module {module_name!r} has no callable {attribute!r}")
     return factory
 
 
@@ -148,7 +151,7 @@ def check_name(name: str) -> None:
 def resolve_config(name: str, params: Mapping[str, Any] | None = None) -> Any:
     """The config a built-in localizer would run with: its defaults with ``params`` applied."""
     if name not in BUILT_IN:
-        raise ValueError(f"{name!r} is not a built-in localizer; built-in: {', '.join(BUILT_IN)}")
+        raise LocalizerError(f"{name!r} is not a built-in localizer; built-in: {', '.join(BUILT_IN)}")
     return apply_params(BUILT_IN[name].default_config(), dict(params or {}), name)
 
 
@@ -188,7 +191,7 @@ def make_localizer(
     localizer = plugin_factory(name)(world=loaded, **settings)
     for attribute in ("update", "reset"):
         if not callable(getattr(localizer, attribute, None)):
-            raise TypeError(f"localizer {name!r}: its factory returned {localizer!r}, which has no {attribute}()")
+            raise LocalizerError(f"localizer {name!r}: its factory returned {localizer!r}, which has no {attribute}()")
     return localizer
 
 
@@ -204,12 +207,12 @@ def _from_map(name: str, map_path: Path, settings: Params, sensors: str | None) 
         lidar = sensor_layouts(sensors)[1]
         return Amcl(load_map_server(map_path), resolve_config(name, settings), lidar=lidar, name=name)
     if name in BUILT_IN:
-        raise ValueError(
+        raise LocalizerError(
             f"localizer {name!r} needs a prepared world (corner map, fingerprint map), not a map alone: "
             f"python evaluate.py world import {map_path} --name NAME, then --world NAME"
         )
     localizer = plugin_factory(name)(world=None, map=map_path, **settings)
     for attribute in ("update", "reset"):
         if not callable(getattr(localizer, attribute, None)):
-            raise TypeError(f"localizer {name!r}: its factory returned {localizer!r}, which has no {attribute}()")
+            raise LocalizerError(f"localizer {name!r}: its factory returned {localizer!r}, which has no {attribute}()")
     return localizer

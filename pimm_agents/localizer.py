@@ -7,6 +7,8 @@ from typing import Protocol
 
 import numpy as np
 
+from pimm_env.errors import LocalizerError, ObservationError
+
 Observation = dict[str, np.ndarray]
 
 
@@ -27,9 +29,9 @@ class PoseEstimate:
     def __post_init__(self) -> None:
         values = np.array([self.x, self.y, self.theta])
         if not np.all(np.isfinite(values)):
-            raise ValueError(f"pose estimate is not finite: {values}")
+            raise LocalizerError(f"pose estimate is not finite: {values}")
         if np.shape(self.covariance) != (3, 3):
-            raise ValueError(f"covariance must be 3 x 3, got shape {np.shape(self.covariance)}")
+            raise LocalizerError(f"covariance must be 3 x 3, got shape {np.shape(self.covariance)}")
 
     @property
     def pose(self) -> np.ndarray:
@@ -79,8 +81,8 @@ def particle_sample(particles: np.ndarray, max_particles: int) -> np.ndarray:
 def require(obs: Observation, key: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
     """``obs[key]`` as a float array, with a clear error if it is missing or has the wrong shape."""
     if key not in obs:
-        raise KeyError(f"observation has no {key!r} (keys: {sorted(obs)})")
+        raise ObservationError(f"observation has no {key!r} (keys: {sorted(obs)})")
     value = np.asarray(obs[key], dtype=float)
     if shape is not None and value.shape != shape:
-        raise ValueError(f"observation {key!r} has shape {value.shape}, expected {shape}")
+        raise ObservationError(f"observation {key!r} has shape {value.shape}, expected {shape}")
     return value

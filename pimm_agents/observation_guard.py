@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pimm_agents.localizer import Observation, require
+from pimm_env.errors import ObservationError
 from pimm_env.geometry import compose, relative_motion
 
 
@@ -57,16 +58,16 @@ class ObservationGuard:
         """Raise ``ValueError`` naming ``key`` and the shape if ``value`` holds a NaN or an infinity."""
         if not np.all(np.isfinite(value)):
             bad = int(np.count_nonzero(~np.isfinite(value)))
-            raise ValueError(f"observation {key!r} (shape {value.shape}) has {bad} non-finite value(s)")
+            raise ObservationError(f"observation {key!r} (shape {value.shape}) has {bad} non-finite value(s)")
 
     def cloud(self, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
         """The observation's 3D cloud as float32 (N, 3) and its mask as bool (N,), checked: a missing key, a
         wrong shape or a non-finite point raises, naming the key and the shape."""
         if "cloud" not in obs:
-            raise KeyError(f"observation has no 'cloud' (keys: {sorted(obs)})")
+            raise ObservationError(f"observation has no 'cloud' (keys: {sorted(obs)})")
         cloud = np.asarray(obs["cloud"], dtype=np.float32)  # one conversion, checked here, not twice
         if cloud.ndim != 2 or cloud.shape[1] != 3:
-            raise ValueError(f"observation 'cloud' has shape {cloud.shape}, expected (N, 3) points")
+            raise ObservationError(f"observation 'cloud' has shape {cloud.shape}, expected (N, 3) points")
         self.finite("cloud", cloud)
         return cloud, require(obs, "cloud_mask", (len(cloud),)).astype(bool)
 

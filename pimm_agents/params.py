@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.settings import ParamsError, apply_params
+from pimm_env.errors import ParamsError
+from pimm_env.settings import apply_params
 
 Params = dict[str, Any]
 __all__ = ["Params", "ParamsError", "apply_params", "config_to_params", "merge_params"]

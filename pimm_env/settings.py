@@ -12,9 +12,7 @@ from typing import Any
 
 import numpy as np
 
-
-class ParamsError(ValueError):
-    """A params file or setting names an unknown key or has a value of the wrong type."""
+from pimm_env.errors import ParamsError
 
 
 def apply_params(config: Any, params: Mapping[str, Any], where: str) -> Any:

@@ -5,12 +5,14 @@ import pytest
 
 from pimm_agents import available_localizers, make_localizer
 from pimm_agents.amcl.localizer import Amcl, AmclConfig, subsample_beams
-from pimm_agents.evaluation.metrics import position_errors
-from pimm_agents.evaluation.trials import TrialSpec, run_trial
+from pimm_agents.experiments.runner import run_trial
+from pimm_agents.scoring.metrics import position_errors
+from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.driving.rollout import drive
 from pimm_env.driving.scenarios import get_scenario
 from pimm_env.envs.base_env import SimConfig
 from pimm_env.envs.iilab_env import IILabEnv
+from pimm_env.errors import ObservationError
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
 
@@ -75,7 +77,7 @@ def test_bad_input_gives_clear_errors_or_skipped_beams_never_nan():
     amcl.reset(seed=0)
     with pytest.raises(ValueError, match="'scan' has shape"):
         amcl.update(observation(np.ones(10)))
-    with pytest.raises(KeyError, match="no 'odom'"):
+    with pytest.raises(ObservationError, match="no 'odom'"):
         amcl.update({"scan": np.ones(360)})
     scan = np.full(360, 2.0)
     scan[::3] = np.nan

@@ -9,10 +9,12 @@ import pytest
 from typer.testing import CliRunner
 
 import evaluate
-from pimm_agents.evaluation.trials import TrialSpec, run_shared
+from pimm_agents.experiments.runner import run_shared
+from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.bags.layout import layouts_from_bag, organize
-from pimm_env.bags.messages import BagError, point_cloud, typestore
+from pimm_env.bags.messages import point_cloud, typestore
 from pimm_env.bags.record import record_scenario
+from pimm_env.errors import BagError
 from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
 from pimm_env.sim.sensors import LIDAR_2D, LIDAR_3D, sensor_layouts, write_sensors_file

@@ -7,12 +7,14 @@ import pytest
 from typer.testing import CliRunner
 
 import evaluate
-from pimm_agents.evaluation.replay import replay_bag
-from pimm_agents.evaluation.trials import TrialSpec, run_shared
-from pimm_env.bags.messages import BagError, odometry, typestore
+from pimm_agents.experiments.replay import replay_bag
+from pimm_agents.experiments.runner import run_shared
+from pimm_agents.scoring.trial import TrialSpec
+from pimm_env.bags.messages import odometry, typestore
 from pimm_env.bags.read import BagTopics, read_steps
 from pimm_env.bags.record import record_scenario
 from pimm_env.envs.base_env import SimConfig
+from pimm_env.errors import BagError
 from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.world.files import load_world
 from tests.test_trials import AMCL, DEAD, ROUTES

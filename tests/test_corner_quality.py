@@ -1,6 +1,6 @@
 import numpy as np
 
-from pimm_agents.evaluation.corner_quality import _in_sight, visible_corners
+from pimm_agents.measurement.corner_quality import _in_sight, visible_corners
 from pimm_env.envs.iilab_env import IILabEnv
 from pimm_env.mapping.derived_maps import load_derived_maps
 

@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 import evaluate
 import pimm_agents.factory as factory
 from pimm_agents import make_localizer
-from pimm_agents.params import ParamsError
+from pimm_env.errors import ParamsError
 
 PLUGIN = "tests.plugins.dead_reckoning:make"
 

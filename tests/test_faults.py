@@ -7,9 +7,9 @@ import pytest
 from typer.testing import CliRunner
 
 import evaluate
-from pimm_agents.evaluation.metrics import kidnap_recoveries
-from pimm_agents.evaluation.recorder import LocalizationRecorder
-from pimm_agents.evaluation.trial_log import TrialLog
+from pimm_agents.experiments.recorder import LocalizationRecorder
+from pimm_agents.scoring.metrics import kidnap_recoveries
+from pimm_agents.scoring.trial_log import TrialLog
 from pimm_env.driving.rollout import drive
 from pimm_env.driving.scenarios import get_scenario
 from pimm_env.envs.base_env import SimConfig

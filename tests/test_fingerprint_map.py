@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.evaluation.perception_quality import retrieval_errors
+from pimm_agents.measurement.perception_quality import retrieval_errors
 from pimm_agents.perception.fingerprint_map import FingerprintConfig, FingerprintMap
 
 

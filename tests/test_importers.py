@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+from pimm_env.errors import MapFileError, WorldFileError
 from pimm_env.importers.world_import import import_world
 from pimm_env.mapping.corner_map import derive_corner_map
 from pimm_env.mapping.derived_maps import ensure_derived_maps
-from pimm_env.mapping.map_server import MapFileError, read_ros_map
+from pimm_env.mapping.map_server import read_ros_map
 from pimm_env.world.files import load_world
-from pimm_env.world.model import WorldFileError
 from pimm_env.world.semantics import SemanticClass
 
 RES = 0.05

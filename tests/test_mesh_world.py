@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 
 from pimm_env.envs.base_env import LidarRobotEnv
+from pimm_env.errors import WorldFileError
 from pimm_env.mapping.derived_maps import ensure_derived_maps
-from pimm_env.world.files import WorldFileError, load_world
+from pimm_env.world.files import load_world
 from pimm_env.world.mesh import read_obj
 from pimm_env.world.semantics import SemanticClass
 

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from pimm_agents.evaluation.metrics import best_and_worst, summarize, timing_summary, trial_metrics
-from pimm_agents.evaluation.trial_log import CSV_COLUMNS, TrialLog, read_csv
+from pimm_agents.results.log_files import CSV_COLUMNS, read_csv, write_csv
+from pimm_agents.scoring.metrics import best_and_worst, summarize, timing_summary, trial_metrics
+from pimm_agents.scoring.trial_log import TrialLog
 
 
 def make_log(position_errors, angle_errors_deg=None, dt=0.5, kidnap_index=None) -> TrialLog:
@@ -73,7 +74,7 @@ def test_timing_summary():
 def test_csv_round_trip_and_malformed_files_name_the_line(tmp_path):
     log = make_log([2.0, 1.0, 0.5])
     path = tmp_path / "trial.csv"
-    log.write_csv(path)
+    write_csv(log, path)
     assert path.read_text().splitlines()[0] == ",".join(CSV_COLUMNS)
     back = read_csv(path)
     np.testing.assert_allclose(back.estimate, log.estimate, atol=1e-6)
@@ -94,8 +95,8 @@ def test_csv_round_trip_and_malformed_files_name_the_line(tmp_path):
 
 
 def test_excursions_count_leaving_after_first_convergence():
-    from pimm_agents.evaluation.metrics import excursions
-    from pimm_agents.evaluation.trial_log import TrialLog
+    from pimm_agents.scoring.metrics import excursions
+    from pimm_agents.scoring.trial_log import TrialLog
 
     t = np.arange(10.0)
     errors = np.array([9, 9, 0.5, 0.5, 6, 7, 0.5, 0.5, 5, 0.5])  # far, then found, lost twice

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from pimm_agents.observation_guard import ObservationGuard
+from pimm_env.errors import ObservationError
 
 
 def _obs(t: float, odom) -> dict:
@@ -42,7 +43,7 @@ def test_bad_values_name_the_key_and_shape():
         guard.check(_obs(0.0, [0.0, np.nan, 0.0]), ("time", "odom"))
     with pytest.raises(ValueError, match=r"observation 'odom' has shape \(2,\), expected \(3,\)"):
         guard.check(_obs(0.0, [0.0, 0.0]), ("odom",))
-    with pytest.raises(KeyError, match="observation has no 'cloud_time'"):
+    with pytest.raises(ObservationError, match="observation has no 'cloud_time'"):
         guard.check(_obs(0.0, [0, 0, 0]), ("cloud_time",))
     # a transposed cloud is named as such, not reported as a wrong mask (issue 18)
     transposed = {"cloud": np.zeros((3, 14400), np.float32), "cloud_mask": np.ones(14400, np.int8)}

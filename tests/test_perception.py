@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.evaluation.perception_quality import iou_per_class
+from pimm_agents.measurement.perception_quality import iou_per_class
 from pimm_agents.perception.files import checkpoint_path, fingerprint_path, load_perception
 from pimm_agents.perception.fingerprint_map import FingerprintMap
 from pimm_env.envs.iilab_env import IILabEnv

@@ -118,7 +118,8 @@ def test_reset_returns_to_a_uniform_cloud(pimm):
 
 @pytest.mark.expensive
 def test_pimm_converges_in_area_b():
-    from pimm_agents.evaluation.trials import TrialSpec, run_trial
+    from pimm_agents.experiments.runner import run_trial
+    from pimm_agents.scoring.trial import TrialSpec
 
     result = run_trial(TrialSpec(scenario="area_b", localizer="pimm", trial=0, seed=0))
     assert result.metrics.converged, result.metrics

@@ -1,4 +1,4 @@
-from pimm_agents.evaluation.provenance import cpu_description
+from pimm_agents.results.provenance import cpu_description
 
 
 def test_the_cpu_and_its_widest_vector_unit_are_read_from_the_first_processor(tmp_path):

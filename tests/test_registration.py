@@ -8,6 +8,7 @@ from pimm_agents.registration.global_search import SearchConfig, distinct_best, 
 from pimm_agents.registration.localizer import RegistrationConfig, RegistrationLocalizer
 from pimm_agents.registration.map_cloud import MapCloud, estimate_normals, fpfh, to_open3d
 from pimm_agents.registration.planar_icp import PlanarIcp, transform
+from pimm_env.errors import ObservationError
 from pimm_env.geometry import wrap_angle
 
 HEIGHT = 0.5  # the sensor above the floor
@@ -134,7 +135,7 @@ def test_bad_input_is_named_and_an_empty_scan_keeps_a_finite_estimate():
     loc.reset(seed=0, initial_pose=np.array([2.0, 2.0, 0.0]))
     with pytest.raises(ValueError, match="'cloud' has shape"):
         loc.update({"cloud": np.zeros((5, 2)), "odom": np.zeros(3), "time": np.zeros(1), "cloud_time": np.zeros(1)})
-    with pytest.raises(KeyError, match="no 'cloud'"):
+    with pytest.raises(ObservationError, match="no 'cloud'"):
         loc.update({"odom": np.zeros(3), "time": np.zeros(1), "cloud_time": np.zeros(1)})
     empty = {"cloud": np.zeros((100, 3), np.float32), "cloud_mask": np.zeros(100, np.int8)}
     estimate = loc.update(observation(empty, (0.0, 0.0, 0.0), 0.0))

@@ -1,4 +1,4 @@
-from pimm_agents.evaluation.report import format_tables, format_timings
+from pimm_agents.results.tables import format_tables, format_timings
 
 
 def test_tables_keep_their_columns_for_long_localizer_and_stage_names():

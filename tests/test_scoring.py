@@ -6,8 +6,10 @@ import pytest
 from typer.testing import CliRunner
 
 import evaluate
-from pimm_agents.evaluation.scoring import cleaned, faults_of, find_logs, group_summaries, score_log
-from pimm_agents.evaluation.trial_log import TrialLog
+from pimm_agents.results.log_files import write_csv
+from pimm_agents.results.scored_logs import find_logs, group_summaries, score_log
+from pimm_agents.scoring.log_faults import cleaned, faults_of
+from pimm_agents.scoring.trial_log import TrialLog
 from tests.conftest import SHARED
 
 
@@ -43,7 +45,7 @@ def test_a_kidnap_marked_in_the_sidecar_is_scored_from_the_kidnap(tmp_path):
     estimate[30:40, 0] += 10.0  # lost for 5 s right after the kidnap at row 30, then found again
     log = TrialLog(t, t, true, estimate, np.zeros_like(true))
     path = tmp_path / "route_1_kidnap_pimm_trial00.csv"
-    log.write_csv(path)
+    write_csv(log, path)
     assert score_log(path).metrics.convergence_time_s == pytest.approx(20.0)  # counted from the start
     path.with_suffix(".json").write_text(json.dumps({"scenario": "route_1_kidnap", "localizer": "pimm",
                                                      "kidnap_row": 30}))  # fmt: skip
@@ -89,6 +91,6 @@ def test_a_binary_file_or_rows_out_of_time_order_are_named(tmp_path):
     t = np.array([0.0, 1.0, 0.5, 2.0])
     log = TrialLog(t, t, np.zeros((4, 3)), np.zeros((4, 3)), np.zeros((4, 3)))
     path = tmp_path / "reversed.csv"
-    log.write_csv(path)
+    write_csv(log, path)
     with pytest.raises(ValueError, match=r"reversed.csv: line 4: timestamp_real goes back \(0.5 after 1.0\)"):
         score_log(path)

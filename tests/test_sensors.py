@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from pimm_agents.amcl.localizer import Amcl, AmclConfig
-from pimm_agents.evaluation.replay import replay_bag, replay_specs
-from pimm_agents.evaluation.trials import TrialSpec, run_shared
+from pimm_agents.experiments.replay import replay_bag, replay_specs
+from pimm_agents.experiments.runner import run_shared
+from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.bags.record import record_scenario
 from pimm_env.driving.rollout import drive
 from pimm_env.envs.base_env import SimConfig

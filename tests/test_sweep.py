@@ -6,8 +6,9 @@ import pytest
 from typer.testing import CliRunner
 
 import evaluate
-from pimm_agents.evaluation.sweep import read_sweep, rows_of
-from pimm_agents.evaluation.trials import TrialSpec, run_shared
+from pimm_agents.experiments.runner import run_shared
+from pimm_agents.experiments.sweep import read_sweep, rows_of
+from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.world.files import load_world
 from tests.test_trials import DEAD, ROUTES

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 import torch
 
-from pimm_agents.evaluation.perception_quality import iou_per_class
+from pimm_agents.measurement.perception_quality import iou_per_class
 from pimm_agents.perception.pointnet import PointNetConfig, PointNetSegmenter, save_checkpoint
 from pimm_agents.perception.segmenter import Segmenter
+from pimm_agents.preparation.fingerprints import build_fingerprint_map
 from training.dataset import generate, load, save, split
-from training.fingerprints import build_fingerprint_map
 from training.train import TrainConfig, class_weights, contrastive_loss, pair_batches, train
 
 TINY = PointNetConfig(points=128, local_widths=(8, 16), global_widths=(16, 32), head_widths=(16, 8), descriptor_dim=8)

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from pimm_agents.evaluation.trajectories import read_tum, trajectory_errors, write_trial_tum
-from pimm_agents.evaluation.trial_log import TrialLog
+from pimm_agents.results.tum import read_tum, write_trial_tum
+from pimm_agents.scoring.trajectory_errors import trajectory_errors
+from pimm_agents.scoring.trial_log import TrialLog
 
 
 def _log(offset: float = 0.0) -> TrialLog:

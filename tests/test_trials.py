@@ -7,8 +7,9 @@ import pytest
 from typer.testing import CliRunner
 
 import evaluate
-from pimm_agents.evaluation.trial_store import load_stored, load_trial, save_trial, trial_key
-from pimm_agents.evaluation.trials import TrialSpec, group_by_simulation, run_shared, run_trials
+from pimm_agents.experiments.runner import group_by_simulation, run_shared, run_trials
+from pimm_agents.experiments.trial_store import load_stored, load_trial, save_trial, trial_key
+from pimm_agents.scoring.trial import TrialSpec
 
 ROUTES = """
 format: pimm-scenarios/1

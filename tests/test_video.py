@@ -3,8 +3,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from pimm_agents.evaluation.trials import TrialSpec
-from pimm_agents.evaluation.video import EVERY_SCANS, chosen_trials, collect_frames, write_video
+from pimm_agents.experiments.frames import collect_frames
+from pimm_agents.results.video import EVERY_SCANS, chosen_trials, write_video
+from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.world.files import load_world
 from tests.test_trials import AMCL, ROUTES

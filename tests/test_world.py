@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from pimm_env.world.files import WorldFileError, load_world, world_from_spec
+from pimm_env.errors import WorldFileError
+from pimm_env.world.files import load_world, world_from_spec
 from pimm_env.world.semantics import SemanticClass
 from pimm_env.world.shapes import Box
 

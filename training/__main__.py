@@ -125,9 +125,10 @@ def validate(
 ) -> None:
     """Per-class IoU on the separate validation set, every return labelled as the localizer does; the result
     is also written into the checkpoint's .json record."""
-    from pimm_agents.evaluation.perception_quality import format_segmentation, segmentation_scores
+    from pimm_agents.measurement.perception_quality import segmentation_scores
     from pimm_agents.perception.files import checkpoint_path
     from pimm_agents.perception.segmenter import Segmenter
+    from pimm_agents.results.tables import format_segmentation
     from training.dataset import load
     from training.validate import scan_set_confusion
 
@@ -157,7 +158,7 @@ def fingerprints(
     """Descriptors of scans on a grid of free positions, saved as the world's fingerprint map."""
     from pimm_agents.perception.files import checkpoint_path, fingerprint_path
     from pimm_agents.perception.segmenter import Segmenter
-    from training.fingerprints import build_fingerprint_map
+    from pimm_agents.preparation.fingerprints import build_fingerprint_map
 
     _check_backend(backend, address)
     _prepare(world)
@@ -169,7 +170,7 @@ def fingerprints(
 
 
 def _check_backend(backend: str, address: str | None) -> None:
-    from pimm_agents.engines import check_backend
+    from pimm_agents.experiments.engines import check_backend
 
     try:
         check_backend(backend, address)
@@ -217,9 +218,9 @@ def heldout(
     """
     import json
 
+    from pimm_agents.preparation.prepare import prepare_world
     from training.buildings import DEVELOPMENT_SEEDS, HELD_OUT_SEEDS, write_building
     from training.heldout import building_row, format_table, measure_building, needs_preparing, summarize
-    from training.prepare import prepare_world
 
     chosen = _seed_list(seeds)
     outside = sorted(set(chosen) - set(HELD_OUT_SEEDS))

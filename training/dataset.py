@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pimm_env.errors import PerceptionError
+
 #: Seed offsets that keep the training, validation and evaluation poses apart for one base seed.
 VALIDATION_SEED_OFFSET = 1_000_003
 FORMAT = "pimm-scans/1"
@@ -37,7 +39,7 @@ class ScanSet:
     def require_lidar(self, layers: int, points_per_layer: int) -> None:
         """Raise if the scans were not taken by a ``layers`` x ``points_per_layer`` LiDAR."""
         if self.ranges.shape[1:] != (layers, points_per_layer):
-            raise ValueError(f"scans are {self.ranges.shape[1:]}, the LiDAR is {layers} x {points_per_layer}")
+            raise PerceptionError(f"scans are {self.ranges.shape[1:]}, the LiDAR is {layers} x {points_per_layer}")
 
     def cloud(self, i: int, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Scan ``i`` as the env gives it: the (N, 3) sensor-frame cloud (0 where no return) and its mask."""
@@ -56,14 +58,14 @@ def generate(
     address: str | None = None,
 ) -> ScanSet:
     """``count`` scans at random free poses of ``world`` (uniform over free space, random heading), seeded.
-    With ``workers`` > 1 or ``backend="ray"`` they are taken in chunks by ``pimm_agents.engines``; each scan
+    With ``workers`` > 1 or ``backend="ray"`` they are taken in chunks by ``pimm_agents.experiments.engines``; each scan
     keeps its own seed, so the set is the same however it was split."""
     from tqdm import tqdm
 
-    from pimm_agents.engines import run_jobs
+    from pimm_agents.experiments.engines import run_jobs
 
     if count < 1:
-        raise ValueError(f"scan count must be at least 1, got {count}")
+        raise PerceptionError(f"scan count must be at least 1, got {count}")
     seeds = np.random.SeedSequence(seed).generate_state(count)
     serial = workers <= 1 and backend == "local"
     chunks = [seeds] if serial else [c for c in np.array_split(seeds, 4 * max(1, workers)) if len(c)]
@@ -122,7 +124,7 @@ def load(path: Path) -> ScanSet:
     data = read_npz(path, "dataset", fields, FORMAT, "make one with `python -m training dataset`")
     scans = ScanSet(data["ranges"], data["labels"], data["poses"], data["areas"], str(data["world"]))
     if scans.ranges.shape != scans.labels.shape or len(scans.poses) != len(scans.ranges):
-        raise ValueError(f"{path}: ranges {scans.ranges.shape}, labels {scans.labels.shape} and poses disagree")
+        raise PerceptionError(f"{path}: ranges {scans.ranges.shape}, labels {scans.labels.shape} and poses disagree")
     return scans
 
 
@@ -134,7 +136,7 @@ WORLD_OFFSET_M = 10_000.0
 def pool(sets: list[ScanSet]) -> ScanSet:
     """Scans of several worlds as one set; each world's positions moved apart by ``WORLD_OFFSET_M``."""
     if not sets:
-        raise ValueError("no scan sets to pool")
+        raise PerceptionError("no scan sets to pool")
     poses = [s.poses + np.array([k * WORLD_OFFSET_M, 0.0, 0.0]) for k, s in enumerate(sets)]
     return ScanSet(
         np.concatenate([s.ranges for s in sets]),
@@ -148,7 +150,7 @@ def pool(sets: list[ScanSet]) -> ScanSet:
 def split(scans: ScanSet, train_fraction: float, rng: np.random.Generator) -> tuple[ScanSet, ScanSet]:
     """A random split (the thesis's 80/20 with ``train_fraction`` 0.8)."""
     if not 0 < train_fraction < 1:
-        raise ValueError(f"train_fraction must be in (0, 1), got {train_fraction}")
+        raise PerceptionError(f"train_fraction must be in (0, 1), got {train_fraction}")
     order = rng.permutation(len(scans))
     cut = round(train_fraction * len(scans))
     return scans.subset(np.sort(order[:cut])), scans.subset(np.sort(order[cut:]))

@@ -91,9 +91,9 @@ def building_row(result: dict[str, Any], localizer: str) -> dict[str, float | No
 
 def _excursions(folder: Path, localizer: str, held_s: float = 0.0) -> float | None:
     """Mean count per route trial (kidnaps left out) of the estimate leaving 3 m / 30 deg after first meeting it."""
-    from pimm_agents.evaluation.metrics import excursions
-    from pimm_agents.evaluation.report import file_safe
-    from pimm_agents.evaluation.trial_log import read_csv
+    from pimm_agents.results.folder import file_safe
+    from pimm_agents.results.log_files import read_csv
+    from pimm_agents.scoring.metrics import excursions
 
     logs = [p for p in (folder / "logs").glob(f"*_{file_safe(localizer)}_trial*.csv") if "_kidnap_" not in p.name]
     counts = [excursions(read_csv(p), held_s=held_s)[0] for p in logs]

@@ -19,10 +19,11 @@ import torch
 from scipy.spatial import cKDTree
 from torch import nn
 
-from pimm_agents.evaluation.perception_quality import iou_per_class
+from pimm_agents.measurement.perception_quality import iou_per_class
 from pimm_agents.perception.point_features import point_features, with_context
 from pimm_agents.perception.pointnet import PointNetConfig, PointNetSegmenter, parameter_count
 from pimm_agents.perception.segmenter import strided_sample
+from pimm_env.errors import PerceptionError
 from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
 from pimm_env.world.semantics import CLASS_NAMES
 from training.dataset import ScanSet
@@ -46,7 +47,7 @@ def class_weights(labels: np.ndarray, num_classes: int = len(CLASS_NAMES)) -> np
     counts = np.bincount(labels[labels >= 0].ravel().astype(np.int64), minlength=num_classes).astype(float)
     if np.any(counts == 0):
         missing = [CLASS_NAMES[c] for c in np.flatnonzero(counts == 0)]
-        raise ValueError(f"the training scans have no points of class(es) {missing}")
+        raise PerceptionError(f"the training scans have no points of class(es) {missing}")
     freq = counts / counts.sum()
     return (freq.max() / freq) ** (1 / 3)
 

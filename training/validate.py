@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pimm_agents.evaluation.perception_quality import confusion_matrix
+from pimm_agents.measurement.perception_quality import confusion_matrix
 from pimm_agents.perception.segmenter import Segmenter
+from pimm_env.errors import PerceptionError
 from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
 from training.dataset import ScanSet
 
@@ -27,5 +28,5 @@ def scan_set_confusion(
         counts = confusion_matrix(predicted, truth)
         total = counts if total is None else total + counts
     if total is None:
-        raise ValueError("the scan set is empty")
+        raise PerceptionError("the scan set is empty")
     return total

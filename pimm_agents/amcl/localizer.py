@@ -23,6 +23,7 @@ from pimm_agents.particles.likelihood_field import BeamSkip, LikelihoodField, Li
 from pimm_agents.particles.motion_model import odometry_delta, sample_differential
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import multinomial_resample
+from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.sim.lidar import Lidar2DConfig, beam_bearings_2d
@@ -76,7 +77,7 @@ class AmclConfig:
 
     def __post_init__(self) -> None:
         if self.laser_model_type not in LASER_MODELS:
-            raise ValueError(
+            raise LocalizerError(
                 f"AmclConfig.laser_model_type must be one of {', '.join(LASER_MODELS)}, got {self.laser_model_type!r}"
             )
         for f in fields(self):
@@ -84,14 +85,14 @@ class AmclConfig:
             if isinstance(value, str):
                 continue
             if not np.isfinite(value) or value < 0:
-                raise ValueError(f"AmclConfig.{f.name} must be finite and non-negative, got {value!r}")
+                raise LocalizerError(f"AmclConfig.{f.name} must be finite and non-negative, got {value!r}")
         if not 1 <= self.min_particles <= self.max_particles:
-            raise ValueError(
+            raise LocalizerError(
                 f"AmclConfig: need 1 <= min_particles <= max_particles, got {self.min_particles}, {self.max_particles}"
             )
         for name in ("max_beams", "resample_interval", "sigma_hit", "pf_err", "bin_xy", "bin_theta"):
             if getattr(self, name) <= 0:
-                raise ValueError(f"AmclConfig.{name} must be positive, got {getattr(self, name)!r}")
+                raise LocalizerError(f"AmclConfig.{name} must be positive, got {getattr(self, name)!r}")
 
     @property
     def alphas(self) -> tuple[float, float, float, float]:

@@ -18,6 +18,7 @@ import numpy as np
 
 from pimm_agents.corners.planes import Plane, PlaneParams, extract_planes
 from pimm_agents.perception.point_arrays import finite_rows
+from pimm_env.errors import LocalizerError
 from pimm_env.world.semantics import SemanticClass
 
 
@@ -75,7 +76,7 @@ class CornerDetectorConfig:
             "min_orientation_std",
         ):
             if not getattr(self, name) >= 0:
-                raise ValueError(f"CornerDetectorConfig.{name} must be at least 0, got {getattr(self, name)}")
+                raise LocalizerError(f"CornerDetectorConfig.{name} must be at least 0, got {getattr(self, name)}")
 
 
 @dataclass(frozen=True)
@@ -112,7 +113,7 @@ def detect_corners(
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     labels = np.asarray(labels).reshape(-1)
     if len(points) != len(labels):
-        raise ValueError(f"{len(points)} points but {len(labels)} labels")
+        raise LocalizerError(f"{len(points)} points but {len(labels)} labels")
     finite = finite_rows(points)
     rng = np.random.default_rng(seed)
     walls = _planes_of(points[finite & (labels == SemanticClass.WALL)], config, rng, seed, "vertical")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from pimm_env.errors import LocalizerError
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
 
@@ -36,11 +37,11 @@ class NearestCornerGrid:
         sigma_theta: float = 0.2,
     ) -> None:
         if len(corners) == 0:
-            raise ValueError("the corner map is empty: the feature filter has nothing to match corners against")
+            raise LocalizerError("the corner map is empty: the feature filter has nothing to match corners against")
         if resolution <= 0:
-            raise ValueError(f"lookup grid resolution must be positive, got {resolution}")
+            raise LocalizerError(f"lookup grid resolution must be positive, got {resolution}")
         if orientation_bins < 1 or sigma_pos <= 0 or sigma_theta <= 0:
-            raise ValueError(
+            raise LocalizerError(
                 f"orientation_bins must be at least 1 and the sigmas positive, got {orientation_bins}, "
                 f"{sigma_pos}, {sigma_theta}"
             )
@@ -90,7 +91,7 @@ class NearestCornerGrid:
         if self.bins == 1:
             return cell
         if theta is None:
-            raise ValueError("this lookup has orientation bins: cells() needs the headings too")
+            raise LocalizerError("this lookup has orientation bins: cells() needs the headings too")
         cell *= self.bins
         turns = np.asarray(theta, dtype=np.float32) * np.float32(self.bins / (2 * np.pi))
         heading = np.floor(turns).astype(np.int32)

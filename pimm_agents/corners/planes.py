@@ -13,6 +13,7 @@ from functools import cached_property
 import numpy as np
 
 from pimm_agents.perception.point_arrays import column_bounds, column_mean, finite_rows
+from pimm_env.errors import LocalizerError
 
 #: Plane orientations a RANSAC hypothesis may take.
 ORIENTATIONS = ("any", "vertical", "horizontal")
@@ -30,7 +31,7 @@ class PlaneParams:
 
     def __post_init__(self) -> None:
         if self.method not in RANSAC_METHODS:
-            raise ValueError(f"PlaneParams.method {self.method!r}: valid methods are {RANSAC_METHODS}")
+            raise LocalizerError(f"PlaneParams.method {self.method!r}: valid methods are {RANSAC_METHODS}")
 
 
 @dataclass(frozen=True)
@@ -127,7 +128,7 @@ def constrained_ransac(
     point at once, as a (points x hypotheses) array of distances.
     """
     if orientation not in ORIENTATIONS:
-        raise ValueError(f"orientation {orientation!r}: valid orientations are {ORIENTATIONS}")
+        raise LocalizerError(f"orientation {orientation!r}: valid orientations are {ORIENTATIONS}")
     n = len(points)
     if n == 0:
         return np.zeros(0, dtype=np.int64)

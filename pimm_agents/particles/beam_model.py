@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pimm_env.errors import LocalizerError
 from pimm_env.mapping.occupancy import OccupancyGrid
 
 
@@ -42,7 +43,7 @@ class BeamModelParams:
 
     def __post_init__(self) -> None:
         if self.sigma_hit <= 0 or self.lambda_short <= 0:
-            raise ValueError(f"sigma_hit and lambda_short must be positive: {self}")
+            raise LocalizerError(f"sigma_hit and lambda_short must be positive: {self}")
 
 
 def beam_probabilities(
@@ -93,7 +94,7 @@ class RangeCaster:
         import open3d as o3d
 
         if range_max <= 0:
-            raise ValueError(f"range_max must be positive, got {range_max}")
+            raise LocalizerError(f"range_max must be positive, got {range_max}")
         self.grid = occupancy.grid
         self.range_max = float(range_max)
         a, b = boundary_faces(occupancy.free)
@@ -143,7 +144,7 @@ class RangeTable:
 
     def __init__(self, occupancy: OccupancyGrid, range_max: float, headings: int = 360) -> None:
         if headings < 4:
-            raise ValueError(f"RangeTable needs at least 4 headings, got {headings}")
+            raise LocalizerError(f"RangeTable needs at least 4 headings, got {headings}")
         caster = RangeCaster(occupancy, range_max)
         self.grid, self.range_max, self.headings = caster.grid, caster.range_max, int(headings)
         rows, cols = np.nonzero(occupancy.free)

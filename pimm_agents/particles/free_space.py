@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pimm_env.errors import LocalizerError
 from pimm_env.mapping.occupancy import OccupancyGrid
 
 
@@ -13,7 +14,7 @@ class FreeSpace:
     def __init__(self, occupancy: OccupancyGrid) -> None:
         rows, cols = np.nonzero(occupancy.free)
         if rows.size == 0:
-            raise ValueError("the occupancy map has no free cell to place particles in")
+            raise LocalizerError("the occupancy map has no free cell to place particles in")
         self.grid = occupancy.grid
         self._rows, self._cols = rows, cols
 

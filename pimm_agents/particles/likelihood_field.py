@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pimm_env.errors import LocalizerError
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
 
@@ -18,7 +19,7 @@ def capped_distance(occupancy: OccupancyGrid, max_distance: float, surfaces_only
     """Metres from every cell centre to the nearest occupied cell centre (or, with ``surfaces_only``, to the
     nearest occupied cell that touches free space), capped at ``max_distance``."""
     if max_distance <= 0:
-        raise ValueError(f"laser_likelihood_max_dist must be positive, got {max_distance}")
+        raise LocalizerError(f"laser_likelihood_max_dist must be positive, got {max_distance}")
     distance = occupancy.distance_to_surfaces() if surfaces_only else occupancy.distance_to_occupied()
     return np.minimum(distance, max_distance)
 
@@ -60,9 +61,9 @@ class LikelihoodField:
 
     def __init__(self, occupancy: OccupancyGrid, params: LikelihoodFieldParams) -> None:
         if not occupancy.occupied.any():
-            raise ValueError("the occupancy map has no occupied cell: a likelihood field needs obstacles")
+            raise LocalizerError("the occupancy map has no occupied cell: a likelihood field needs obstacles")
         if params.sigma_hit <= 0 or params.range_max <= 0:
-            raise ValueError(f"sigma_hit and range_max must be positive: {params}")
+            raise LocalizerError(f"sigma_hit and range_max must be positive: {params}")
         self.grid: GridSpec = occupancy.grid
         self.params = params
         self.distance = capped_distance(occupancy, params.max_distance, params.surfaces_only)

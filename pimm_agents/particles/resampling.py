@@ -7,14 +7,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from pimm_env.errors import LocalizerError
+
 
 def _checked(weights: np.ndarray) -> np.ndarray:
     weights = np.asarray(weights, dtype=float)
     if weights.ndim != 1 or weights.size == 0:
-        raise ValueError(f"weights must be a non-empty 1-D array, got shape {weights.shape}")
+        raise LocalizerError(f"weights must be a non-empty 1-D array, got shape {weights.shape}")
     total = weights.sum()
     if not np.isfinite(total) or total <= 0 or np.any(weights < 0):
-        raise ValueError(f"weights must be finite, non-negative and not all zero (sum {total})")
+        raise LocalizerError(f"weights must be finite, non-negative and not all zero (sum {total})")
     return weights / total
 
 

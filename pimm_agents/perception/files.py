@@ -11,6 +11,7 @@ from pathlib import Path
 
 from pimm_agents.perception.fingerprint_map import FingerprintConfig, FingerprintMap
 from pimm_agents.perception.segmenter import Segmenter
+from pimm_env.errors import PerceptionError
 from pimm_env.world.files import World, load_world, world_dir
 
 
@@ -43,7 +44,7 @@ def load_perception(
     segmenter = Segmenter(checkpoint_path(world))
     fmap = FingerprintMap.load(fingerprint_path(world), fingerprints)
     if fmap.dim != segmenter.descriptor_dim:
-        raise ValueError(
+        raise PerceptionError(
             f"{fmap.source}: descriptors have {fmap.dim} dimensions but {segmenter.checkpoint} makes "
             f"{segmenter.descriptor_dim}; rebuild the map with `python -m training fingerprints`"
         )

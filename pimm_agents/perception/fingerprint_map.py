@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pimm_env.errors import PerceptionError
+
 FORMAT = "pimm-fingerprints/1"
 
 
@@ -53,13 +55,17 @@ class FingerprintMap:
         descriptors = np.ascontiguousarray(descriptors, dtype=np.float32)
         positions = np.asarray(positions, dtype=np.float64)
         if descriptors.ndim != 2 or len(descriptors) == 0:
-            raise ValueError(f"{source}: descriptors must be a non-empty (M, D) array, got shape {descriptors.shape}")
+            raise PerceptionError(
+                f"{source}: descriptors must be a non-empty (M, D) array, got shape {descriptors.shape}"
+            )
         if positions.shape != (len(descriptors), 2):
-            raise ValueError(f"{source}: positions {positions.shape} do not match {len(descriptors)} descriptors")
+            raise PerceptionError(f"{source}: positions {positions.shape} do not match {len(descriptors)} descriptors")
         if not (np.isfinite(descriptors).all() and np.isfinite(positions).all()):
-            raise ValueError(f"{source}: descriptors or positions contain NaN or infinite values")
+            raise PerceptionError(f"{source}: descriptors or positions contain NaN or infinite values")
         if config.k < 1 or config.k > len(descriptors):
-            raise ValueError(f"{source}: k = {config.k} must be between 1 and the map's {len(descriptors)} entries")
+            raise PerceptionError(
+                f"{source}: k = {config.k} must be between 1 and the map's {len(descriptors)} entries"
+            )
         self.descriptors = descriptors
         self.positions = positions
         self.headings = np.zeros(len(positions)) if headings is None else np.asarray(headings, dtype=np.float64)
@@ -79,9 +85,11 @@ class FingerprintMap:
         """The k nearest entries to one descriptor and the thesis's spread check."""
         q = np.asarray(descriptor, dtype=np.float32).reshape(1, -1)
         if q.shape[1] != self.dim:
-            raise ValueError(f"{self.source}: query descriptor has {q.shape[1]} dimensions, the index has {self.dim}")
+            raise PerceptionError(
+                f"{self.source}: query descriptor has {q.shape[1]} dimensions, the index has {self.dim}"
+            )
         if not np.isfinite(q).all():
-            raise ValueError(f"{self.source}: query descriptor contains NaN or infinite values")
+            raise PerceptionError(f"{self.source}: query descriptor contains NaN or infinite values")
         distances, index = self.index.search(q, self.config.k)
         positions = self.positions[index[0]]
         diff = positions[:, None, :] - positions[None, :, :]

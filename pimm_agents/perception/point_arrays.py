@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pimm_env.errors import ObservationError
+
 
 def finite_rows(points: np.ndarray) -> np.ndarray:
     """(N,) bool: whether every coordinate of each row is finite (same as ``np.isfinite(p).all(axis=1)``)."""
@@ -22,7 +24,7 @@ def finite_rows(points: np.ndarray) -> np.ndarray:
 def column_mean(points: np.ndarray) -> np.ndarray:
     """Mean of each column, as one matrix product (equal to ``points.mean(axis=0)`` to rounding)."""
     if len(points) == 0:
-        raise ValueError("column_mean of an empty array")
+        raise ObservationError("column_mean of an empty array")
     return np.ones(len(points)) @ points / len(points)
 
 

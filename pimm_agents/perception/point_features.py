@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from pimm_agents.perception.point_arrays import finite_rows
+from pimm_env.errors import ObservationError
 
 #: Names of the feature channels, in order.
 FEATURES: tuple[str, ...] = (
@@ -38,7 +39,9 @@ def organized(values: np.ndarray, layers: int, points_per_layer: int) -> np.ndar
     """Reshape a flat per-point array (layer by layer) to (layers, points_per_layer, ...)."""
     expected = layers * points_per_layer
     if values.shape[0] != expected:
-        raise ValueError(f"cloud has {values.shape[0]} points; the {layers} x {points_per_layer} scan has {expected}")
+        raise ObservationError(
+            f"cloud has {values.shape[0]} points; the {layers} x {points_per_layer} scan has {expected}"
+        )
     return values.reshape(layers, points_per_layer, *values.shape[1:])
 
 
@@ -59,7 +62,7 @@ def valid_returns(cloud: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """(N,) bool: the rows of the (N, 3) ``cloud`` that are returns, marked in ``mask`` and finite."""
     mask = np.asarray(mask, dtype=bool).reshape(-1)
     if len(mask) != len(cloud):
-        raise ValueError(f"cloud_mask has {len(mask)} entries for {len(cloud)} points")
+        raise ObservationError(f"cloud_mask has {len(mask)} entries for {len(cloud)} points")
     return mask & finite_rows(cloud)
 
 
@@ -71,7 +74,7 @@ def point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_
     """
     cloud = np.asarray(cloud, dtype=np.float32)
     if cloud.ndim != 2 or cloud.shape[1] != 3:
-        raise ValueError(f"cloud must be (N, 3), got shape {cloud.shape}")
+        raise ObservationError(f"cloud must be (N, 3), got shape {cloud.shape}")
     valid = valid_returns(cloud, mask)
     ok = organized(valid, layers, points_per_layer)
     p = [np.where(ok, organized(cloud[:, k], layers, points_per_layer), np.float32(0.0)) for k in range(3)]

@@ -18,6 +18,7 @@ import torch
 from torch import nn
 
 from pimm_agents.perception.point_features import CONTEXT_OFFSETS, FEATURES, NUM_FEATURES
+from pimm_env.errors import MissingFileError, PerceptionError
 from pimm_env.world.semantics import CLASS_NAMES
 
 CHECKPOINT_FORMAT = "pimm-pointnet/1"
@@ -56,7 +57,7 @@ class PointNetConfig:
         known = {f.name for f in fields(cls)}
         unknown = set(data) - known
         if unknown:
-            raise ValueError(f"unknown PointNetConfig field(s) {sorted(unknown)}; valid: {sorted(known)}")
+            raise PerceptionError(f"unknown PointNetConfig field(s) {sorted(unknown)}; valid: {sorted(known)}")
         values = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
         if "context_offsets" in values:
             values["context_offsets"] = tuple(tuple(o) for o in values["context_offsets"])
@@ -108,7 +109,7 @@ class PointNetSegmenter(nn.Module):
 def _fold(conv_weight: torch.Tensor, bn: nn.BatchNorm1d) -> tuple[torch.Tensor, torch.Tensor]:
     """A bias-free layer followed by eval-mode batch norm, as one affine map (W, b)."""
     if bn.running_var is None or bn.running_mean is None:
-        raise ValueError("batch norm without running statistics cannot be folded")
+        raise PerceptionError("batch norm without running statistics cannot be folded")
     scale = bn.weight / torch.sqrt(bn.running_var + bn.eps)
     return conv_weight * scale[:, None], bn.bias - bn.running_mean * scale
 
@@ -210,9 +211,9 @@ def verify_checksum(path: Path) -> None:
     try:
         expected = json.loads(record.read_text()).get("sha256")
     except (json.JSONDecodeError, AttributeError):
-        raise ValueError(f"{record}: not a JSON record of the checkpoint") from None
+        raise PerceptionError(f"{record}: not a JSON record of the checkpoint") from None
     if expected is not None and file_sha256(path) != expected:
-        raise ValueError(
+        raise PerceptionError(
             f"{path}: SHA-256 {file_sha256(path)[:16]}... differs from {record}'s {str(expected)[:16]}...: the file is "
             "damaged (or was replaced without its record); restore it or retrain"
         )
@@ -222,27 +223,27 @@ def load_checkpoint(path: Path) -> tuple[PointNetSegmenter, dict[str, Any]]:
     """The model (in eval mode) and its training record; a missing, corrupt or mismatched file is named."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(
+        raise MissingFileError(
             f"{path}: no PointNet checkpoint; train one with `python -m training rebuild --world <world>`"
         )
     verify_checksum(path)
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as err:  # torch raises many types for a damaged file
-        raise ValueError(f"{path}: not a readable PointNet checkpoint ({type(err).__name__}: {err})") from None
+        raise PerceptionError(f"{path}: not a readable PointNet checkpoint ({type(err).__name__}: {err})") from None
     if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
         found = data.get("format") if isinstance(data, dict) else type(data).__name__
-        raise ValueError(f"{path}: checkpoint format {found!r}, expected {CHECKPOINT_FORMAT!r}")
+        raise PerceptionError(f"{path}: checkpoint format {found!r}, expected {CHECKPOINT_FORMAT!r}")
     if list(data.get("features", [])) != list(FEATURES):
-        raise ValueError(
+        raise PerceptionError(
             f"{path}: checkpoint was trained on features {data.get('features')}, this code makes {FEATURES}"
         )
     if list(data.get("classes", [])) != list(CLASS_NAMES):
-        raise ValueError(f"{path}: checkpoint classes {data.get('classes')} differ from {CLASS_NAMES}")
+        raise PerceptionError(f"{path}: checkpoint classes {data.get('classes')} differ from {CLASS_NAMES}")
     model = PointNetSegmenter(PointNetConfig.from_dict(data["config"]))
     try:
         model.load_state_dict(data["state_dict"])
     except RuntimeError as err:
-        raise ValueError(f"{path}: weights do not fit the network described by its config ({err})") from None
+        raise PerceptionError(f"{path}: weights do not fit the network described by its config ({err})") from None
     model.eval()
     return model, data.get("training", {})

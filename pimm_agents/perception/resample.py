@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pimm_env.errors import ObservationError
 from pimm_env.sim.lidar import Lidar3DConfig, azimuths_3d, elevations_3d
 
 
@@ -31,7 +32,7 @@ class LayoutResampler:
     def __call__(self, cloud: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         cloud, mask = np.asarray(cloud), np.asarray(mask).astype(bool)
         if len(cloud) != self.source.num_points or len(mask) != len(cloud):
-            raise ValueError(
+            raise ObservationError(
                 f"observation 'cloud' has {len(cloud)} points (mask {len(mask)}); the {self.source.layers} x "
                 f"{self.source.points_per_layer} LiDAR gives {self.source.num_points} (see --sensors)"
             )

@@ -16,6 +16,7 @@ import torch
 
 from pimm_agents.perception.point_features import point_features, valid_returns, with_context
 from pimm_agents.perception.pointnet import FusedPointNet, PointNetSegmenter, load_checkpoint
+from pimm_env.errors import ObservationError
 
 
 def strided_sample(valid_index: np.ndarray, count: int, offset: int = 0) -> np.ndarray:
@@ -26,7 +27,7 @@ def strided_sample(valid_index: np.ndarray, count: int, offset: int = 0) -> np.n
     """
     n = len(valid_index)
     if n == 0:
-        raise ValueError("the scan has no returns to segment")
+        raise ObservationError("the scan has no returns to segment")
     if n <= count:
         return np.resize(np.arange(n), count)
     stride = n / count
@@ -99,7 +100,7 @@ class Segmenter:
         valid = valid_returns(np.asarray(cloud), mask)
         valid_index = np.flatnonzero(valid)
         if len(valid_index) == 0:
-            raise ValueError("cannot segment a scan with no finite returns (empty or all-NaN cloud)")
+            raise ObservationError("cannot segment a scan with no finite returns (empty or all-NaN cloud)")
         sampled = strided_sample(valid_index, self.model.config.points)
         offsets = self.model.config.context_offsets
         chosen = with_context(features, valid_index[sampled], self.layers, self.points_per_layer, offsets)

@@ -17,6 +17,7 @@ from pimm_agents.particles.kld import bin_keys, kld_sample_count
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
+from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
 
@@ -66,19 +67,19 @@ class FeatureFilterConfig:
 
     def __post_init__(self) -> None:
         if self.num_particles < 1:
-            raise ValueError(f"num_particles must be at least 1, got {self.num_particles}")
+            raise LocalizerError(f"num_particles must be at least 1, got {self.num_particles}")
         if self.min_particles < 1:  # above num_particles it is num_particles: a small set is kept whole
-            raise ValueError(f"min_particles must be at least 1, got {self.min_particles}")
+            raise LocalizerError(f"min_particles must be at least 1, got {self.min_particles}")
         if not 0 < self.alpha <= 1:
-            raise ValueError(f"alpha must be in (0, 1], got {self.alpha}")
+            raise LocalizerError(f"alpha must be in (0, 1], got {self.alpha}")
         if self.estimate_bin_xy < 0 or self.estimate_bin_theta <= 0:
-            raise ValueError(
+            raise LocalizerError(
                 f"estimate_bin_xy must be at least 0 and estimate_bin_theta above 0, got {self.estimate_bin_xy}"
                 f" and {self.estimate_bin_theta}"
             )
         for name in ("resample_ess_threshold", "replace_worst_fraction", "smart_share", "occupied_penalty"):
             if not 0 <= getattr(self, name) <= 1:
-                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+                raise LocalizerError(f"{name} must be in [0, 1], got {getattr(self, name)}")
 
 
 #: Columns of the feature array the filter takes: x, y, theta (robot frame), sigma_pos (m), sigma_theta (rad).
@@ -200,7 +201,7 @@ class FeatureFilter:
         with neither only the occupied-cell penalty applies. Normalized; the ESS."""
         features = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_COLUMNS))
         if not np.isfinite(features).all() or np.any(features[:, 3:] <= 0):
-            raise ValueError("features must be finite with positive sigma_pos and sigma_theta")
+            raise LocalizerError("features must be finite with positive sigma_pos and sigma_theta")
         w = self.weights
         if len(features):
             alpha = self.config.alpha

@@ -24,6 +24,7 @@ from pimm_agents.perception.point_features import valid_returns
 from pimm_agents.perception.resample import LayoutResampler
 from pimm_agents.perception.segmenter import Segmenter
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
+from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry, compose, relative_motion
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -62,13 +63,13 @@ class WallFieldConfig:
 
     def __post_init__(self) -> None:
         if self.points < 1:
-            raise ValueError(f"wall_field.points must be at least 1, got {self.points}")
+            raise LocalizerError(f"wall_field.points must be at least 1, got {self.points}")
         if self.model not in ("product", "sum_of_cubes"):
-            raise ValueError(f"wall_field.model must be 'product' or 'sum_of_cubes', got {self.model!r}")
+            raise LocalizerError(f"wall_field.model must be 'product' or 'sum_of_cubes', got {self.model!r}")
         if not self.temperature > 0:
-            raise ValueError(f"wall_field.temperature must be positive, got {self.temperature}")
+            raise LocalizerError(f"wall_field.temperature must be positive, got {self.temperature}")
         if self.min_z_m >= self.max_z_m:
-            raise ValueError(f"wall_field.min_z_m ({self.min_z_m}) must be below max_z_m ({self.max_z_m})")
+            raise LocalizerError(f"wall_field.min_z_m ({self.min_z_m}) must be below max_z_m ({self.max_z_m})")
 
 
 def wall_points(cloud: np.ndarray, labels: np.ndarray, config: WallFieldConfig) -> np.ndarray:
@@ -157,7 +158,7 @@ class OdometryHistory:
     def at(self, stamp: float) -> np.ndarray:
         """Odometry at ``stamp``, interpolated; clamped to the oldest and newest kept."""
         if not self._items:
-            raise ValueError("no odometry recorded yet")
+            raise LocalizerError("no odometry recorded yet")
         times = np.array([t for t, _ in self._items])
         k = int(np.searchsorted(times, stamp))
         if k == 0:

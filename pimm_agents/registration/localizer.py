@@ -23,6 +23,7 @@ from pimm_agents.perception.point_features import valid_returns
 from pimm_agents.registration.global_search import SearchConfig, match_features, ransac_poses
 from pimm_agents.registration.map_cloud import MapCloud, estimate_normals, fpfh, to_open3d
 from pimm_agents.registration.planar_icp import PlanarIcp
+from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry
 from pimm_env.sim.lidar import Lidar3DConfig
 
@@ -47,11 +48,11 @@ class RegistrationConfig:
     def __post_init__(self) -> None:
         for name in ("voxel_m", "icp_max_distance_m", "fitness_distance_m"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"registration.{name} must be positive, got {getattr(self, name)}")
+                raise LocalizerError(f"registration.{name} must be positive, got {getattr(self, name)}")
         if not 0 < self.min_fitness <= 1:
-            raise ValueError(f"registration.min_fitness must be in (0, 1], got {self.min_fitness}")
+            raise LocalizerError(f"registration.min_fitness must be in (0, 1], got {self.min_fitness}")
         if self.icp_iterations < 1 or self.lost_after < 1:
-            raise ValueError("registration.icp_iterations and lost_after must be at least 1")
+            raise LocalizerError("registration.icp_iterations and lost_after must be at least 1")
 
 
 class RegistrationLocalizer:
@@ -67,7 +68,7 @@ class RegistrationLocalizer:
         import faiss
 
         if len(map_cloud.points) < 10:
-            raise ValueError(f"the map cloud has {len(map_cloud.points)} points; registration needs a map")
+            raise LocalizerError(f"the map cloud has {len(map_cloud.points)} points; registration needs a map")
         self.name = name
         self.config = config
         self.lidar3d = lidar3d or Lidar3DConfig()

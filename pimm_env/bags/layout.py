@@ -19,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.bags.messages import BagError, cloud_points, field_of, point_rows, stamp_seconds, typestore
+from pimm_env.bags.messages import cloud_points, field_of, point_rows, stamp_seconds, typestore
+from pimm_env.errors import BagError
 from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig, elevations_3d
 
 

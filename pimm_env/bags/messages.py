@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from pimm_env.errors import BagError
+
 TOPICS = {"points": "/points", "scan": "/scan", "odom": "/odom", "truth": "/ground_truth", "events": "/events"}
 TYPES = {
     "/points": "sensor_msgs/msg/PointCloud2",
@@ -25,10 +27,6 @@ TYPES = {
 }
 KIDNAP = "kidnap"
 _FLOAT32 = 7  # sensor_msgs/PointField FLOAT32
-
-
-class BagError(ValueError):
-    """A bag or one of its messages is unusable; the message names the topic and the message's index."""
 
 
 def typestore():

@@ -28,6 +28,7 @@ from pimm_env.bags.messages import (
     stamp_seconds,
     typestore,
 )
+from pimm_env.errors import MissingFileError
 
 
 @dataclass(frozen=True)
@@ -65,7 +66,7 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
 
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(f"{path}: no such bag")
+        raise MissingFileError(f"{path}: no such bag")
     with AnyReader([path], default_typestore=typestore()) as reader:
         have = {c.topic: c for c in reader.connections}
         wanted = {t for t in (topics.odom, topics.scan, topics.points, topics.truth, topics.events) if t}

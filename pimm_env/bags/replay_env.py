@@ -11,6 +11,7 @@ import numpy as np
 
 from pimm_env.bags.read import Step
 from pimm_env.envs.base_env import SimConfig, action_space, observation_space
+from pimm_env.errors import BagError
 
 
 class BagEnv(gym.Env):
@@ -30,7 +31,7 @@ class BagEnv(gym.Env):
     def _take(self) -> Step:
         step = self._next if self._next is not None else next(self._steps, None)
         if step is None:
-            raise RuntimeError("the bag has no more steps")
+            raise BagError("the bag has no more steps: reset the env to replay it again")
         self._next = next(self._steps, None)
         return step
 

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pimm_env.errors import EnvError
 from pimm_env.geometry import wrap_angle
 
 
@@ -27,7 +28,7 @@ class PurePursuit:
     def __init__(self, waypoints: np.ndarray, config: PursuitConfig | None = None) -> None:
         self.path = np.asarray(waypoints, dtype=float).reshape(-1, 2)
         if len(self.path) < 2:
-            raise ValueError(f"a path needs at least 2 waypoints, got {len(self.path)}")
+            raise EnvError(f"a path needs at least 2 waypoints, got {len(self.path)}")
         self.config = config or PursuitConfig()
         self.segment = 0
         self.done = False

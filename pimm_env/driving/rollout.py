@@ -12,6 +12,7 @@ import numpy as np
 from pimm_env.driving.controller import PurePursuit, PursuitConfig
 from pimm_env.driving.scenarios import Scenario
 from pimm_env.envs.base_env import LidarRobotEnv, SimConfig
+from pimm_env.errors import EnvError
 from pimm_env.geometry import compose
 from pimm_env.world.model import World
 from pimm_env.world.polyline import nearest_on_path
@@ -45,7 +46,7 @@ def odom_to_map(odom: np.ndarray, start: np.ndarray) -> np.ndarray:
 def _simulator(env: LidarRobotEnv | gym.Wrapper) -> LidarRobotEnv:
     base = env.unwrapped
     if not isinstance(base, LidarRobotEnv):
-        raise TypeError(f"rollouts drive a PIMM simulator env, got {type(base).__name__}")
+        raise EnvError(f"rollouts drive a PIMM simulator env, got {type(base).__name__}")
     return base
 
 

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from pimm_env.mapping.free_graph import FreeGraph, NoFreeRegionError, free_graph, path_nodes
+from pimm_env.errors import NoFreeRegionError, RoutePlanningError
+from pimm_env.mapping.free_graph import FreeGraph, free_graph, path_nodes
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
 from pimm_env.world.polyline import douglas_peucker
@@ -30,10 +31,6 @@ class RouteConfig:
     step_m: float = 0.2  # planning grid
     min_leg_m: float = 6.0  # goals lie at least this far (along paths) from the current place
     speed: float = 0.5  # m/s, as the thesis's area_a
-
-
-class RoutePlanningError(ValueError):
-    """The world has no room for a route of the asked length and clearance."""
 
 
 def _length(xy: np.ndarray) -> float:

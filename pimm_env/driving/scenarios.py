@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pimm_env.errors import MissingFileError, WorldError
 from pimm_env.world.files import resolve_world_path, world_dir
 from pimm_env.world.model import World
 
@@ -40,13 +41,13 @@ def load_scenarios(world: str | World = "iilab", path: Path | None = None) -> di
     path = Path(path or scenarios_path(world))
     if not path.is_file():
         name = world.name if isinstance(world, World) else world
-        raise FileNotFoundError(f"world {name!r} has no scenarios file {path}")
+        raise MissingFileError(f"world {name!r} has no scenarios file {path}")
     raw = yaml.safe_load(path.read_text()).get("scenarios") or {}
     out: dict[str, Scenario] = {}
     for name, spec in raw.items():
         base = raw.get(spec["base"], {}) if "base" in spec else spec
         if "base" in spec and spec["base"] not in raw:
-            raise ValueError(f"{path}: scenarios.{name}.base: unknown scenario {spec['base']!r}")
+            raise WorldError(f"{path}: scenarios.{name}.base: unknown scenario {spec['base']!r}")
         out[name] = Scenario(
             name=name,
             start=np.asarray(base["start"], dtype=float),
@@ -63,5 +64,5 @@ def load_scenarios(world: str | World = "iilab", path: Path | None = None) -> di
 def get_scenario(name: str, world: str | World = "iilab") -> Scenario:
     scenarios = load_scenarios(world)
     if name not in scenarios:
-        raise ValueError(f"unknown scenario {name!r}; valid: {', '.join(scenarios)}")
+        raise WorldError(f"unknown scenario {name!r}; valid: {', '.join(scenarios)}")
     return scenarios[name]

@@ -13,6 +13,7 @@ import numpy as np
 from gymnasium import spaces
 from scipy import ndimage
 
+from pimm_env.errors import EnvError, WorldError
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.derived_maps import DerivedMaps, load_derived_maps
 from pimm_env.sim.lidar import (
@@ -107,9 +108,7 @@ class LidarRobotEnv(gym.Env):
         self, world: str | World = "iilab", config: SimConfig | None = None, render_mode: str | None = None
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode {render_mode!r} is not supported; use one of {self.metadata['render_modes']}"
-            )
+            raise EnvError(f"render_mode {render_mode!r} is not supported; use one of {self.metadata['render_modes']}")
         self.render_mode = render_mode
         self.config = config or SimConfig()
         self._world_arg = world
@@ -146,7 +145,7 @@ class LidarRobotEnv(gym.Env):
     def _make_caster(self) -> RayCaster:
         choice = self.config.ray_caster
         if choice not in RAY_CASTERS:
-            raise ValueError(f"ray_caster {choice!r}: expected one of {', '.join(RAY_CASTERS)}")
+            raise EnvError(f"ray_caster {choice!r}: expected one of {', '.join(RAY_CASTERS)}")
         if choice == "prism":
             return PrismRayCaster(self.world)
         if choice == "bullet":
@@ -175,7 +174,7 @@ class LidarRobotEnv(gym.Env):
     def start_positions(self, spacing: float) -> np.ndarray:
         """(x, y) of a square grid with ``spacing`` (m) over the cells where a random start may be."""
         if spacing <= 0:
-            raise ValueError(f"grid spacing must be positive, got {spacing}")
+            raise EnvError(f"grid spacing must be positive, got {spacing}")
         grid = self.maps.occupancy.grid
         allowed = grid.empty_mask()
         allowed[tuple(self._start_cells.T)] = True
@@ -199,9 +198,9 @@ class LidarRobotEnv(gym.Env):
         options = dict(options or {})
         unknown = set(options) - RESET_OPTIONS
         if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; valid: {sorted(RESET_OPTIONS)}")
+            raise EnvError(f"unknown reset option(s) {sorted(unknown)}; valid: {sorted(RESET_OPTIONS)}")
         if "pose" in options and "kidnap" in options:
-            raise ValueError("reset options 'pose' and 'kidnap' exclude each other")
+            raise EnvError("reset options 'pose' and 'kidnap' exclude each other")
         kidnap = options.get("kidnap", False)
         kidnapped = kidnap is not False and kidnap is not None
         if not kidnapped or self._noise is None:
@@ -228,9 +227,9 @@ class LidarRobotEnv(gym.Env):
     def step(self, action):
         action = np.asarray(action, dtype=float)
         if action.shape != (2,):
-            raise ValueError(f"action must have shape (2,) [linear m/s, angular rad/s], got shape {action.shape}")
+            raise EnvError(f"action must have shape (2,) [linear m/s, angular rad/s], got shape {action.shape}")
         if not np.all(np.isfinite(action)):
-            raise ValueError(f"action must be finite, got {action.tolist()}")
+            raise EnvError(f"action must be finite, got {action.tolist()}")
         action = np.clip(action, self.action_space.low, self.action_space.high)
         self._collided = self.robot.step(float(action[0]), float(action[1]), self.np_random, self._blocked)
         self._time += self.config.robot.control_dt
@@ -273,7 +272,7 @@ class LidarRobotEnv(gym.Env):
     # ------------------------------------------------------------------ internals
     def _random_pose(self) -> np.ndarray:
         if len(self._start_cells) == 0:
-            raise RuntimeError(f"world {self.world.name!r} has no free cell wide enough for the robot")
+            raise WorldError(f"world {self.world.name!r} has no free cell wide enough for the robot")
         grid = self.maps.occupancy.grid
         row, col = self._start_cells[self.np_random.integers(len(self._start_cells))]
         jitter = self.np_random.uniform(-0.5, 0.5, size=2) * grid.resolution
@@ -285,15 +284,15 @@ class LidarRobotEnv(gym.Env):
         try:
             arr = np.asarray(pose, dtype=float).reshape(-1)
         except (TypeError, ValueError):
-            raise ValueError(f"reset option {name!r} must be [x, y, theta], got {pose!r}") from None
+            raise EnvError(f"reset option {name!r} must be [x, y, theta], got {pose!r}") from None
         if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-            raise ValueError(f"reset option {name!r} must be three finite numbers [x, y, theta], got {pose!r}")
+            raise EnvError(f"reset option {name!r} must be three finite numbers [x, y, theta], got {pose!r}")
         x, y = arr[0], arr[1]
         rows, cols, valid = self.maps.occupancy.grid.cells_of(arr[None, :2])
         if not valid[0] or (not self.maps.occupancy.free[rows[0], cols[0]] and self.world.area_of(x, y) is None):
-            raise ValueError(f"reset option {name!r}: ({x:.2f}, {y:.2f}) is outside the map of {self.world.name!r}")
+            raise EnvError(f"reset option {name!r}: ({x:.2f}, {y:.2f}) is outside the map of {self.world.name!r}")
         if self._blocked(x, y):
-            raise ValueError(
+            raise EnvError(
                 f"reset option {name!r}: ({x:.2f}, {y:.2f}) is inside an obstacle "
                 f"(clearance {self.clearance_at(x, y):.2f} m < robot radius {self.config.robot.footprint_radius} m)"
             )

@@ -21,6 +21,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from pimm_env.errors import EnvError
 from pimm_env.geometry import compose, relative_motion, wrap_angle
 from pimm_env.world.polyline import nearest_on_path
 
@@ -43,16 +44,16 @@ def parse_faults(text: str) -> list[Fault]:
     for item in filter(None, (part.strip() for part in text.split(","))):
         name, _, when = item.partition("@")
         if name not in FAULTS or not when:
-            raise ValueError(f"fault {item!r}: expected NAME@START[:DURATION] with NAME one of {', '.join(FAULTS)}")
+            raise EnvError(f"fault {item!r}: expected NAME@START[:DURATION] with NAME one of {', '.join(FAULTS)}")
         start, _, duration = when.partition(":")
         try:
             fault = Fault(name, float(start), float(duration) if duration else 0.0)
         except ValueError:
-            raise ValueError(f"fault {item!r}: START and DURATION must be numbers (seconds)") from None
+            raise EnvError(f"fault {item!r}: START and DURATION must be numbers (seconds)") from None
         if not (np.isfinite(fault.start_s) and fault.start_s >= 0 and np.isfinite(fault.duration_s)):
-            raise ValueError(f"fault {item!r}: START must be >= 0 s and DURATION finite")
+            raise EnvError(f"fault {item!r}: START must be >= 0 s and DURATION finite")
         if name in ("dropout", "slip") and fault.duration_s <= 0:
-            raise ValueError(f"fault {item!r}: a {name} needs a duration, e.g. {name}@30:5")
+            raise EnvError(f"fault {item!r}: a {name} needs a duration, e.g. {name}@30:5")
         faults.append(fault)
     return faults
 

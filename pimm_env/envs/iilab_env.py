@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from pimm_env.envs.base_env import LidarRobotEnv, SimConfig, with_sensors
+from pimm_env.errors import EnvError
 from pimm_env.world.files import World
 
 
@@ -92,7 +93,7 @@ class IILabEnv(LidarRobotEnv):
             config = with_sensors(config or SimConfig(), sensors)
         for name, count in (("walkers", walkers), ("unmapped", unmapped)):
             if count is not None and (not isinstance(count, int | np.integer) or count < 0):
-                raise ValueError(f"{name} must be a whole number >= 0, got {count!r}")
+                raise EnvError(f"{name} must be a whole number >= 0, got {count!r}")
         if walkers is not None:
             config = replace(config or SimConfig(), walkers=int(walkers))
         if unmapped is not None:

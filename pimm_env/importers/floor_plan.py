@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from pimm_env.errors import MapFileError
 from pimm_env.importers.vectorize import FloorPlan
-from pimm_env.mapping.map_server import MapFileError
 
 SLAB = 0.1  # thickness of the floor and ceiling slabs (m)
 

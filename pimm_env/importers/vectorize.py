@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from pimm_env.mapping.map_server import MapFileError, RasterMap
+from pimm_env.errors import MapFileError
+from pimm_env.mapping.map_server import RasterMap
 from pimm_env.world.polyline import douglas_peucker
 
 

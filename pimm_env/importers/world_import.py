@@ -6,10 +6,11 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+from pimm_env.errors import MapFileError
 from pimm_env.importers.floor_plan import CeilingArea, read_ceilings, world_spec, write_world
 from pimm_env.importers.furnish import furnish
 from pimm_env.importers.vectorize import vectorize
-from pimm_env.mapping.map_server import MapFileError, read_ros_map
+from pimm_env.mapping.map_server import read_ros_map
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off", ".dae")
 #: Default name-to-class rules for meshes, first match wins (fnmatch, case-sensitive: both spellings listed).

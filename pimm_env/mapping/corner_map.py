@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from pimm_env.errors import WorldError
 from pimm_env.world.files import World
 from pimm_env.world.grid import GridSpec
 from pimm_env.world.semantics import SemanticClass
@@ -205,7 +206,7 @@ def load_corner_map(path: Path) -> CornerMap:
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as error:
-        raise ValueError(f"{path}: not valid YAML: {error}") from None
+        raise WorldError(f"{path}: not valid YAML: {error}") from None
     fields: tuple[tuple[str, ...], ...]
     if isinstance(data, dict) and "corners" in data:
         entries, fields = data["corners"] or [], (("x",), ("y",), ("z",), ("theta",))
@@ -215,9 +216,9 @@ def load_corner_map(path: Path) -> CornerMap:
         fields = (("position", "x"), ("position", "y"), ("position", "z"), ("orientation", "theta"))
         where = "features"
     else:
-        raise ValueError(f"{path}: expected a 'corners' (or thesis 'features') list")
+        raise WorldError(f"{path}: expected a 'corners' (or thesis 'features') list")
     if not isinstance(entries, list):
-        raise ValueError(f"{path}: {where}: expected a list, got {type(entries).__name__}")
+        raise WorldError(f"{path}: {where}: expected a list, got {type(entries).__name__}")
     rows = [[_corner_number(path, where, i, entry, keys) for keys in fields] for i, entry in enumerate(entries)]
     arr = np.array(rows, dtype=float).reshape(-1, 4)
     return CornerMap(arr[:, :2], arr[:, 2], np.radians(arr[:, 3]))
@@ -229,8 +230,8 @@ def _corner_number(path: Path, where: str, index: int, entry: object, keys: tupl
         if not isinstance(value, dict) or key not in value:
             if keys[-1] == "z" and isinstance(value, dict):  # a corner's ceiling height may be left out
                 return 0.0
-            raise ValueError(f"{path}: {where}[{index}]: missing field {'.'.join(keys)!r}")
+            raise WorldError(f"{path}: {where}[{index}]: missing field {'.'.join(keys)!r}")
         value = value[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise ValueError(f"{path}: {where}[{index}].{'.'.join(keys)}: expected a finite number, got {value!r}")
+        raise WorldError(f"{path}: {where}[{index}].{'.'.join(keys)}: expected a finite number, got {value!r}")
     return float(value)

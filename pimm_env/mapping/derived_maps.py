@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from pimm_env.errors import StaleMapsError
 from pimm_env.mapping.corner_map import CornerMap, CornerMapConfig, derive_corner_map, load_corner_map, save_corner_map
 from pimm_env.mapping.map_server import load_map_server
 from pimm_env.mapping.occupancy import (
@@ -58,10 +59,6 @@ def build_derived_maps(world: World, out_dir: Path | None = None) -> DerivedMaps
         handle.write(f"# pimm source: {stamp}\n")
     save_corner_map(corners, out_dir / "corners.yaml", world.name, stamp)
     return DerivedMaps(occupancy, corners)
-
-
-class StaleMapsError(FileNotFoundError):
-    """A world's derived maps are missing or were made from another version of the world."""
 
 
 def _paths(world: World) -> tuple[Path, Path]:

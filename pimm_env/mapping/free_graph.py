@@ -11,11 +11,8 @@ import numpy as np
 from scipy import ndimage
 from scipy.sparse import coo_matrix
 
+from pimm_env.errors import NoFreeRegionError
 from pimm_env.mapping.occupancy import OccupancyGrid
-
-
-class NoFreeRegionError(ValueError):
-    """No place of the map keeps the asked clearance."""
 
 
 @dataclass(frozen=True)

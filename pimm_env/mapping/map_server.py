@@ -17,11 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from pimm_env.errors import MapFileError, MissingFileError
 from pimm_env.mapping.occupancy import OccupancyGrid, read_pgm
-
-
-class MapFileError(ValueError):
-    """A map (or a mesh to import) is unusable; the message names the file, the field and the value."""
 
 
 @dataclass(frozen=True)
@@ -53,7 +50,7 @@ def _number(meta: Mapping[str, Any], key: str, path: Path, default: float | None
 def read_image(path: Path) -> np.ndarray:
     """8-bit grey pixels of a PGM (P5) or PNG, top row first; colour PNGs are averaged over RGB."""
     if not path.is_file():
-        raise FileNotFoundError(path)
+        raise MissingFileError(path)
     if path.suffix.lower() == ".pgm":
         return read_pgm(path)
     from PIL import Image

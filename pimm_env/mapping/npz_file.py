@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pimm_env.errors import MissingFileError, WorldError
+
 
 def write_npz(path: Path, file_format: str, **arrays: np.ndarray | np.generic) -> None:
     """Write ``arrays`` compressed to ``path`` (making its folder), tagged ``format = file_format``."""
@@ -22,22 +24,22 @@ def read_npz(path: Path, what: str, fields: tuple[str, ...], file_format: str, m
     """
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"{path}: no {what}; {make_hint}")
+        raise MissingFileError(f"{path}: no {what}; {make_hint}")
     damaged = (OSError, ValueError, zipfile.BadZipFile, EOFError)
     with path.open("rb") as handle:  # ours to close, also when numpy gives up half way
         try:
             data = np.load(handle, allow_pickle=False)
         except damaged as err:
-            raise ValueError(f"{path}: not a readable {what}, damaged or truncated ({err}); {make_hint}") from None
+            raise WorldError(f"{path}: not a readable {what}, damaged or truncated ({err}); {make_hint}") from None
         with data:
             missing = [k for k in ("format", *fields) if k not in data.files]
             if missing:
-                raise ValueError(f"{path}: {what} lacks field(s) {missing}")
+                raise WorldError(f"{path}: {what} lacks field(s) {missing}")
             try:
                 if str(data["format"]) != file_format:
-                    raise ValueError(f"{path}: format {str(data['format'])!r}, expected {file_format!r}")
+                    raise WorldError(f"{path}: format {str(data['format'])!r}, expected {file_format!r}")
                 return {k: data[k] for k in fields}
             except damaged as err:  # a member cut short
                 if isinstance(err, ValueError) and str(err).startswith(str(path)):
                     raise
-                raise ValueError(f"{path}: {what} is damaged or truncated ({err}); {make_hint}") from None
+                raise WorldError(f"{path}: {what} is damaged or truncated ({err}); {make_hint}") from None

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from pimm_env.errors import WorldError
 from pimm_env.world.files import World
 from pimm_env.world.grid import GridSpec
 
@@ -88,11 +89,11 @@ def read_pgm(path: Path) -> np.ndarray:
         tokens.append(data[pos:end])
         pos = end
     if tokens[0] != b"P5" or int(tokens[3]) > 255:
-        raise ValueError(f"{path}: expected an 8-bit binary PGM (P5), got header {tokens!r}")
+        raise WorldError(f"{path}: expected an 8-bit binary PGM (P5), got header {tokens!r}")
     cols, rows = int(tokens[1]), int(tokens[2])
     have = len(data) - (pos + 1)
     if have < rows * cols:
-        raise ValueError(f"{path}: truncated: {have} bytes of pixels, the header says {cols} x {rows} = {rows * cols}")
+        raise WorldError(f"{path}: truncated: {have} bytes of pixels, the header says {cols} x {rows} = {rows * cols}")
     pixels = np.frombuffer(data, dtype=np.uint8, count=rows * cols, offset=pos + 1)
     return pixels.reshape(rows, cols)
 

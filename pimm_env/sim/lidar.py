@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pimm_env.errors import EnvError
+
 #: pybullet's rayTestBatch takes at most 16384 rays and drops one at exactly that count.
 MAX_RAYS_PER_BATCH = 8192
 
@@ -53,12 +55,12 @@ class Lidar2DConfig:
 
     def __post_init__(self) -> None:
         if self.beams < 1 or not self.angle_min_deg < self.angle_max_deg <= self.angle_min_deg + 360.0:
-            raise ValueError(
+            raise EnvError(
                 f"2D LiDAR: need beams >= 1 and angle_min_deg < angle_max_deg <= angle_min_deg + 360, got "
                 f"{self.beams} beams over [{self.angle_min_deg}, {self.angle_max_deg}] deg"
             )
         if not 0 <= self.min_range < self.max_range:
-            raise ValueError(f"2D LiDAR: need 0 <= min_range < max_range, got {self.min_range}, {self.max_range}")
+            raise EnvError(f"2D LiDAR: need 0 <= min_range < max_range, got {self.min_range}, {self.max_range}")
 
 
 def elevations_3d(config: Lidar3DConfig) -> np.ndarray:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from pimm_env.errors import EnvError
 from pimm_env.mapping.occupancy import OccupancyGrid
 
 PERSON = (0.2, 0.15, 1.7)  # half length, half width, height (m)
@@ -91,7 +92,7 @@ def place_furniture(occupancy: OccupancyGrid, count: int, rng: np.random.Generat
     for i in range(count):
         rows, cols = np.nonzero(np.abs(clearance - (half[i, 1] + 0.05)) < grid.resolution / 2)
         if len(rows) == 0:
-            raise ValueError(f"no place along a wall for unmapped furniture in {occupancy.grid.shape} map")
+            raise EnvError(f"no place along a wall for unmapped furniture in {occupancy.grid.shape} map")
         k = int(rng.integers(len(rows)))
         r, c = rows[k], cols[k]
         xy[i] = grid.origin + (np.array([c, r]) + 0.5) * grid.resolution

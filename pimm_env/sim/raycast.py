@@ -16,6 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
+from pimm_env.errors import EnvError
 from pimm_env.sim.lidar import cast_rays
 from pimm_env.sim.triangles import shape_mesh
 from pimm_env.world.files import World
@@ -69,7 +70,7 @@ class PrismRayCaster:
         boxes = [e for e in world.elements if isinstance(e.shape, Box)]
         cylinders = [e for e in world.elements if isinstance(e.shape, Cylinder)]
         if len(boxes) + len(cylinders) != len(world.elements):
-            raise ValueError(f"world {world.name!r} has shapes other than boxes and cylinders")
+            raise EnvError(f"world {world.name!r} has shapes other than boxes and cylinders")
         box_shapes = [b.shape for b in boxes if isinstance(b.shape, Box)]
         cylinder_shapes = [c.shape for c in cylinders if isinstance(c.shape, Cylinder)]
         self.box_center = np.array([b.center[:2] for b in box_shapes]).reshape(-1, 2)

@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from pathlib import Path
 
+from pimm_env.errors import EnvError
 from pimm_env.settings import apply_params
 from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig
 
@@ -50,7 +51,7 @@ def sensor_layouts(spec: str | None) -> tuple[Lidar3DConfig, Lidar2DConfig]:
             continue
         if name not in LIDAR_2D and name not in LIDAR_3D:
             valid = sorted(set(LIDAR_2D) | set(LIDAR_3D))
-            raise ValueError(f"unknown sensor preset {name!r}; valid: {', '.join(valid)}, or a sensors .yaml file")
+            raise EnvError(f"unknown sensor preset {name!r}; valid: {', '.join(valid)}, or a sensors .yaml file")
         lidar3d = LIDAR_3D.get(name, lidar3d)
         lidar2d = LIDAR_2D.get(name, lidar2d)
     return lidar3d, lidar2d
@@ -66,11 +67,11 @@ def read_sensors_file(
     try:
         data = yaml.safe_load(Path(path).read_text())
     except OSError as error:
-        raise ValueError(f"{path}: cannot read the sensors file ({error.strerror})") from None
+        raise EnvError(f"{path}: cannot read the sensors file ({error.strerror})") from None
     except yaml.YAMLError as error:
-        raise ValueError(f"{path}: not YAML ({error})") from None
+        raise EnvError(f"{path}: not YAML ({error})") from None
     if not isinstance(data, dict) or not set(data) <= {"lidar3d", "lidar2d"} or not data:
-        raise ValueError(f"{path}: a sensors file holds a lidar3d and/or a lidar2d section, got {data!r}")
+        raise EnvError(f"{path}: a sensors file holds a lidar3d and/or a lidar2d section, got {data!r}")
     return (
         apply_params(lidar3d, data.get("lidar3d", {}), f"{path}: lidar3d"),
         apply_params(lidar2d, data.get("lidar2d", {}), f"{path}: lidar2d"),

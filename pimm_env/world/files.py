@@ -34,7 +34,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from pimm_env.world.model import Element, World, WorldFileError
+from pimm_env.errors import MissingFileError, WorldFileError
+from pimm_env.world.model import Element, World
 from pimm_env.world.reader import FieldReader
 from pimm_env.world.semantics import SemanticClass, parse_class
 
@@ -55,7 +56,7 @@ def resolve_world_path(world: str | Path) -> Path:
     if named.is_file():
         return named
     known = sorted(p.parent.name for p in MAPS_DIR.glob("*/world.yaml"))
-    raise FileNotFoundError(f"unknown world {str(world)!r}: no file {named}; known worlds: {', '.join(known)}")
+    raise MissingFileError(f"unknown world {str(world)!r}: no file {named}; known worlds: {', '.join(known)}")
 
 
 def world_dir(world: World) -> Path:

@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.world.model import Element, World, WorldFileError
+from pimm_env.errors import MissingFileError, WorldError, WorldFileError
+from pimm_env.world.model import Element, World
 from pimm_env.world.reader import FieldReader
 from pimm_env.world.semantics import SemanticClass, parse_class
 from pimm_env.world.shapes import Mesh
@@ -39,7 +40,7 @@ def read_obj(path: Path, up_axis: str = "z") -> dict[str, Mesh]:
     """Objects of a Wavefront OBJ file as triangle meshes in the map frame (polygons are fanned)."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"mesh file {path} does not exist")
+        raise MissingFileError(f"mesh file {path} does not exist")
     vertices: list[tuple[float, float, float]] = []
     faces: dict[str, list[list[int]]] = {}
     current = "default"
@@ -58,13 +59,13 @@ def read_obj(path: Path, up_axis: str = "z") -> dict[str, Mesh]:
                 idx = [i - 1 if i > 0 else len(vertices) + i for i in idx]
                 faces.setdefault(current, []).extend([idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1))
         except (ValueError, IndexError):
-            raise ValueError(f"{path}:{number}: cannot parse {line.strip()!r}") from None
+            raise WorldError(f"{path}:{number}: cannot parse {line.strip()!r}") from None
     all_vertices = np.array(vertices, dtype=float).reshape(-1, 3)
     meshes: dict[str, Mesh] = {}
     for name, tris in faces.items():
         tri = np.array(tris, dtype=np.int64)
         if tri.size and (tri.min() < 0 or tri.max() >= len(all_vertices)):
-            raise ValueError(f"{path}: object {name!r} refers to a vertex that does not exist")
+            raise WorldError(f"{path}: object {name!r} refers to a vertex that does not exist")
         used, local = np.unique(tri, return_inverse=True)
         meshes[name] = Mesh(all_vertices[used], local.reshape(-1, 3))
     return meshes
@@ -76,15 +77,15 @@ def read_mesh(path: Path, up_axis: str = "z") -> dict[str, Mesh]:
     if path.suffix.lower() == ".obj":
         return read_obj(path, up_axis)
     if not path.is_file():
-        raise FileNotFoundError(f"mesh file {path} does not exist")
+        raise MissingFileError(f"mesh file {path} does not exist")
     import trimesh
 
     try:
         scene = trimesh.load(path, force="scene")
     except Exception as error:  # trimesh raises many kinds for unreadable files
-        raise ValueError(f"{path}: cannot read the mesh: {error}") from None
+        raise WorldError(f"{path}: cannot read the mesh: {error}") from None
     if not isinstance(scene, trimesh.Scene):
-        raise ValueError(f"{path}: expected a mesh scene, got {type(scene).__name__}")
+        raise WorldError(f"{path}: expected a mesh scene, got {type(scene).__name__}")
     meshes: dict[str, Mesh] = {}
     for node in scene.graph.nodes_geometry:
         transform, geometry_name = scene.graph[node]
@@ -96,7 +97,7 @@ def read_mesh(path: Path, up_axis: str = "z") -> dict[str, Mesh]:
             vertices = np.column_stack([vertices[:, 0], -vertices[:, 2], vertices[:, 1]])
         meshes[str(node)] = Mesh(vertices, np.asarray(geometry.faces, dtype=np.int64))
     if not meshes:
-        raise ValueError(f"{path}: the file holds no triangles")
+        raise WorldError(f"{path}: the file holds no triangles")
     return meshes
 
 

@@ -14,15 +14,6 @@ from pimm_env.world.semantics import SemanticClass
 from pimm_env.world.shapes import Box, Cylinder, Prism, Shape
 
 
-class WorldFileError(ValueError):
-    """A world file is malformed; the message names the file, the field and the bad value."""
-
-    def __init__(self, path: Path | str, field_name: str, message: str) -> None:
-        super().__init__(f"{path}: {field_name}: {message}")
-        self.path = str(path)
-        self.field = field_name
-
-
 @dataclass(frozen=True)
 class Element:
     """One solid piece of the world."""

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.world.model import WorldFileError
+from pimm_env.errors import WorldFileError
 from pimm_env.world.shapes import Box, Cylinder, Prism, Shape
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from enum import IntEnum
 
+from pimm_env.errors import WorldError
+
 
 class SemanticClass(IntEnum):
     """What a surface is, as the thesis's segmentation network labels it (section 3.2.2)."""
@@ -25,4 +27,4 @@ def parse_class(name: str) -> SemanticClass:
     try:
         return SemanticClass[name.upper()]
     except KeyError:
-        raise ValueError(f"unknown semantic class {name!r}; expected one of {', '.join(CLASS_NAMES)}") from None
+        raise WorldError(f"unknown semantic class {name!r}; expected one of {', '.join(CLASS_NAMES)}") from None

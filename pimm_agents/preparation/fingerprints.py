@@ -8,6 +8,7 @@ import numpy as np
 
 from pimm_agents.perception.fingerprint_map import FingerprintMap
 from pimm_agents.perception.segmenter import Segmenter
+from pimm_env.errors import PerceptionError
 from pimm_env.world.model import World
 
 
@@ -22,11 +23,11 @@ def build_fingerprint_map(
     address: str | None = None,
 ) -> FingerprintMap:
     """Scan at every ``spacing`` grid position where the robot fits, with a random heading (seeded). With
-    ``workers`` > 1 or ``backend="ray"`` the positions are scanned in chunks by ``pimm_agents.engines``; every
+    ``workers`` > 1 or ``backend="ray"`` the positions are scanned in chunks by ``experiments.engines``; every
     position keeps its own heading and noise seed, so the map is the same however it was split."""
     from tqdm import tqdm
 
-    from pimm_agents.engines import run_jobs
+    from pimm_agents.experiments.engines import run_jobs
     from pimm_env.envs.iilab_env import IILabEnv
 
     env = IILabEnv(world=world)
@@ -37,7 +38,7 @@ def build_fingerprint_map(
     finally:
         env.close()
     if len(positions) < 3:
-        raise ValueError(f"world {name!r} has {len(positions)} free grid positions at {spacing} m")
+        raise PerceptionError(f"world {name!r} has {len(positions)} free grid positions at {spacing} m")
     headings = rng.uniform(-np.pi, np.pi, len(positions))
     noise_seeds = rng.integers(0, 2**31, len(positions))
     poses = np.column_stack([positions, headings])

@@ -25,7 +25,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pimm_agents.evaluation.trials import TrialSpec
+from pimm_agents.scoring.trial import TrialSpec
+from pimm_env.errors import ExperimentError, MissingFileError
 
 KEYS = ("worlds", "scenarios", "localizers", "grid", "trials", "seed", "sensors", "start")
 
@@ -48,37 +49,39 @@ def read_sweep(path: Path) -> Sweep:
 
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such sweep file")
+        raise MissingFileError(f"{path}: no such sweep file")
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as error:
-        raise ValueError(f"{path}: not valid YAML: {error}") from None
+        raise ExperimentError(f"{path}: not valid YAML: {error}") from None
     if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a mapping with {', '.join(KEYS)}")
+        raise ExperimentError(f"{path}: expected a mapping with {', '.join(KEYS)}")
     unknown = sorted(set(data) - set(KEYS))
     if unknown:
-        raise ValueError(f"{path}: unknown key {unknown[0]!r}; valid keys: {', '.join(KEYS)}")
+        raise ExperimentError(f"{path}: unknown key {unknown[0]!r}; valid keys: {', '.join(KEYS)}")
     worlds, localizers = data.get("worlds"), data.get("localizers")
     if not isinstance(worlds, list) or not worlds or not all(isinstance(w, str) for w in worlds):
-        raise ValueError(f"{path}: worlds: expected a non-empty list of world names or files, got {worlds!r}")
+        raise ExperimentError(f"{path}: worlds: expected a non-empty list of world names or files, got {worlds!r}")
     if not isinstance(localizers, dict) or not localizers:
-        raise ValueError(f"{path}: localizers: expected a mapping of label -> settings, got {localizers!r}")
+        raise ExperimentError(f"{path}: localizers: expected a mapping of label -> settings, got {localizers!r}")
     for label, settings in localizers.items():
         if settings is not None and not isinstance(settings, dict):
-            raise ValueError(f"{path}: localizers.{label}: expected a mapping of settings, got {settings!r}")
+            raise ExperimentError(f"{path}: localizers.{label}: expected a mapping of settings, got {settings!r}")
     grid = data.get("grid") or {}
     for label, axes in grid.items():
         if label not in localizers:
-            raise ValueError(f"{path}: grid.{label}: no such label under localizers ({', '.join(localizers)})")
+            raise ExperimentError(f"{path}: grid.{label}: no such label under localizers ({', '.join(localizers)})")
         for key, values in (axes or {}).items():
             if not isinstance(values, list) or not values:
-                raise ValueError(f"{path}: grid.{label}.{key}: expected a non-empty list of values, got {values!r}")
+                raise ExperimentError(
+                    f"{path}: grid.{label}.{key}: expected a non-empty list of values, got {values!r}"
+                )
     trials = data.get("trials", 3)
     if not isinstance(trials, int) or trials < 1:
-        raise ValueError(f"{path}: trials: expected a positive integer, got {trials!r}")
+        raise ExperimentError(f"{path}: trials: expected a positive integer, got {trials!r}")
     scenarios = data.get("scenarios")
     if scenarios is not None and (not isinstance(scenarios, list) or not scenarios):
-        raise ValueError(f"{path}: scenarios: expected a non-empty list, got {scenarios!r}")
+        raise ExperimentError(f"{path}: scenarios: expected a non-empty list, got {scenarios!r}")
     return Sweep(
         worlds=worlds,
         localizers={label: dict(settings or {}) for label, settings in localizers.items()},
@@ -116,7 +119,7 @@ def rows_of(sweep: Sweep) -> list[tuple[str, str, dict[str, Any]]]:
 
 def sweep_specs(sweep: Sweep) -> list[TrialSpec]:
     """Every trial of the sweep, trial-major (a stopped sweep has every row's first trials)."""
-    from pimm_agents.evaluation.trial_store import world_label
+    from pimm_agents.experiments.trial_store import world_label
     from pimm_env.driving.scenarios import load_scenarios
     from pimm_env.world.files import load_world
 
@@ -127,7 +130,7 @@ def sweep_specs(sweep: Sweep) -> list[TrialSpec]:
         chosen = sweep.scenarios or available
         missing = [s for s in chosen if s not in available]
         if missing:
-            raise ValueError(f"world {world!r} has no scenario(s) {missing}; it has {', '.join(available)}")
+            raise ExperimentError(f"world {world!r} has no scenario(s) {missing}; it has {', '.join(available)}")
         for scenario in chosen:
             cases.append((world, scenario, f"{world_label(world)}/{scenario}" if len(sweep.worlds) > 1 else ""))
     return [

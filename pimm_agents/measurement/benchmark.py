@@ -249,7 +249,7 @@ def perception_benchmarks(repeats: int) -> dict[str, float]:
 def corners_benchmark(repeats: int) -> float:
     """Median corner-detection time per scan (true labels) over scans at random free poses."""
     from pimm_agents.corners.detector import detect_corners
-    from pimm_agents.evaluation.corner_quality import collect_scans
+    from pimm_agents.measurement.corner_quality import collect_scans
 
     scans = collect_scans("iilab", max(5, repeats // 3), seed=7)
     times = []

@@ -11,65 +11,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Any
 
-from pimm_agents.engines import run_jobs
-from pimm_agents.evaluation.metrics import TrialMetrics, trial_metrics
-from pimm_agents.evaluation.trial_log import TrialLog
-
-
-@dataclass(frozen=True)
-class TrialSpec:
-    scenario: str
-    localizer: str
-    trial: int
-    seed: int
-    world: str = "iilab"
-    params: dict[str, Any] = field(default_factory=dict)  # the localizer's params-file section
-    sensors: str = "thesis"  # LiDAR presets (pimm_env.sim.sensors)
-    start: str = "global"  # or "known": the true start pose with nav2's covariance (recorder.STARTS)
-    label: str = ""  # how reports name the localizer (a sweep's "amcl[max_particles=500]"); default its name
-    row: str = ""  # how reports name the scenario (a sweep over worlds: "gen-900/route_1"); default its name
-    faults: str = ""  # pimm_env.envs.faults.parse_faults's form, e.g. "dropout@30:5,kidnap@60"
-    walkers: int = 0  # people walking about (pimm_env/sim/movers.py)
-    unmapped: int = 0  # furniture the maps do not have
-
-    @property
-    def name(self) -> str:
-        return self.label or self.localizer
-
-    @property
-    def case(self) -> str:
-        return self.row or self.scenario
-
-    @property
-    def simulation(self) -> tuple[str, str, int, int, str, str, int, int]:
-        """What the simulated stream depends on; specs that share it share one simulation."""
-        return (
-            self.world,
-            self.scenario,
-            self.trial,
-            self.seed,
-            self.sensors,
-            self.faults,
-            self.walkers,
-            self.unmapped,
-        )
-
-
-@dataclass
-class TrialResult:
-    spec: TrialSpec
-    log: TrialLog
-    metrics: TrialMetrics  # for kidnap scenarios: measured from the kidnap on
-    wall_s: float  # the shared simulation's wall time, with every localizer it fed
-    completed: bool
-
-
-def metrics_of(log: TrialLog) -> TrialMetrics:
-    """The thesis's metrics of one trial; a kidnap trial counts from the kidnap on."""
-    return trial_metrics(log.after_kidnap())
+from pimm_agents.experiments.engines import run_jobs
+from pimm_agents.scoring.trial import TrialResult, TrialSpec, metrics_of
+from pimm_env.errors import ExperimentError
 
 
 def run_trial(spec: TrialSpec) -> TrialResult:
@@ -85,7 +32,7 @@ Watcher = Callable[[Sequence[Any], dict[str, Any], dict[str, Any]], None]
 def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list[TrialResult]:
     """Simulate the trial once and feed it to every spec's localizer; seeds the env and each localizer with
     the trial's seed. All specs must share ``TrialSpec.simulation``."""
-    from pimm_agents.evaluation.recorder import LocalizationRecorder
+    from pimm_agents.experiments.recorder import LocalizationRecorder
     from pimm_agents.factory import make_localizer
     from pimm_env.driving.rollout import run
     from pimm_env.driving.scenarios import get_scenario
@@ -97,7 +44,7 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
         return []
     shared = {spec.simulation for spec in specs}
     if len(shared) != 1:
-        raise ValueError(f"specs simulate different trials {sorted(shared)}: group them by TrialSpec.simulation")
+        raise ExperimentError(f"specs simulate different trials {sorted(shared)}: group them by TrialSpec.simulation")
     first = specs[0]
     start = time.perf_counter()
     world = load_world(first.world)  # read once, passed to everything below

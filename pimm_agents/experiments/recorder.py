@@ -7,8 +7,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from pimm_agents.evaluation.trial_log import TrialLog
 from pimm_agents.localizer import Localizer
+from pimm_agents.scoring.trial_log import TrialLog
+from pimm_env.errors import ExperimentError
 
 #: How a trial starts the localizer: ``global`` (pose unknown, the thesis's experiments) or ``known`` (the true
 #: start pose with nav2's initial covariance, 0.5 m, 0.5 m, pi/12 rad standard deviations).
@@ -26,7 +27,7 @@ class LocalizationRecorder(gym.Wrapper):
     def __init__(self, env: gym.Env, localizer: Localizer, start: str = "global") -> None:
         super().__init__(env)
         if start not in STARTS:
-            raise ValueError(f"start must be one of {STARTS}, got {start!r}")
+            raise ExperimentError(f"start must be one of {STARTS}, got {start!r}")
         self.localizer = localizer
         self.start = start
         self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = []

@@ -7,14 +7,12 @@ Written as MP4 where ffmpeg is installed, else as a GIF (Pillow).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from pimm_agents.evaluation.trials import TrialSpec, run_shared
+from pimm_env.errors import ResultsError
 from pimm_env.mapping.occupancy import OccupancyGrid
 
 #: Frames per second of the animation; with one frame per ``EVERY_SCANS`` scans of the 10 Hz 2D LiDAR, a
@@ -31,41 +29,6 @@ class Frame:
     scan: np.ndarray  # (B, 2) the 2D scan's returns in the map frame, placed at the true pose
     inner: dict[str, np.ndarray]  # the localizer's snapshot: particles, corners, suggestions (what it offers)
     kidnapped: bool  # after the kidnap
-
-
-def collect_frames(spec: TrialSpec, every: int = EVERY_SCANS, max_particles: int = 400) -> list[Frame]:
-    """Simulate ``spec`` again and keep a frame at every ``every``-th fresh 2D scan."""
-    from pimm_env.sim.lidar import beam_bearings_2d
-    from pimm_env.sim.sensors import sensor_layouts
-
-    lidar = sensor_layouts(spec.sensors)[1]
-    angles = beam_bearings_2d(lidar)
-    frames: list[Frame] = []
-    scans = 0
-    last_true: np.ndarray | None = None
-    kidnapped = False
-
-    def watch(localizers: Sequence[Any], obs: dict[str, Any], info: dict[str, Any]) -> None:
-        nonlocal scans, last_true, kidnapped
-        true = np.asarray(info["true_pose"], dtype=float)
-        if last_true is not None and np.hypot(*(true[:2] - last_true[:2])) > 1.0:  # a teleport between two steps
-            kidnapped = True
-        last_true = true
-        if not info.get("fresh_scan"):
-            return
-        scans += 1
-        if (scans - 1) % every:
-            return
-        ranges = np.asarray(obs["scan"], dtype=float)
-        hit = ranges < lidar.max_range
-        bearing = angles[hit] + true[2]
-        scan = np.column_stack([true[0] + ranges[hit] * np.cos(bearing), true[1] + ranges[hit] * np.sin(bearing)])
-        localizer = localizers[0]
-        inner = localizer.snapshot(max_particles) if hasattr(localizer, "snapshot") else {}
-        frames.append(Frame(float(obs["time"][0]), true, info["estimate"].pose, scan, inner, kidnapped))
-
-    run_shared([spec], watch=watch)
-    return frames
 
 
 def write_video(
@@ -85,7 +48,7 @@ def write_video(
     from pimm_env.envs.render import show_map
 
     if not frames:
-        raise ValueError(f"{path}: no frames to animate")
+        raise ResultsError(f"{path}: no frames to animate")
     offered = set(frames[0].inner)
     fig, ax = plt.subplots(figsize=(7, 6), dpi=80)
     show_map(ax, occupancy)

@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from pimm_agents.evaluation.trial_log import TrialLog
-from pimm_agents.evaluation.trials import TrialResult, TrialSpec, metrics_of
+from pimm_agents.scoring.trial import TrialResult, TrialSpec, metrics_of
+from pimm_agents.scoring.trial_log import TrialLog
+from pimm_env.errors import ResultsError
 
 FOLDER = "trials"
 
@@ -117,7 +118,7 @@ def load_trial(path: Path) -> TrialResult:
             )
         spec = TrialSpec(**meta["spec"])
     except (OSError, KeyError, ValueError, TypeError) as error:
-        raise ValueError(f"{path}: not a saved trial ({error})") from None
+        raise ResultsError(f"{path}: not a saved trial ({error})") from None
     return TrialResult(spec, log, metrics_of(log), float(meta["wall_s"]), bool(meta["completed"]))
 
 

@@ -34,11 +34,11 @@ def prepare_world(
     """Rebuild everything a world needs to be localized in (see the module docstring)."""
     from pimm_agents.perception.files import checkpoint_path, fingerprint_path
     from pimm_agents.perception.segmenter import Segmenter
+    from pimm_agents.preparation.fingerprints import build_fingerprint_map
     from pimm_env.driving.routes import plan_routes, scenarios_document
     from pimm_env.driving.scenarios import load_scenarios, scenarios_path
     from pimm_env.mapping.derived_maps import build_derived_maps
     from pimm_env.world.files import load_world, world_dir
-    from training.fingerprints import build_fingerprint_map
 
     loaded = world if isinstance(world, World) else load_world(world)
     routes = routes or RouteConfig()

@@ -1,5 +1,5 @@
 """Where independent jobs run: in this process, in local worker processes (the default, no Ray needed), or as
-Ray tasks on a local Ray or a cluster. Trials (``evaluation/trials.py``) and the training data steps
+Ray tasks on a local Ray or a cluster. Trials (``experiments/runner.py``) and the training data steps
 (``training/``) hand their jobs here; each job is a picklable function of one picklable argument."""
 
 from __future__ import annotations
@@ -8,6 +8,8 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any, TypeVar
+
+from pimm_env.errors import ExperimentError
 
 #: ``local`` worker processes or a Ray cluster.
 BACKENDS = ("local", "ray")
@@ -19,7 +21,7 @@ R = TypeVar("R")
 def check_backend(backend: str, address: str | None) -> None:
     """``ValueError`` unless ``backend`` is one of ``BACKENDS`` and ``address`` comes only with ``ray``."""
     if backend not in BACKENDS or (address is not None and backend != "ray"):
-        raise ValueError(f"expected local or ray (--address only with ray), got {backend!r}")
+        raise ExperimentError(f"expected local or ray (--address only with ray), got {backend!r}")
 
 
 def limit_threads(threads: int) -> None:
@@ -79,7 +81,9 @@ def _run_on_ray(
     try:
         import ray
     except ImportError:
-        raise RuntimeError("--backend ray needs Ray: pip install 'ray>=2.9' (or the project's [ray] extra)") from None
+        raise ExperimentError(
+            "--backend ray needs Ray: pip install 'ray>=2.9' (or the project's [ray] extra)"
+        ) from None
     started = not ray.is_initialized()
     if started:
         ray.init(

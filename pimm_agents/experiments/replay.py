@@ -11,7 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from pimm_agents.evaluation.trials import TrialResult, TrialSpec, metrics_of
+from pimm_agents.scoring.trial import TrialResult, TrialSpec, metrics_of
+from pimm_env.errors import ExperimentError
 
 
 def replay_bag(
@@ -20,7 +21,7 @@ def replay_bag(
     """Every spec's localizer (built for ``spec.world``, or from ``map_path`` alone) on the bag, each reset
     with its spec's seed; returns the results and whether the bag had ground truth (without it the logs'
     truth is NaN and the metrics mean nothing)."""
-    from pimm_agents.evaluation.recorder import LocalizationRecorder
+    from pimm_agents.experiments.recorder import LocalizationRecorder
     from pimm_agents.factory import make_localizer
     from pimm_env.bags.read import BagTopics, read_steps
     from pimm_env.bags.replay_env import BagEnv
@@ -30,7 +31,7 @@ def replay_bag(
         return [], True
     seeds, layouts = {spec.seed for spec in specs}, {spec.sensors for spec in specs}
     if len(seeds) != 1 or len(layouts) != 1:
-        raise ValueError(f"one replay feeds localizers one seed and one sensor layout, got {seeds} and {layouts}")
+        raise ExperimentError(f"one replay feeds localizers one seed and one sensor layout, got {seeds} and {layouts}")
     config = config or with_sensors(SimConfig(), specs[0].sensors)
     start = time.perf_counter()
     localizers = [
@@ -96,7 +97,7 @@ def layouts_file(bag: Path, topics: Any, folder: Path | None) -> str:
     from pimm_env.sim.sensors import write_sensors_file
 
     if folder is None:
-        raise ValueError(f"{bag}: no record file says its LiDARs; give sensors, or a folder for the layouts read")
+        raise ExperimentError(f"{bag}: no record file says its LiDARs; give sensors, or a folder for the layouts read")
     topics = topics or BagTopics()
     lidar3d, lidar2d = layouts_from_bag(bag, topics.scan, topics.points)
     note = f"LiDAR layouts read from the first messages of {bag} ({topics.scan}, {topics.points})"

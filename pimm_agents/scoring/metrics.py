@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pimm_agents.evaluation.trial_log import TrialLog
+from pimm_agents.scoring.trial_log import TrialLog
 from pimm_env.geometry import wrap_angle
 
 POSITION_THRESHOLD_M = 3.0

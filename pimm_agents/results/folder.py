@@ -1,0 +1,79 @@
+"""Evaluation results as the thesis shows them: summary.json, per-trial CSVs, tables and figures."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pimm_agents.results.figures import plot_summary, plot_trial
+from pimm_agents.results.log_files import write_csv, write_sidecar
+from pimm_agents.results.provenance import machine, provenance
+from pimm_agents.scoring.metrics import (
+    best_and_worst,
+)
+from pimm_agents.scoring.summaries import grouped, summary_of
+from pimm_agents.scoring.trial import TrialResult
+from pimm_env.mapping.occupancy import OccupancyGrid
+
+
+def file_safe(name: str) -> str:
+    """A localizer name fit for a file name: ``my_pkg.mod:make`` becomes ``my_pkg.mod-make``."""
+    return "".join(c if c.isalnum() or c in "._-" else "-" for c in name)
+
+
+def trial_stem(result: TrialResult) -> str:
+    s = result.spec
+    return f"{file_safe(s.case)}_{file_safe(s.name)}_trial{s.trial:02d}"
+
+
+def write_results(
+    folder: Path,
+    results: Sequence[TrialResult],
+    run_record: dict[str, Any],
+    occupancy: OccupancyGrid | None,
+    corners: np.ndarray | None = None,
+) -> dict[str, Any]:
+    """summary.json (with the version, commit and machine), run.json (what was run: world, scenarios, seeds), per trial
+    the thesis's CSV with a JSON sidecar (what the trial was, where the kidnap happened) and a TUM pair, and the
+    best/worst figures on ``occupancy`` (with the map's ``corners`` (N, 2) when given; one figure when the best
+    trial is also the worst; none without a map, as for a sweep over several worlds) and a summary figure;
+    returns the summary."""
+    from pimm_agents.results.tum import write_trial_tum
+    from pimm_agents.scoring.trajectory_errors import trajectory_errors
+
+    folder = Path(folder)
+    logs, tum = folder / "logs", folder / "tum"
+    logs.mkdir(exist_ok=True)
+    errors = []
+    for result in results:
+        stem = trial_stem(result)
+        write_csv(result.log, logs / f"{stem}.csv")
+        write_sidecar(logs / f"{stem}.json", result)
+        write_trial_tum(tum / stem, result.log)
+        errors.append(trajectory_errors(result.log.after_kidnap()))
+    summary = {
+        **summary_of(results, errors),
+        "start": run_record.get("start", "global"),
+        **provenance(),
+        "machine": machine(),
+    }
+    (folder / "summary.json").write_text(json.dumps(summary, indent=2))
+    (folder / "run.json").write_text(json.dumps(run_record, indent=2))
+    groups = grouped(results, [r.spec for r in results])
+    figures = folder / "figures"
+    figures.mkdir(exist_ok=True)
+    for (scenario, localizer), trials in groups.items():
+        if occupancy is None:
+            break
+        best, worst = best_and_worst([t.metrics for t in trials])
+        picks = [("best and worst", best)] if best == worst else [("best", best), ("worst", worst)]
+        for label, index in picks:
+            if index is not None:
+                name = f"{file_safe(scenario)}_{file_safe(localizer)}_{label.replace(' and ', '_')}.png"
+                plot_trial(occupancy, trials[index], figures / name, label, corners)
+    plot_summary(summary, figures / "summary.png")
+    return summary

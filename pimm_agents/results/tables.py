@@ -1,0 +1,110 @@
+"""Results as text tables: the thesis's per-scenario tables, stage timings, scored logs, rollouts, perception."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pimm_agents.scoring.thesis import THESIS_IOU, THESIS_RESULTS, THESIS_RETRIEVAL
+
+
+def _cell(value: float | None, fmt: str) -> str:
+    return "-" if value is None else format(value, fmt)
+
+
+def _name_width(names: Any, least: int) -> int:
+    """Column width that fits every name with two spaces to spare."""
+    return max([least, *(len(n) + 2 for n in names)])
+
+
+def format_tables(summary: dict[str, Any]) -> str:
+    """One table per scenario, ours beside the thesis's numbers (for localizers the thesis ran)."""
+    lines = []
+    w = _name_width((name for rows in summary["scenarios"].values() for name in rows), 16)
+    for scenario, by_localizer in summary["scenarios"].items():
+        lines.append(f"\n{scenario}")
+        lines.append(
+            f"  {'localizer':<{w}}{'trials':>7}{'conv. rate %':>14}{'conv. time s':>14}"
+            f"{'pos. err m':>12}{'ang. err deg':>14}"
+        )
+        for localizer, row in by_localizer.items():
+            lines.append(
+                f"  {localizer:<{w}}{row['trials']:>7}{100 * row['convergence_rate']:>14.0f}"
+                f"{_cell(row['convergence_time_s'], '.2f'):>14}{_cell(row['position_error_m'], '.2f'):>12}"
+                f"{_cell(row['angle_error_deg'], '.2f'):>14}"
+            )
+            thesis = THESIS_RESULTS.get(scenario, {}).get(localizer.split("-")[0])
+            if thesis is not None and localizer in ("amcl", "pimm"):
+                rate, t, pos, ang = thesis
+                lines.append(
+                    f"  {'  thesis':<{w}}{10:>7}{100 * rate:>14.0f}{_cell(t, '.2f'):>14}{_cell(pos, '.2f'):>12}"
+                    f"{_cell(ang, '.2f'):>14}"
+                )
+    return "\n".join(lines)
+
+
+def format_timings(summary: dict[str, Any]) -> str:
+    """Mean and peak ms per stage and localizer over all scenarios (thesis section 4.6), and where the time went:
+    each stage's seconds in all and their share of the localizer's ``total`` stage."""
+    stages: dict[str, dict[str, list[tuple[float, float, float]]]] = {}
+    for by_localizer in summary["scenarios"].values():
+        for localizer, row in by_localizer.items():
+            for stage, t in row["timings_ms"].items():
+                entry = (t["mean"], t["max"], t.get("seconds", float("nan")))
+                stages.setdefault(localizer, {}).setdefault(stage, []).append(entry)
+    w = _name_width(stages, 16)
+    sw = _name_width((stage for by_stage in stages.values() for stage in by_stage), 14)
+    lines = [f"\n  {'localizer':<{w}}{'stage':<{sw}}{'mean ms':>10}{'peak ms':>10}{'total s':>10}{'share':>8}"]
+    for localizer, by_stage in stages.items():
+        whole = float(np.sum([v[2] for v in by_stage.get("total", [])])) or float("nan")
+        for stage, values in by_stage.items():
+            mean = float(np.mean([v[0] for v in values]))
+            peak = float(np.max([v[1] for v in values]))
+            seconds = float(np.sum([v[2] for v in values]))
+            share = f"{100 * seconds / whole:.0f} %" if np.isfinite(seconds / whole) else "-"
+            lines.append(f"  {localizer:<{w}}{stage:<{sw}}{mean:>10.2f}{peak:>10.2f}{seconds:>10.1f}{share:>8}")
+    return "\n".join(lines)
+
+
+def format_segmentation(scores: dict[str, Any], what: str) -> list[str]:
+    """The IoU table of :func:`segmentation_scores`, with thesis table 3.2 beside it."""
+    lines = [f"{'segmentation IoU, ' + what:<40}ours   thesis (table 3.2)"]
+    for name in ("floor", "ceiling", "wall", "clutter"):
+        lines.append(f"  {name:<38}{_num(scores['iou'][name])}   {THESIS_IOU[name]:.3f}")
+    lines.append(f"  {'mean':<38}{_num(scores['miou'])}   {THESIS_IOU['mean']:.3f}")
+    return lines
+
+
+def _num(value: float | None, fmt: str = ".3f") -> str:
+    return "-" if value is None else format(value, fmt)
+
+
+def format_perception(report: dict[str, Any]) -> str:
+    """Readable tables of a :func:`perception_report`, with the thesis's figures beside ours."""
+    lines = []
+    if "segmentation" in report:
+        seg = report["segmentation"]
+        lines += [*format_segmentation(seg, f"{seg['scans']} fresh scans"), ""]
+    if "retrieval" in report:
+        ret = report["retrieval"]
+        lines.append(
+            "retrieval (k = 3)      queries  recall@3<2m  mean  mean-min  mean-max   thesis (k = 5, seen scans)"
+        )
+        rows = [*ret["per_area"].items(), ("total", ret)]
+        for area, r in rows:
+            thesis = THESIS_RETRIEVAL.get(area)
+            ref = " / ".join(f"{v:.2f}" for v in thesis) if thesis else "-"
+            lines.append(
+                f"  {area:<20}{r['queries']:>7}  {r['recall_at_3_2m']:>11.3f}  {r['mean_error_m']:>4.2f}  "
+                f"{r['mean_min_error_m']:>8.2f}  {r['mean_max_error_m']:>8.2f}   {ref}"
+            )
+        lines += [f"  suggestions passing the 10 m spread check: {ret['consistent_share']:.3f}", ""]
+    headers = ("precision", "recall", "median pos. err m", "median orient. err deg")
+    lines.append("corners                    " + "  ".join(f"{h:>{max(12, len(h))}}" for h in headers))
+    for which, stats in report["corners"].items():
+        lines.append(
+            f"  {which:<24} "
+            + "  ".join(f"{_num(stats[k]):>{max(12, len(h))}}" for k, h in zip(stats, headers, strict=True))
+        )
+    return "\n".join(lines)

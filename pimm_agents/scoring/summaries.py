@@ -1,0 +1,72 @@
+"""A run's trials summed up per scenario and localizer, in the schema of ``summary.json``."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any, TypeVar
+
+import numpy as np
+
+from pimm_agents.scoring.metrics import kidnap_recoveries, summarize, timing_summary
+from pimm_agents.scoring.trial import TrialResult, TrialSpec
+
+T = TypeVar("T")
+
+
+def grouped(items: Iterable[T], specs: Sequence[TrialSpec]) -> dict[tuple[str, str], list[T]]:
+    """``items`` (one per spec) by (scenario row, localizer label), in order of first appearance."""
+    groups: dict[tuple[str, str], list[T]] = {}
+    for item, spec in zip(items, specs, strict=True):
+        groups.setdefault((spec.case, spec.name), []).append(item)
+    return groups
+
+
+def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] | None = None) -> dict[str, Any]:
+    """``{"scenarios": {scenario: {localizer: {...}}}}`` in the schema of ARCHITECTURE.md; each entry also has
+    ``per_trial`` rows (seed, metrics, APE/RPE when ``errors`` gives them, wall time), the ``spread`` (std, min,
+    max) of each metric over the trials that converged, and the mean of the trials' APE and RPE statistics."""
+    groups = grouped(range(len(results)), [r.spec for r in results])
+    scenarios: dict[str, dict[str, Any]] = {}
+    for (scenario, localizer), indices in groups.items():
+        trials = [results[i] for i in indices]
+        entry: dict[str, Any] = summarize([t.metrics for t in trials])
+        entry["timings_ms"] = timing_summary([timing for t in trials for timing in t.log.timings])
+        rows = [_trial_row(results[i], errors[i] if errors else None) for i in indices]
+        entry["per_trial"] = rows
+        entry["spread"] = _spread(rows)
+        for kind in ("ape", "rpe"):
+            stats = [r[kind] for r in rows if r.get(kind)]
+            entry[f"{kind}_m"] = {k: float(np.mean([s[k] for s in stats])) for k in stats[0]} if stats else None
+        scenarios.setdefault(scenario, {})[localizer] = entry
+    return {"scenarios": scenarios}
+
+
+def _trial_row(result: TrialResult, errors: dict[str, Any] | None) -> dict[str, Any]:
+    m = result.metrics
+    row: dict[str, Any] = {
+        "trial": result.spec.trial,
+        "seed": result.spec.seed,
+        "converged": m.converged,
+        "convergence_time_s": m.convergence_time_s,
+        "position_error_m": m.position_error_m,
+        "angle_error_deg": m.angle_error_deg,
+        "completed": result.completed,
+        "wall_s": round(result.wall_s, 2),
+    }
+    if len(result.log.kidnap_rows) > 1:  # a fault run's kidnaps: how long each took to recover from
+        row["kidnap_recoveries_s"] = kidnap_recoveries(result.log)
+    if errors is not None:
+        row.update(errors)
+    return row
+
+
+def _spread(rows: list[dict[str, Any]]) -> dict[str, dict[str, float] | None]:
+    out: dict[str, dict[str, float] | None] = {}
+    for key in ("convergence_time_s", "position_error_m", "angle_error_deg"):
+        values = [r[key] for r in rows if r[key] is not None]
+        out[key] = (
+            {"std": float(np.std(values)), "min": float(np.min(values)), "max": float(np.max(values))}
+            if values
+            else None
+        )
+    return out

@@ -1,0 +1,49 @@
+"""A trial's record: true pose and estimate at every fresh scan, in the thesis's CSV log format."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class TrialLog:
+    """Row i: sim time ``time[i]``, true pose ``true[i]``, estimate ``estimate[i]`` made at ``estimate_time[i]``
+    with covariance diagonal ``cov[i]``. ``kidnap_index`` is the first row after the last kidnap, if there was
+    one (the metrics count from it); ``kidnap_rows`` the first row after each kidnap (a fault run may have
+    several)."""
+
+    time: np.ndarray
+    estimate_time: np.ndarray
+    true: np.ndarray
+    estimate: np.ndarray
+    cov: np.ndarray
+    kidnap_index: int | None = None
+    timings: list[dict[str, float]] = field(default_factory=list, repr=False)
+    #: (K, 3): row, x, y of the corners the localizer detected in the update of that row, placed at its estimate
+    #: (for figures; empty for localizers that detect none)
+    corners: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
+    kidnap_rows: tuple[int, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.kidnap_index is not None and not self.kidnap_rows:
+            self.kidnap_rows = (self.kidnap_index,)
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def after_kidnap(self) -> TrialLog:
+        """The rows from the kidnap on (the whole log if there was none)."""
+        start = self.kidnap_index or 0
+        corners = self.corners[self.corners[:, 0] >= start] - [start, 0.0, 0.0]
+        return TrialLog(
+            self.time[start:],
+            self.estimate_time[start:],
+            self.true[start:],
+            self.estimate[start:],
+            self.cov[start:],
+            None,
+            self.timings[start:],
+            corners,
+        )
