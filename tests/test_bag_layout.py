@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from typer.testing import CliRunner
 
 import evaluate
@@ -106,7 +107,7 @@ def test_a_ros1_bag_with_no_record_file_replays_with_the_layout_its_messages_giv
     assert [getattr(read[1], k) for k in GEOMETRY_2D] == pytest.approx(
         [getattr(LIDAR_2D["thesis"], k) for k in GEOMETRY_2D]
     )
-    assert json.loads((folder / "run.json").read_text())["sensors"] == str(folder / "sensors.yaml")
+    assert yaml.safe_load((folder / "run.yaml").read_text())["sensors"] == str(folder / "sensors.yaml")
     live = run_shared([TrialSpec("there_kidnap", "amcl", 0, 2, room, AMCL)])[0]
     log = json.loads((folder / "logs" / "there.bag_amcl_trial00.json").read_text())
     assert log["kidnap_row"] == live.log.kidnap_index

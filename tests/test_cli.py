@@ -69,7 +69,7 @@ def test_run_one_trial_end_to_end_then_score_its_log(tmp_path):
     assert json.loads((folder / "summary.json").read_text())["scenarios"]["area_b"]["amcl"] == row
     config = yaml.safe_load((folder / "config.yaml").read_text())
     assert config["amcl"]["max_particles"] == 500 and config["amcl"]["min_particles"] == 100
-    assert json.loads((folder / "run.json").read_text())["seed"] == 0
+    assert yaml.safe_load((folder / "run.yaml").read_text())["seed"] == 0
     logs = sorted((folder / "logs").glob("*.csv"))
     assert [p.name for p in logs] == ["area_b_amcl_trial00.csv"]
     assert json.loads((folder / "logs" / "area_b_amcl_trial00.json").read_text())["kidnap_row"] is None

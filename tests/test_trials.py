@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from typer.testing import CliRunner
 
 import evaluate
@@ -97,7 +98,7 @@ def test_resume_runs_only_the_missing_trials_and_gives_the_full_runs_metrics(roo
     first = run(tmp_path / "a", 1)
     extended = run(tmp_path / "a", 2, "--resume")
     assert extended["folder"] == first["folder"]  # continued in place
-    record = json.loads((Path(extended["folder"]) / "run.json").read_text())
+    record = yaml.safe_load((Path(extended["folder"]) / "run.yaml").read_text())["made"]
     assert (record["trials_run"], record["trials_reused"]) == (2, 2)  # 2 localizers x 1 new trial
     assert len(list((Path(extended["folder"]) / "trials").glob("*.npz"))) == 4
     whole = run(tmp_path / "b", 2)
@@ -113,7 +114,7 @@ def test_resume_runs_only_the_missing_trials_and_gives_the_full_runs_metrics(roo
 
     assert no_timings(extended) == no_timings(whole)
     assert run(tmp_path / "a", 2, "--resume")["folder"] == first["folder"]
-    assert json.loads((Path(first["folder"]) / "run.json").read_text())["trials_run"] == 0
+    assert yaml.safe_load((Path(first["folder"]) / "run.yaml").read_text())["made"]["trials_run"] == 0
 
 
 def test_a_known_start_gives_every_localizer_the_true_pose(room_with_routes):

@@ -171,10 +171,11 @@ def fingerprints(
 
 def _check_backend(backend: str, address: str | None) -> None:
     from pimm_agents.experiments.engines import check_backend
+    from pimm_env.errors import PimmError
 
     try:
         check_backend(backend, address)
-    except ValueError as error:
+    except PimmError as error:
         raise typer.BadParameter(str(error), param_hint="--backend") from None
 
 
@@ -286,5 +287,21 @@ def rebuild(
     fingerprints(world=world, spacing=spacing, seed=seed, workers=1, backend="local", address=None)
 
 
+def main() -> int:
+    """``python -m training``: a PimmError (a user's mistake) prints as one line, anything else as a traceback."""
+    import os
+
+    from pimm_env.errors import PimmError
+
+    try:
+        app()
+    except PimmError as error:
+        if os.environ.get("PIMM_DEBUG"):
+            raise
+        typer.echo(f"error: {error}", err=True)
+        return 1
+    return 0
+
+
 if __name__ == "__main__":
-    app()
+    sys.exit(main())

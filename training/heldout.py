@@ -1,36 +1,23 @@
 """The generalization benchmark: perception and localization on buildings no training or tuning used.
 
 For each held-out seed (``training.buildings.HELD_OUT_SEEDS``) the building is written and prepared with the
-weights under test (fingerprints made with them), then measured as a user would: ``evaluate.py perception``
-on fresh scans and ``evaluate.py run`` on its generated routes. The table has one row per building and one
+weights under test (fingerprints made with them), then measured as a user would, in this process: perception
+on fresh scans (what ``evaluate.py perception`` prints) and the localizers on its generated routes (an
+``Experiment``, as ``evaluate.py run``). The table has one row per building and one
 for all of them; ``heldout.json`` keeps every figure.
 """
 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
 #: Excursions are also counted from the first time the estimate held within 3 m / 30 deg this long (s): a pose
 #: the filter had found, not a global start's first guess that passed near the truth.
 HELD_S = 5.0
-
-
-def _evaluate(args: list[str]) -> dict[str, Any]:
-    """Run ``evaluate.py ARGS --json`` in a fresh process and return its JSON line."""
-    done = subprocess.run(
-        [sys.executable, str(ROOT / "evaluate.py"), *args, "--json"], capture_output=True, text=True, cwd=ROOT
-    )
-    lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
-    if done.returncode != 0 or not lines:
-        raise RuntimeError(f"evaluate.py {' '.join(args)} failed:\n{done.stderr[-2000:]}")
-    return json.loads(lines[-1])
 
 
 def needs_preparing(world_file: Path) -> bool:
@@ -49,17 +36,24 @@ def measure_building(
 ) -> dict[str, Any]:
     """Perception (once: kept in ``out/perception.json``) and ``trials`` trials per route, continuing the
     run already in ``out`` (``evaluate.py run --resume``): a stopped benchmark loses no finished trial."""
+    from pimm_agents.experiments.experiment import Execution, Experiment
+    from pimm_agents.experiments.run_plan import RunPlan, resolve_localizers
+    from pimm_agents.measurement.perception_quality import measure_world
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
     out.mkdir(parents=True, exist_ok=True)
     cached = out / "perception.json"
     asked = {"world": str(world_file), "scans": scans, "seed": 1}
     perception = json.loads(cached.read_text()) if cached.is_file() else None
     if perception is None or perception.get("asked") != asked:
-        perception = _evaluate(["perception", "--world", str(world_file), "--scans", str(scans), "--seed", "1"])
+        perception = measure_world(str(world_file), scans, 1)
         perception["asked"] = asked
         cached.write_text(json.dumps(perception, indent=1))
-    run_args = ["run", "--world", str(world_file), "--trials", str(trials), "--out", str(out), "--resume"]
-    run = _evaluate([*run_args, "--workers", str(workers), "--localizers", *localizers])
-    return {"perception": perception, "run": run}
+    plan = RunPlan(str(world_file), resolve_localizers(localizers), trials=trials)
+    experiment = Experiment.of_plan(plan, Execution(workers, progress=False))
+    outcome = experiment.run(out, resume=True, maps=ensure_derived_maps(load_world(str(world_file))))
+    return {"perception": perception, "run": {**outcome.summary, "folder": str(outcome.folder)}}
 
 
 def building_row(result: dict[str, Any], localizer: str) -> dict[str, float | None]:

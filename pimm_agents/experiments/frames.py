@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from pimm_agents.experiments.runner import run_shared
 from pimm_agents.results.video import EVERY_SCANS, Frame
-from pimm_agents.scoring.trial import TrialSpec
+from pimm_agents.scoring.trial import TrialResult, TrialSpec
+from pimm_env.errors import ExperimentError
 
 
 def collect_frames(spec: TrialSpec, every: int = EVERY_SCANS, max_particles: int = 400) -> list[Frame]:
@@ -45,3 +47,28 @@ def collect_frames(spec: TrialSpec, every: int = EVERY_SCANS, max_particles: int
 
     run_shared([spec], watch=watch)
     return frames
+
+
+def write_videos(folder: Path, results: Sequence[TrialResult], which: str, maps: Any, progress: bool = True) -> None:
+    """Simulate the chosen trials (``best``, ``worst`` or ``all``) of every scenario and localizer again and
+    write their animations under ``folder/videos``."""
+    from tqdm import tqdm
+
+    from pimm_agents.results.folder import file_safe
+    from pimm_agents.results.video import chosen_trials, write_video
+    from pimm_agents.scoring.metrics import best_and_worst
+    from pimm_agents.scoring.summaries import grouped
+
+    if which not in ("best", "worst", "all"):
+        raise ExperimentError(f"videos: expected best, worst or all, got {which!r}")
+    jobs = []
+    for (scenario, localizer), trials in grouped(results, [r.spec for r in results]).items():
+        best, worst = best_and_worst([t.metrics for t in trials])
+        for label, index in chosen_trials(which, best, worst, len(trials)):
+            jobs.append((scenario, localizer, label, trials[index]))
+    (Path(folder) / "videos").mkdir(exist_ok=True)
+    for scenario, localizer, label, trial in tqdm(jobs, desc="videos", unit="video", disable=not progress):
+        frames = collect_frames(trial.spec)
+        title = f"{localizer}, {scenario}, {label} trial (seed {trial.spec.seed})"
+        target = Path(folder) / "videos" / f"{file_safe(scenario)}_{file_safe(localizer)}_{label}"
+        write_video(frames, maps.occupancy, maps.corners.xy, target, title)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -102,3 +102,66 @@ def layouts_file(bag: Path, topics: Any, folder: Path | None) -> str:
     lidar3d, lidar2d = layouts_from_bag(bag, topics.scan, topics.points)
     note = f"LiDAR layouts read from the first messages of {bag} ({topics.scan}, {topics.points})"
     return str(write_sensors_file(Path(folder) / "sensors.yaml", lidar3d, lidar2d, note))
+
+
+@dataclass
+class Replay:
+    """A finished replay: its results folder, every localizer's result, and whether the bag had ground truth
+    (without it only the estimates are written, as TUM files, and ``summary`` is empty)."""
+
+    folder: Path
+    results: list[TrialResult]
+    has_truth: bool
+    summary: dict[str, Any]
+
+
+def run_replay(
+    bag: Path,
+    localizers: dict[str, dict[str, Any]],
+    out: Path,
+    seed: int = 0,
+    world: str = "iilab",
+    map_path: Path | None = None,
+    sensors: str | None = None,
+    topics: Any = None,
+) -> Replay:
+    """Feed ``bag`` to every localizer (``{name: resolved params}``) and write the results folder under ``out``
+    (no folder is left behind when the bag or map is unusable)."""
+    import shutil
+
+    from pimm_agents.experiments.experiment import new_folder
+    from pimm_agents.params import write_params_file
+    from pimm_agents.results.folder import write_results, write_run_record
+    from pimm_agents.results.tum import write_tum
+    from pimm_env.bags.read import BagTopics
+    from pimm_env.errors import PimmError
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.mapping.map_server import load_map_server
+    from pimm_env.sim.sensors import sensor_layouts
+    from pimm_env.world.files import load_world
+
+    topics = topics or BagTopics()
+    if sensors is not None:
+        sensor_layouts(sensors)
+    folder = new_folder(out, "replay")
+    try:
+        specs = replay_specs(bag, list(localizers), localizers, seed, world, sensors, topics, folder)
+        if map_path is not None:
+            occupancy, corners = load_map_server(map_path), None
+        else:
+            maps = ensure_derived_maps(load_world(world))
+            occupancy, corners = maps.occupancy, maps.corners.xy
+        results, has_truth = replay_bag(bag, specs, map_path, topics)
+    except PimmError:
+        shutil.rmtree(folder, ignore_errors=True)  # made before the layouts were read into it: no empty results
+        raise
+    write_params_file(folder / "config.yaml", localizers)
+    record = {"bag": str(bag), "world": None if map_path else world, "map": str(map_path) if map_path else None,
+              "localizers": list(localizers), "seed": seed, "ground_truth": has_truth,
+              "sensors": specs[0].sensors if specs else sensors}  # fmt: skip
+    if not has_truth:
+        write_run_record(folder, record)
+        for result in results:
+            write_tum(folder / "tum" / result.spec.localizer / "est.tum", result.log.time, result.log.estimate)
+        return Replay(folder, results, False, {})
+    return Replay(folder, results, True, write_results(folder, results, record, occupancy, corners))

@@ -31,6 +31,10 @@ def median_ms(fn: Callable[[], object], repeats: int) -> float:
 
 def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     """Env step with and without a fresh 3D scan, both ray casters, and an area_a rollout's real-time factor."""
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    ensure_derived_maps(load_world("iilab"))
     from pimm_env.driving.rollout import run
     from pimm_env.driving.scenarios import get_scenario
     from pimm_env.envs.base_env import SimConfig

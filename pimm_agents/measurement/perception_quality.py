@@ -3,6 +3,7 @@ and the corner detector on true and on predicted labels. ``evaluate.py perceptio
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -112,3 +113,28 @@ def perception_report(
     if figure is not None and occupancy is not None:
         plot_perception(occupancy, confusion, retrievals, truths, figure)
     return report
+
+
+def measure_world(
+    world: str, scans: int, seed: int, figure: Path | None = None, warn: Callable[[str], None] = print
+) -> dict[str, Any]:
+    """``evaluate.py perception``: perception of ``world`` on ``scans`` fresh scans drawn with ``seed``, with the
+    world's own network and fingerprint map; ``warn`` hears which parts are left out because a file is missing."""
+    from pimm_agents.measurement.corner_quality import collect_scans
+    from pimm_agents.perception.files import checkpoint_path, fingerprint_path, load_perception
+    from pimm_agents.perception.segmenter import Segmenter
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    loaded = load_world(world)
+    maps = ensure_derived_maps(loaded)
+    segmenter = fingerprints = None
+    if not checkpoint_path(loaded).exists():
+        warn(f"{checkpoint_path(loaded)} is missing: only the corner detector on true labels is measured")
+    elif not fingerprint_path(loaded).exists():
+        warn(f"{fingerprint_path(loaded)} is missing (python evaluate.py world prepare {world}): no retrieval")
+        segmenter = Segmenter(checkpoint_path(loaded))
+    else:
+        segmenter, fingerprints = load_perception(loaded)
+    collected = collect_scans(world, scans, seed)
+    return perception_report(collected, maps.corners, segmenter, fingerprints, figure, maps.occupancy)

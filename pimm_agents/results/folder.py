@@ -1,4 +1,4 @@
-"""Evaluation results as the thesis shows them: summary.json, per-trial CSVs, tables and figures."""
+"""The results folder: summary.json, run.yaml, per-trial logs (thesis CSV, sidecar, TUM) and figures."""
 
 from __future__ import annotations
 
@@ -37,11 +37,11 @@ def write_results(
     occupancy: OccupancyGrid | None,
     corners: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """summary.json (with the version, commit and machine), run.json (what was run: world, scenarios, seeds), per trial
-    the thesis's CSV with a JSON sidecar (what the trial was, where the kidnap happened) and a TUM pair, and the
-    best/worst figures on ``occupancy`` (with the map's ``corners`` (N, 2) when given; one figure when the best
-    trial is also the worst; none without a map, as for a sweep over several worlds) and a summary figure;
-    returns the summary."""
+    """Write the results folder and return the summary: summary.json (with the run's record, the version,
+    commit and machine); run.yaml unless the run wrote its own (``write_run_record``); per trial the thesis's
+    CSV with a JSON sidecar (what the trial was, where the kidnap happened) and a TUM pair; the best and worst
+    trial's figures on ``occupancy`` (with the map's ``corners`` (N, 2) when given; one figure when the best is
+    also the worst; none without a map, as for a sweep over several worlds); and a summary figure."""
     from pimm_agents.results.tum import write_trial_tum
     from pimm_agents.scoring.trajectory_errors import trajectory_errors
 
@@ -58,11 +58,12 @@ def write_results(
     summary = {
         **summary_of(results, errors),
         "start": run_record.get("start", "global"),
+        "run": run_record,
         **provenance(),
         "machine": machine(),
     }
     (folder / "summary.json").write_text(json.dumps(summary, indent=2))
-    (folder / "run.json").write_text(json.dumps(run_record, indent=2))
+    write_run_record(folder, run_record)
     groups = grouped(results, [r.spec for r in results])
     figures = folder / "figures"
     figures.mkdir(exist_ok=True)
@@ -77,3 +78,14 @@ def write_results(
                 plot_trial(occupancy, trials[index], figures / name, label, corners)
     plot_summary(summary, figures / "summary.png")
     return summary
+
+
+def write_run_record(folder: Path, record: dict[str, Any]) -> Path:
+    """``run.yaml`` for a run that has none of its own (a replay): what was run and how. A run or a sweep
+    writes its own, which reads back to repeat it (``experiments/run_plan.py``)."""
+    import yaml
+
+    path = Path(folder) / "run.yaml"
+    if not path.exists():
+        path.write_text(yaml.safe_dump(record, sort_keys=False, default_flow_style=None, width=120))
+    return path

@@ -108,3 +108,43 @@ def format_perception(report: dict[str, Any]) -> str:
             + "  ".join(f"{_num(stats[k]):>{max(12, len(h))}}" for k, h in zip(stats, headers, strict=True))
         )
     return "\n".join(lines)
+
+
+def format_scores(scored: list[Any], groups: dict[str, dict[str, Any]]) -> str:
+    """``evaluate.py score``: a line per log, then the thesis's metrics per group."""
+    lines = []
+    for item in scored:
+        m = item.metrics
+        verdict = (
+            f"converged at {m.convergence_time_s:.2f} s, error {m.position_error_m:.2f} m / {m.angle_error_deg:.1f} deg"
+            if m.converged
+            else "did not converge"
+        )
+        lines.append(f"{item.path}: {verdict}{' (from the kidnap)' if item.log.kidnap_index is not None else ''}")
+    w = _name_width(groups, 12)
+    lines.append(
+        f"\n{'group':<{w}}{'trials':>7}{'conv. rate %':>14}{'conv. time s':>14}{'pos. err m':>12}{'ang. err deg':>14}"
+    )
+    for name, row in groups.items():
+        lines.append(
+            f"{name:<{w}}{row['trials']:>7}{100 * float(row['convergence_rate']):>14.0f}"
+            f"{_cell(row['convergence_time_s'], '.2f'):>14}{_cell(row['position_error_m'], '.2f'):>12}"
+            f"{_cell(row['angle_error_deg'], '.2f'):>14}"
+        )
+    return "\n".join(lines)
+
+
+def format_rollouts(rollouts: dict[str, dict[str, Any]]) -> str:
+    """``evaluate.py rollout``: length, time and odometry drift per scenario, beside the thesis's."""
+    lines = [
+        f"{'scenario':<14}{'length m':>10}{'thesis m':>10}{'time s':>9}{'thesis s':>10}{'drift m':>9}{'drift %':>9}"
+        f"{'RTF':>6}  ok"
+    ]
+    for name, row in rollouts.items():
+        ok = "yes" if row["completed"] and not row["collided"] else "NO"
+        lines.append(
+            f"{name:<14}{row['length_m']:>10.2f}{row['thesis_length_m'] or 0:>10.2f}{row['duration_s']:>9.1f}"
+            f"{row['thesis_duration_s'] or 0:>10.2f}{_cell(row['odometry_drift_m'], '.2f'):>9}"
+            f"{_cell(row['odometry_drift_percent'], '.2f'):>9}{row['realtime_factor']:>6.1f}  {ok}"
+        )
+    return "\n".join(lines)

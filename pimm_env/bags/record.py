@@ -10,6 +10,7 @@ import gymnasium as gym
 import numpy as np
 
 from pimm_env.bags.messages import KIDNAP, TOPICS, TYPES, laser_scan, odometry, point_cloud, typestore
+from pimm_env.errors import BagError
 
 #: A file beside the bag's own metadata saying what was recorded (world, scenario, seed, sensors).
 RECORD_FILE = "pimm_record.yaml"
@@ -85,7 +86,7 @@ def record_scenario(
 
     out = Path(out)
     if out.exists():
-        raise FileExistsError(f"{out}: already exists; a bag is written to a new folder")
+        raise BagError(f"{out}: already exists; a bag is written to a new folder")
     loaded = load_world(world)
     scenario = get_scenario(scenario_name, loaded)
     config = SimConfig()

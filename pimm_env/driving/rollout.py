@@ -140,3 +140,55 @@ def run(
         true_path=true_path,
         odom_path=odom_path,
     )
+
+
+def rollout_row(result: RolloutResult, scenario: Scenario) -> dict[str, Any]:
+    """One rollout as ``rollouts.json`` keeps it, beside the thesis's length and duration of the scenario."""
+    laps = 2 if scenario.kidnap_to is not None else 1
+
+    def finite(value: float, digits: int) -> float | None:
+        return None if not np.isfinite(value) else round(value, digits)
+
+    return {
+        "length_m": round(result.length_m, 3),
+        "path_length_m": round(scenario.length * laps, 3),
+        "thesis_length_m": scenario.thesis_length_m,
+        "duration_s": round(result.duration_s, 2),
+        "thesis_duration_s": scenario.thesis_duration_s,
+        "odometry_drift_m": finite(result.final_drift_m, 3),
+        "odometry_drift_percent": finite(result.drift_percent, 2),
+        "collided": result.collided,
+        "completed": result.completed,
+        "realtime_factor": round(result.realtime_factor, 2),
+    }
+
+
+def run_scenarios(
+    world: str, names: list[str] | None = None, seed: int = 0, progress: bool = True
+) -> tuple[list[RolloutResult], dict[str, dict[str, Any]], Any]:
+    """Roll out the world's scenarios (all, or ``names``): the results, their ``rollouts.json`` rows and the
+    world's occupancy grid (for the figure)."""
+    from tqdm import tqdm
+
+    from pimm_env.driving.scenarios import load_scenarios
+    from pimm_env.errors import WorldError
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    loaded = load_world(world)
+    occupancy = ensure_derived_maps(loaded).occupancy
+    available = load_scenarios(loaded)
+    unknown = [s for s in names or () if s not in available]
+    if unknown:
+        raise WorldError(f"unknown scenario(s) {unknown} in world {world!r}; valid: {', '.join(available)}")
+    results = []
+    for name in names or list(available):
+        scenario = available[name]
+        expected_s = scenario.length * (2 if scenario.kidnap_to is not None else 1) / scenario.speed
+        with tqdm(total=round(expected_s), desc=name, unit="sim s", disable=not progress, leave=False) as bar:
+
+            def advance(obs: dict, info: dict, bar: tqdm = bar) -> None:
+                bar.update(max(0, int(float(obs["time"][0])) - bar.n))
+
+            results.append(run(scenario, world=loaded, seed=seed, on_step=advance))
+    return results, {r.scenario: rollout_row(r, available[r.scenario]) for r in results}, occupancy
