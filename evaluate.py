@@ -1,17 +1,6 @@
 #!/usr/bin/env python3
-"""PIMM's command line: run the experiments, measure the parts, time the stages (docs/command-line.md).
-
-    python evaluate.py                 # the main job on the default world: 3 trials of every scenario
-    python evaluate.py run --scenarios area_b a_c_b --localizers amcl --trials 10 --seed 0 --out results/
-    python evaluate.py run --from results/<run>/run.yaml          # repeat a run exactly
-    python evaluate.py score results/<run>/logs/   # files or folders
-    python evaluate.py report results/<run> --markdown
-    python evaluate.py bench [--json]
-
-Each command is options plus one call into the library (pimm_agents, pimm_env); heavy modules are imported
-inside the commands so that ``--help`` is instant. A user's mistake (a PimmError) prints as one line; anything
-else shows its traceback (PIMM_DEBUG=1 shows it for both).
-"""
+"""PIMM's command line: options plus one call into the library per command (docs/command-line.md).
+A PimmError (a user's mistake) prints as one line; any other error shows its traceback (PIMM_DEBUG=1: both)."""
 
 from __future__ import annotations
 
@@ -41,22 +30,29 @@ ADDRESS = typer.Option(None, help="a Ray cluster to join, e.g. ray://head:10001 
 WORKERS = typer.Option(0, help="worker processes or Ray CPUs (0: one per core)")
 
 
-def pimm_errors(command: Callable[..., Any]) -> Callable[..., Any]:
-    """Report a PimmError (a user's mistake, which names the file, field or value) as one line and exit 1."""
+def command(group: typer.Typer = app, name: str | None = None) -> Callable[[Callable[..., Any]], Any]:
+    """Register a command that reports a PimmError (which names the file, field or value) as one line, exit 1."""
 
-    @functools.wraps(command)
-    def wrapped(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return command(*args, **kwargs)
-        except Exception as error:
+    def register(fn: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(fn)
+        def wrapped(*args: Any, **kwargs: Any) -> Any:
             from pimm_env.errors import PimmError
 
-            if os.environ.get("PIMM_DEBUG") or not isinstance(error, PimmError):
-                raise
-            typer.echo(f"error: {error}", err=True)
-            raise typer.Exit(1) from None
+            try:
+                return fn(*args, **kwargs)
+            except PimmError as error:
+                if os.environ.get("PIMM_DEBUG"):
+                    raise
+                typer.echo(f"error: {error}", err=True)
+                raise typer.Exit(1) from None
 
-    return wrapped
+        return group.command(name)(wrapped)
+
+    return register
+
+
+def _json(record: dict[str, Any], folder: Path) -> str:
+    return json.dumps({**record, "folder": str(folder)})
 
 
 def _command_line() -> str:
@@ -72,14 +68,11 @@ def main(ctx: typer.Context) -> None:
             start="global", backend="local", address=None, fault="", walkers=0, unmapped=0)  # fmt: skip
 
 
-@app.command()
-@pimm_errors
+@command()
 def run(
     from_file: Path | None = typer.Option(None, "--from", help="a results folder's run.yaml: repeat that run"),
     scenarios: list[str] | None = typer.Option(None, "--scenarios", help="scenario names (default: the world's)"),
-    localizers: list[str] | None = typer.Option(
-        None, "--localizers", help="names or module:factory (default: every registered one, or --params' sections)"
-    ),
+    localizers: list[str] | None = typer.Option(None, "--localizers", help="names or module:factory (default: all)"),
     trials: int = typer.Option(10, min=1, help="trials per scenario and localizer (thesis: 10)"),
     seed: int = typer.Option(0, help="trial i uses seed + i for the simulation and the localizer"),
     world: str = WORLD,
@@ -103,7 +96,7 @@ def run(
     from pimm_agents.experiments.experiment import Execution, Experiment
     from pimm_agents.experiments.frames import write_videos
     from pimm_agents.experiments.run_plan import RunPlan, read_plan, resolve_localizers
-    from pimm_agents.results.tables import format_tables, format_timings
+    from pimm_agents.results.tables import format_run
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
@@ -117,19 +110,10 @@ def run(
     outcome = experiment.run(out, resume, maps, _command_line())
     if video is not None:
         write_videos(outcome.folder, outcome.results, video, maps, progress=not json_out)
-    if json_out:
-        typer.echo(json.dumps({**outcome.summary, "folder": str(outcome.folder)}))
-        return
-    typer.echo(
-        f"start: {'the true pose, nav2 initial covariance' if plan.start == 'known' else 'global (pose unknown)'}"
-    )
-    typer.echo(format_tables(outcome.summary) + "\n" + format_timings(outcome.summary))
-    reused = f" ({outcome.trials_reused} more from the earlier run)" if outcome.trials_reused else ""
-    typer.echo(f"\n{outcome.trials_run} trials in {outcome.wall_s} s{reused}; results: {outcome.folder}/")
+    typer.echo(_json(outcome.summary, outcome.folder) if json_out else format_run(outcome))
 
 
-@app.command()
-@pimm_errors
+@command()
 def sweep(
     spec: Path = typer.Argument(..., help="the sweep file (worlds, scenarios, localizers, grid, trials)"),
     out: Path = OUT,
@@ -150,15 +134,11 @@ def sweep(
     experiment = Experiment.of_sweep(study, spec, Execution(workers, backend, address, progress=not json_out))
     maps = ensure_derived_maps(load_world(study.worlds[0])) if len(study.worlds) == 1 else None
     outcome = experiment.run(out, resume, maps, _command_line())
-    if json_out:
-        typer.echo(json.dumps({**outcome.summary, "folder": str(outcome.folder)}))
-        return
-    typer.echo(format_tables(outcome.summary))
-    typer.echo(f"\n{outcome.trials_run} trials in {outcome.wall_s} s; results: {outcome.folder}/")
+    text = f"{format_tables(outcome.summary)}\n\n{outcome.trials_run} trials in {outcome.wall_s} s"
+    typer.echo(_json(outcome.summary, outcome.folder) if json_out else f"{text}; results: {outcome.folder}/")
 
 
-@app.command()
-@pimm_errors
+@command()
 def record(
     scenario: str = typer.Option(..., help="the scenario to drive"),
     world: str = WORLD,
@@ -174,8 +154,7 @@ def record(
     typer.echo(f"wrote {path} (python evaluate.py replay {path} --world {world} --seed {seed} --localizers ...)")
 
 
-@app.command()
-@pimm_errors
+@command()
 def replay(
     bag: Path = typer.Argument(..., help="a rosbag2 folder or a ROS 1 .bag"),
     localizers: list[str] = typer.Option(["amcl"], "--localizers", help="names or module:factory"),
@@ -190,75 +169,51 @@ def replay(
     settings: list[str] = SETTINGS,
     out: Path = OUT,
     json_out: bool = JSON,
-    sensors: str | None = typer.Option(
-        None, help="LiDAR presets or a sensors .yaml of the bag (default: its record file's, else read from the bag)"
-    ),
+    sensors: str | None = typer.Option(None, help="LiDAR presets or .yaml (default: the bag's record, or its data)"),
 ) -> None:
     """Feed a bag to localizers and write the same results folder as run (metrics where it has ground truth)."""
     from pimm_agents.experiments.replay import run_replay
     from pimm_agents.experiments.run_plan import resolve_localizers
-    from pimm_agents.results.tables import format_tables
+    from pimm_agents.results.tables import format_replay
     from pimm_env.bags.read import BagTopics
 
     topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic)
     chosen = resolve_localizers(localizers, params, settings)
     done = run_replay(bag, chosen, out, seed, world, map_path, sensors, topics)
-    if not done.has_truth:
-        typer.echo(f"{bag} has no {truth_topic}: estimates only, in {done.folder}/tum/<localizer>/est.tum")
-    elif json_out:
-        typer.echo(json.dumps({**done.summary, "folder": str(done.folder)}))
-    else:
-        typer.echo(format_tables(done.summary) + f"\n\nresults: {done.folder}/")
+    typer.echo(_json(done.summary, done.folder) if json_out and done.has_truth else format_replay(done, truth_topic))
 
 
-@app.command()
-@pimm_errors
+@command()
 def score(
     paths: list[Path] = typer.Argument(..., help="trial logs (thesis CSV format) or folders holding them"),
     drop_repeated: bool = typer.Option(False, "--drop-repeated", help="drop rows that repeat the previous stamp"),
-    drop_uninitialised: bool = typer.Option(
-        False, "--drop-uninitialised", help="drop leading rows whose estimate is still (0, 0)"
-    ),
+    drop_uninitialised: bool = typer.Option(False, "--drop-uninitialised", help="drop leading (0, 0) estimates"),
     json_out: bool = JSON,
 ) -> None:
     """The thesis's metrics from trial logs made anywhere (columns timestamp_real ... cov_theta), grouped by
     scenario and localizer where the sidecars or file names say so; reports faults a recorded log may have."""
-    from pimm_agents.results.scored_logs import find_logs, group_summaries, score_log
+    from pimm_agents.results.scored_logs import fault_warnings, find_logs, group_summaries, score_log, score_record
     from pimm_agents.results.tables import format_scores
 
     scored = [score_log(p, drop_repeated, drop_uninitialised) for p in find_logs(paths)]
-    groups = group_summaries(scored)
-    if json_out:
-        trials = {str(s.path): {**vars(s.metrics), "group": s.group, "faults": vars(s.faults)} for s in scored}
-        typer.echo(json.dumps({"trials": trials, "groups": groups}))
-        return
-    typer.echo(format_scores(scored, groups))
-    for item in (s for s in scored if s.faults.any):
-        typer.echo(f"warning: {item.path}: {item.faults.describe()}", err=True)
-    if any(s.faults.any for s in scored) and not (drop_repeated and drop_uninitialised):
-        typer.echo("(faults reported above: --drop-repeated / --drop-uninitialised leave those rows out)", err=True)
+    typer.echo(json.dumps(score_record(scored)) if json_out else format_scores(scored, group_summaries(scored)))
+    for warning in fault_warnings(scored, drop_repeated and drop_uninitialised):
+        typer.echo(warning, err=True)
 
 
-@app.command()
-@pimm_errors
+@command()
 def report(
     folder: Path = typer.Argument(..., help="a results folder of run, sweep or replay"),
     markdown: bool = typer.Option(False, "--markdown", help="Markdown tables for the docs (default: text tables)"),
     thesis: bool = typer.Option(True, help="the thesis's rows beside PIMM's and AMCL's"),
 ) -> None:
     """Print a results folder's tables again, as text or as Markdown naming the command, commit and machine."""
-    from pimm_agents.results.markdown import markdown_report, provenance_line, read_summary
-    from pimm_agents.results.tables import format_tables
+    from pimm_agents.results.markdown import markdown_report, text_report
 
-    if markdown:
-        typer.echo(markdown_report(folder, thesis), nl=False)
-        return
-    summary = read_summary(folder)
-    typer.echo(provenance_line(summary) + "\n" + format_tables(summary))
+    typer.echo(markdown_report(folder, thesis) if markdown else text_report(folder), nl=False)
 
 
-@app.command()
-@pimm_errors
+@command()
 def rollout(
     scenarios: list[str] | None = typer.Option(None, "--scenarios", help="scenario names (default: the world's)"),
     world: str = WORLD,
@@ -269,39 +224,28 @@ def rollout(
     """Drive each scenario's waypoints (3D LiDAR on) and report length, time and odometry drift."""
     from pimm_agents.experiments.experiment import new_folder
     from pimm_agents.results.tables import format_rollouts
-    from pimm_env.driving.plots import plot_rollouts
+    from pimm_env.driving.plots import write_rollouts
     from pimm_env.driving.rollout import run_scenarios
 
     results, rows, occupancy = run_scenarios(world, scenarios, seed, progress=not json_out)
     folder = new_folder(out, "rollout")
-    record = {"world": world, "seed": seed, "rollouts": rows}
-    (folder / "rollouts.json").write_text(json.dumps(record, indent=2))
-    picture = plot_rollouts(occupancy, results, folder / "rollouts.png")
-    if json_out:
-        typer.echo(json.dumps({**record, "folder": str(folder)}))
-        return
-    typer.echo(format_rollouts(rows) + f"\n\nresults: {folder}/ (rollouts.json, {picture.name})")
+    record = write_rollouts(folder, world, seed, results, rows, occupancy)
+    text = f"{format_rollouts(rows)}\n\nresults: {folder}/ (rollouts.json, rollouts.png)"
+    typer.echo(_json(record, folder) if json_out else text)
 
 
-@app.command()
-@pimm_errors
+@command()
 def bench(json_out: bool = JSON, repeats: int = typer.Option(30, help="timed repetitions per figure")) -> None:
     """Time each stage on this machine (medians, ms) and the real-time factor of an area_a rollout."""
     from pimm_agents.measurement.benchmark import run_benchmarks
     from pimm_agents.results.provenance import machine
+    from pimm_agents.results.tables import format_bench
 
     figures = run_benchmarks(repeats=repeats)
-    if json_out:
-        typer.echo(json.dumps(figures))
-        return
-    here = machine()
-    cpu = f"{here['cpu'] or 'unknown CPU'} ({here['vector'] or 'vector unit unknown'})"
-    typer.echo(f"machine: {cpu}, {here['cores']} logical cores, torch {here['torch']}")
-    typer.echo("\n".join(f"{key:<24}{value:>10.3f}" for key, value in figures.items()))
+    typer.echo(json.dumps(figures) if json_out else format_bench(figures, machine()))
 
 
-@app.command()
-@pimm_errors
+@command()
 def perception(
     world: str = WORLD,
     scans: int = typer.Option(50, min=1, help="fresh scans at random free poses"),
@@ -318,8 +262,7 @@ def perception(
     typer.echo(json.dumps(result) if json_out else format_perception(result))
 
 
-@world_app.command("import")
-@pimm_errors
+@command(world_app, "import")
 def world_import(
     source: Path = typer.Argument(..., help="a map_server .yaml (+ .pgm/.png) or a mesh (.obj .ply .stl .glb ...)"),
     name: str = typer.Option(..., help="the world's name: it is written to maps/NAME/"),
@@ -342,8 +285,7 @@ def world_import(
         world_prepare(name=str(path), routes=routes, seed=seed, spacing=0.5, new_routes=True)
 
 
-@world_app.command("prepare")
-@pimm_errors
+@command(world_app, "prepare")
 def world_prepare(
     name: str = typer.Argument(..., help="world name under maps/ or a world file"),
     routes: int = typer.Option(4, min=1, help="routes to generate when the world has no scenarios.yaml"),
@@ -352,30 +294,19 @@ def world_prepare(
     new_routes: bool = typer.Option(False, help="replace an existing scenarios.yaml with generated routes"),
 ) -> None:
     """Rebuild a world's derived maps and fingerprint map; generate routes if it has no scenarios."""
-    from pimm_agents.preparation.prepare import prepare_world
+    from pimm_agents.preparation.prepare import describe, prepare_world
     from pimm_env.driving.routes import RouteConfig
 
-    done = prepare_world(name, RouteConfig(count=routes), seed, spacing, new_routes)
-    steps = ", ".join(f"{k} {v:.1f} s" for k, v in done.seconds.items())
-    typer.echo(
-        f"{done.world}: {done.free_m2:.0f} m^2 free, {done.corners} corners, {done.fingerprints} fingerprints, "
-        f"scenarios {', '.join(done.scenarios)}{' (generated)' if done.routes_written else ''}; "
-        f"prepared in {sum(done.seconds.values()):.1f} s ({steps}) -> {done.folder}"
-    )
-    typer.echo(f"next: python evaluate.py run --world {done.folder / 'world.yaml'}")
+    typer.echo(describe(prepare_world(name, RouteConfig(count=routes), seed, spacing, new_routes)))
 
 
-#: Options that take several values after one flag (``--scenarios a b c``), as the docs write them.
-LIST_OPTIONS = ("--scenarios", "--localizers")
-
-
-def expand_list_options(argv: list[str]) -> list[str]:
-    """Rewrite ``--scenarios a b`` as ``--scenarios a --scenarios b``, the form click parses."""
+def expand_list_options(argv: list[str], lists: tuple[str, ...] = ("--scenarios", "--localizers")) -> list[str]:
+    """Rewrite ``--scenarios a b`` (as the docs write it) as ``--scenarios a --scenarios b``, as click parses."""
     out: list[str] = []
     current = None
     for token in argv:
         if token.startswith("-"):
-            current = token if token in LIST_OPTIONS else None
+            current = token if token in lists else None
             out.append(token)
         elif current is not None and out[-1] != current:
             out += [current, token]

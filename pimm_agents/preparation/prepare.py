@@ -68,3 +68,14 @@ def prepare_world(
         routes_written=written,
         seconds=seconds,
     )
+
+
+def describe(done: Preparation) -> str:
+    """What ``evaluate.py world prepare`` prints: the world's maps, its scenarios and where the time went."""
+    steps = ", ".join(f"{k} {v:.1f} s" for k, v in done.seconds.items())
+    return (
+        f"{done.world}: {done.free_m2:.0f} m^2 free, {done.corners} corners, {done.fingerprints} fingerprints, "
+        f"scenarios {', '.join(done.scenarios)}{' (generated)' if done.routes_written else ''}; "
+        f"prepared in {sum(done.seconds.values()):.1f} s ({steps}) -> {done.folder}\n"
+        f"next: python evaluate.py run --world {done.folder / 'world.yaml'}"
+    )

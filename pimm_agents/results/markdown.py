@@ -70,3 +70,11 @@ def markdown_report(folder: Path, thesis: bool = True) -> str:
     for scenario, rows in summary["scenarios"].items():
         lines += [*scenario_table(scenario, rows, thesis), ""]
     return "\n".join(lines).rstrip() + "\n"
+
+
+def text_report(folder: Path) -> str:
+    """The folder's tables as ``evaluate.py run`` prints them, after the provenance line."""
+    from pimm_agents.results.tables import format_tables
+
+    summary = read_summary(folder)
+    return f"{provenance_line(summary)}{format_tables(summary)}\n"

@@ -86,3 +86,17 @@ def group_summaries(scored: list[ScoredLog]) -> dict[str, dict[str, Any]]:
     for item in scored:
         groups.setdefault(item.group, []).append(item.metrics)
     return {name: summarize(metrics) for name, metrics in groups.items()}
+
+
+def score_record(scored: list[ScoredLog]) -> dict[str, Any]:
+    """``evaluate.py score --json``: every log's metrics, group and faults, and the groups' summaries."""
+    trials = {str(s.path): {**vars(s.metrics), "group": s.group, "faults": vars(s.faults)} for s in scored}
+    return {"trials": trials, "groups": group_summaries(scored)}
+
+
+def fault_warnings(scored: list[ScoredLog], dropped: bool) -> list[str]:
+    """A warning per log that has faults, and how to drop their rows unless they were dropped."""
+    lines = [f"warning: {s.path}: {s.faults.describe()}" for s in scored if s.faults.any]
+    if lines and not dropped:
+        lines.append("(faults reported above: --drop-repeated / --drop-uninitialised leave those rows out)")
+    return lines

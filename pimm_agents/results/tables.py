@@ -148,3 +148,30 @@ def format_rollouts(rollouts: dict[str, dict[str, Any]]) -> str:
             f"{_cell(row['odometry_drift_percent'], '.2f'):>9}{row['realtime_factor']:>6.1f}  {ok}"
         )
     return "\n".join(lines)
+
+
+def format_run(outcome: Any) -> str:
+    """``evaluate.py run``: the start, the thesis's tables, the stage timings, the trials' count and time, and
+    where the results went (``outcome``: an ``experiments.experiment.Outcome``)."""
+    summary = outcome.summary
+    known = summary.get("start") == "known"
+    reused = f" ({outcome.trials_reused} more from the earlier run)" if outcome.trials_reused else ""
+    return (
+        f"start: {'the true pose, nav2 initial covariance' if known else 'global (pose unknown)'}"
+        f"{format_tables(summary)}\n{format_timings(summary)}\n\n"
+        f"{outcome.trials_run} trials in {outcome.wall_s} s{reused}; results: {outcome.folder}/"
+    )
+
+
+def format_bench(figures: dict[str, float], machine: dict[str, Any]) -> str:
+    """``evaluate.py bench``: the machine, then each figure (median ms unless its name says otherwise)."""
+    cpu = f"{machine['cpu'] or 'unknown CPU'} ({machine['vector'] or 'vector unit unknown'})"
+    lines = [f"machine: {cpu}, {machine['cores']} logical cores, torch {machine['torch']}"]
+    return "\n".join(lines + [f"{key:<24}{value:>10.3f}" for key, value in figures.items()])
+
+
+def format_replay(replay: Any, truth_topic: str) -> str:
+    """``evaluate.py replay``: the thesis's tables, or where the estimates went when the bag had no truth."""
+    if not replay.has_truth:
+        return f"no {truth_topic} in the bag: estimates only, in {replay.folder}/tum/<localizer>/est.tum"
+    return f"{format_tables(replay.summary)}\n\nresults: {replay.folder}/"

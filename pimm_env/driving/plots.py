@@ -47,3 +47,15 @@ def plot_rollouts(occupancy: OccupancyGrid, results: Sequence[RolloutResult], pa
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
+
+
+def write_rollouts(
+    folder: Path, world: str, seed: int, results: Sequence[RolloutResult], rows: dict, occupancy: OccupancyGrid
+) -> dict:
+    """``folder/rollouts.json`` (world, seed, a row per scenario) and ``folder/rollouts.png``; returns the record."""
+    import json
+
+    record = {"world": world, "seed": seed, "rollouts": rows}
+    (Path(folder) / "rollouts.json").write_text(json.dumps(record, indent=2))
+    plot_rollouts(occupancy, results, Path(folder) / "rollouts.png")
+    return record
