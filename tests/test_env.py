@@ -9,7 +9,7 @@ import pytest
 import pimm_env  # noqa: F401  (registers the env)
 from pimm_env import SimConfig
 
-ENV_IDS = ["pimm/IILab-v0"]
+ENV_IDS = ["pimm/IILab-v1"]
 # Warnings the checkers raise that do not apply to this env (anything else fails the test):
 # the action is a cmd_vel in physical units (m/s, rad/s) by contract, not a normalized [-1, 1] box, and the
 # cloud is an (N, 3) point array by contract, neither an image nor a flat vector.
@@ -18,7 +18,7 @@ ALLOWED = ("symmetric and normalized space", "normalized Box action space", "unc
 
 @pytest.fixture
 def env():
-    e = gym.make("pimm/IILab-v0")
+    e = gym.make("pimm/IILab-v1")
     yield e
     e.close()
 
@@ -39,7 +39,7 @@ def test_gymnasium_and_sb3_checkers(env_id):
 
 
 def _rollout(seed: int, steps: int = 40):
-    e = gym.make("pimm/IILab-v0")
+    e = gym.make("pimm/IILab-v1")
     obs, info = e.reset(seed=seed)
     trace = [obs["odom"].copy(), obs["cloud"].copy(), info["true_pose"].copy()]
     for _ in range(steps):
@@ -123,7 +123,7 @@ def test_bad_reset_options_and_actions(env):
 
 
 def test_out_of_range_actions_are_clipped():
-    e = gym.make("pimm/IILab-v0").unwrapped
+    e = gym.make("pimm/IILab-v1").unwrapped
     e.reset(seed=0, options={"pose": [-10.0, 4.2, 0.0]})
     e.step([100.0, 0.0])
     moved = e.robot.pose[0] + 10.0
@@ -142,7 +142,7 @@ def test_collision_terminates(env):
 
 
 def test_render_and_idempotent_close():
-    e = gym.make("pimm/IILab-v0", render_mode="rgb_array")
+    e = gym.make("pimm/IILab-v1", render_mode="rgb_array")
     e.reset(seed=0)
     image = e.render()
     assert image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3
@@ -154,7 +154,7 @@ def test_render_and_idempotent_close():
 def test_a_switched_off_lidar_casts_nothing():
     config = SimConfig()
     config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))
-    e = gym.make("pimm/IILab-v0", config=config).unwrapped
+    e = gym.make("pimm/IILab-v1", config=config).unwrapped
     obs, info = e.reset(seed=0)
     for _ in range(10):
         obs, *_, info = e.step([0.2, 0.0])
@@ -171,7 +171,7 @@ def test_switching_off_the_3d_lidar_leaves_odometry_and_2d_scans_as_they_were():
     without = replace(config, lidar3d=replace(config.lidar3d, enabled=False))
 
     def trace(sim_config: SimConfig) -> list[np.ndarray]:
-        e = gym.make("pimm/IILab-v0", config=sim_config)
+        e = gym.make("pimm/IILab-v1", config=sim_config)
         obs, _ = e.reset(seed=5)
         out = [obs["odom"].copy(), obs["scan"].copy()]
         for step in range(60):
@@ -185,3 +185,41 @@ def test_switching_off_the_3d_lidar_leaves_odometry_and_2d_scans_as_they_were():
 
     with_cloud, without_cloud = trace(config), trace(without)
     assert all(np.array_equal(a, b) for a, b in zip(with_cloud, without_cloud, strict=True))
+
+
+def test_a_pickled_env_with_walkers_furniture_a_fault_and_other_sensors_rolls_out_as_the_original():
+    from pimm_env.envs.faults import parse_faults, with_faults
+
+    env = with_faults(
+        gym.make("pimm/IILab-v1", walkers=2, unmapped=1, sensors="hokuyo-utm30lx").unwrapped,
+        parse_faults("dropout@0.5:0.3"),
+    )
+    env.reset(seed=5)
+    action = np.array([0.4, 0.3], dtype=np.float32)
+    for _ in range(10):
+        env.step(action)
+    clone = pickle.loads(pickle.dumps(env))
+    assert clone.unwrapped.config == env.unwrapped.config and clone.unwrapped.config.walkers == 2
+    for _ in range(25):  # through the dropout and the walkers' moves
+        a, b = clone.step(action), env.step(action)
+        assert all(np.array_equal(a[0][k], b[0][k]) for k in b[0])
+        assert np.array_equal(a[4]["walkers"], b[4]["walkers"]) and np.array_equal(a[4]["unmapped"], b[4]["unmapped"])
+        assert np.array_equal(a[4]["true_pose"], b[4]["true_pose"])
+    clone.close()
+    env.close()
+
+
+def test_no_pybullet_scene_unless_the_bullet_caster_is_chosen_and_render_fps_follows_the_control_step():
+    env = gym.make("pimm/IILab-v1").unwrapped
+    assert env.scene is None
+    assert env.metadata["render_fps"] == round(1 / env.config.robot.control_dt)
+    env.close()
+    bullet = gym.make("pimm/IILab-v1", config=replace(SimConfig(), ray_caster="bullet")).unwrapped
+    assert bullet.scene is not None
+    bullet.reset(seed=0)
+    bullet.close()
+
+
+def test_the_retired_v0_points_to_v1():
+    with pytest.warns(DeprecationWarning, match="out of date"), pytest.raises(gym.error.DeprecatedEnv, match="v1"):
+        gym.make("pimm/IILab-v0")

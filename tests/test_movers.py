@@ -5,7 +5,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import pimm_env  # noqa: F401  (registers pimm/IILab-v0)
+import pimm_env  # noqa: F401  (registers pimm/IILab-v1)
 from pimm_env.envs.iilab_env import IILabEnv
 from pimm_env.sim.movers import Boxes, Walkers, cast_boxes, free_clearance, place_furniture
 from pimm_env.world.semantics import SemanticClass
@@ -100,6 +100,6 @@ def test_bad_counts_are_named():
     with pytest.raises(ValueError, match="walkers must be a whole number >= 0, got -1"):
         IILabEnv(walkers=-1)
     with pytest.raises(ValueError, match="unmapped must be a whole number"):
-        gym.make("pimm/IILab-v0", unmapped=2.5)
+        gym.make("pimm/IILab-v1", unmapped=2.5)
     occupancy = IILabEnv(terminate_on_collision=False).maps.occupancy
     assert len(place_furniture(occupancy, 0, np.random.default_rng(0))) == 0

@@ -13,7 +13,7 @@ from pimm_env.driving.rollout import drive
 from pimm_env.envs.base_env import SimConfig
 from pimm_env.envs.iilab_env import IILabEnv
 from pimm_env.mapping.derived_maps import ensure_derived_maps
-from pimm_env.sim.lidar import beam_angles_2d, beam_bearings_2d
+from pimm_env.sim.lidar import beam_angles_2d, beam_bearings_2d, mount_rotation, to_robot_frame
 from pimm_env.sim.sensors import LIDAR_2D, sensor_layouts
 from pimm_env.world.files import load_world
 from tests.test_trials import ROUTES
@@ -74,7 +74,8 @@ def test_a_hokuyo_bag_replays_to_the_live_run(room_file: Path, tmp_path: Path):
     ensure_derived_maps(load_world(room_file))
     bag = record_scenario("there", tmp_path / "bag", world, seed=1, sensors="hokuyo-utm30lx", clouds=False)
     (spec,) = replay_specs(bag, ["amcl"], {"amcl": AMCL}, 1, world)
-    assert spec.sensors == "hokuyo-utm30lx"  # from the bag's record file
+    assert spec.sensors == str(bag / "sensors.yaml")  # the layouts recorded with the bag
+    assert sensor_layouts(spec.sensors) == sensor_layouts("hokuyo-utm30lx")
     live = run_shared([TrialSpec("there", "amcl", 0, 1, world, AMCL, "hokuyo-utm30lx")])[0]
     (replayed,), _ = replay_bag(bag, [spec], map_path=room_file.parent / "occupancy.yaml")
     assert np.array_equal(live.log.estimate, replayed.log.estimate) and len(replayed.log) > 100
@@ -91,3 +92,48 @@ def test_amcl_converges_on_a_hokuyo_bag_of_the_iilab(tmp_path: Path):
     (spec,) = replay_specs(bag, ["amcl"], {}, 0, "iilab")
     (result,), has_truth = replay_bag(bag, [spec], map_path=Path("maps/iilab/occupancy.yaml"))
     assert has_truth and result.metrics.converged
+
+
+def test_a_tilted_offset_3d_lidar_is_simulated_from_its_mount_and_turned_back_by_to_robot_frame(room_file: Path):
+    ensure_derived_maps(load_world(room_file))
+    tilted = replace(
+        SimConfig().lidar3d, mount_x=0.3, mount_y=-0.1, height=0.8, mount_pitch_deg=20.0, mount_roll_deg=5.0
+    )
+    env = IILabEnv(world=room_file, config=replace(SimConfig(), lidar3d=tilted))
+    obs, info = env.reset(seed=0, options={"pose": [2.0, 2.0, 0.7]})
+    env.close()
+    mask = obs["cloud_mask"].astype(bool)
+    raw, robot = obs["cloud"][mask], to_robot_frame(obs["cloud"], tilted)[mask]
+    floor, ceiling = info["labels"][mask] == 2, info["labels"][mask] == 1
+    assert np.abs(robot[floor, 2] + 0.8).max() < 0.05  # the floor 0.8 m under the sensor, level
+    assert np.abs(robot[ceiling, 2] - 2.2).max() < 0.05  # the 3 m ceiling
+    assert np.ptp(raw[floor, 2]) > 1.0  # in the sensor's own frame the floor slopes
+    c, s = np.cos(0.7), np.sin(0.7)  # in the map frame the walls' faces are x = 0, x = 6, y = 0, y = 4
+    walls = robot[info["labels"][mask] == 0]
+    x, y = 2.0 + c * walls[:, 0] - s * walls[:, 1], 2.0 + s * walls[:, 0] + c * walls[:, 1]
+    on_a_face = (np.abs(x) < 0.05) | (np.abs(x - 6) < 0.05) | (np.abs(y) < 0.05) | (np.abs(y - 4) < 0.05)
+    assert len(walls) > 100 and on_a_face.mean() > 0.99
+    thesis = SimConfig().lidar3d
+    assert to_robot_frame(obs["cloud"], thesis) is obs["cloud"]  # the thesis's mount: no copy, no change
+    with pytest.raises(ValueError, match="prism.*roll or pitch"):
+        IILabEnv(world=room_file, config=replace(SimConfig(), lidar3d=tilted, ray_caster="prism"))
+
+
+def test_mount_rotation_is_a_urdf_rpy(room_file: Path):
+    turn = mount_rotation(replace(SimConfig().lidar3d, mount_yaw_deg=90.0))
+    assert turn @ np.array([1.0, 0.0, 0.0]) == pytest.approx([0.0, 1.0, 0.0])
+    pitch = mount_rotation(replace(SimConfig().lidar3d, mount_pitch_deg=90.0))
+    assert pitch @ np.array([1.0, 0.0, 0.0]) == pytest.approx([0.0, 0.0, -1.0])  # nose down
+    both = mount_rotation(replace(SimConfig().lidar3d, mount_roll_deg=30.0, mount_pitch_deg=-10.0, mount_yaw_deg=45.0))
+    assert both @ both.T == pytest.approx(np.eye(3)) and np.linalg.det(both) == pytest.approx(1.0)
+
+
+def test_a_recorded_bag_carries_the_3d_lidar_mount_and_replay_reads_it(room_file: Path, tmp_path: Path):
+    (room_file.parent / "scenarios.yaml").write_text(ROUTES)
+    ensure_derived_maps(load_world(room_file))
+    sensors = tmp_path / "tilted.yaml"
+    sensors.write_text("lidar3d: {layers: 8, points_per_layer: 90, mount_x: 0.2, mount_pitch_deg: 12.0}\n")
+    bag = record_scenario("there", tmp_path / "bag", str(room_file), seed=1, sensors=str(sensors))
+    (spec,) = replay_specs(bag, ["registration"], {}, 1, str(room_file))
+    lidar3d = sensor_layouts(spec.sensors)[0]
+    assert (lidar3d.mount_x, lidar3d.mount_pitch_deg, lidar3d.layers) == (0.2, 12.0, 8)

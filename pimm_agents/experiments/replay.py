@@ -72,9 +72,10 @@ def replay_specs(
     folder: Path | None = None,
 ) -> list[TrialSpec]:
     """One spec per localizer, named after the scenario the bag's record file gives (else the bag's name). The
-    LiDAR layouts: ``sensors`` if given, else the presets the bag was recorded with (its record file), else
+    LiDAR layouts: ``sensors`` if given, else the sensors file recorded with the bag (else its record file's
+    presets), else
     read from the bag's first scan and cloud into ``folder``/sensors.yaml (``pimm_env/bags/layout.py``)."""
-    from pimm_env.bags.record import RECORD_FILE
+    from pimm_env.bags.record import RECORD_FILE, SENSORS_FILE
 
     scenario, recorded = Path(bag).name, None
     record_file = Path(bag) / RECORD_FILE
@@ -83,6 +84,8 @@ def replay_specs(
 
         record = yaml.safe_load(record_file.read_text()) or {}
         scenario, recorded = str(record.get("scenario", scenario)), str(record.get("sensors", "thesis"))
+        if (Path(bag) / SENSORS_FILE).is_file():  # the whole layouts, mount poses included
+            recorded = str(Path(bag) / SENSORS_FILE)
     chosen = sensors or recorded or layouts_file(Path(bag), topics, folder)
     return [
         replace(TrialSpec(scenario, name, 0, seed, world), params=params.get(name, {}), sensors=chosen)

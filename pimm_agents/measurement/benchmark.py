@@ -41,6 +41,7 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     from pimm_env.envs.iilab_env import IILabEnv
     from pimm_env.sim.lidar import azimuths_3d, elevations_3d
     from pimm_env.sim.raycast import BulletRayCaster
+    from pimm_env.sim.scene import BulletScene
 
     figures: dict[str, float] = {}
     env = IILabEnv(terminate_on_collision=False)
@@ -59,11 +60,13 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     figures["env_step_scan_ms"] = 1000 * float(np.median(stepped_scan))
     l3 = env.config.lidar3d
     origin = np.array([-10.0, 4.2, env.world.floor_z + l3.height])
-    bullet = BulletRayCaster(env.scene.client, env.scene.body_classes)
+    scene = BulletScene(env.world, env.config.robot.footprint_radius)  # the env builds none unless asked
+    bullet = BulletRayCaster(scene.client, scene.body_classes)
     azimuths, elevations = azimuths_3d(l3), elevations_3d(l3)
     figures["lidar3d_bullet_ms"] = median_ms(
         lambda: bullet.cast(origin, azimuths, elevations, l3.max_range), max(3, repeats // 5)
     )
+    scene.close()
     figures.update(big_world_benchmarks(env, origin, repeats))
     env.close()
     config = replace(SimConfig(), lidar3d=replace(SimConfig().lidar3d, rate_hz=10.0))

@@ -28,7 +28,7 @@ from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry, compose, relative_motion
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
-from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
+from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, to_robot_frame
 from pimm_env.world.semantics import SemanticClass
 
 
@@ -292,6 +292,7 @@ class PimmLocalizer:
         timings: dict[str, float] = {}
         self.guard.check(obs, ("odom", "time", "cloud_time"))
         cloud, mask = self.guard.cloud(obs)
+        cloud = to_robot_frame(cloud, self.lidar3d)  # the sensors file's mount pose
         taken = self.guard.take(obs)
         if taken is None and self._last is not None:  # a glitch: keep the estimate
             return self._last

@@ -25,7 +25,7 @@ from pimm_agents.registration.map_cloud import MapCloud, estimate_normals, fpfh,
 from pimm_agents.registration.planar_icp import PlanarIcp
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry
-from pimm_env.sim.lidar import Lidar3DConfig
+from pimm_env.sim.lidar import Lidar3DConfig, to_robot_frame
 
 #: Reported while tracking (ours: ICP's spread on the iilab's scans is about this) and while lost.
 TRACKING_COV = np.diag([0.05**2, 0.05**2, np.radians(2.0) ** 2])
@@ -102,6 +102,7 @@ class RegistrationLocalizer:
         timings: dict[str, float] = {}
         self.guard.check(obs, ("odom", "time", "cloud_time"))
         cloud, mask = self.guard.cloud(obs)
+        cloud = to_robot_frame(cloud, self.lidar3d)  # the sensors file's mount pose
         taken = self.guard.take(obs)
         if taken is None and self._last is not None:  # a glitch: keep the estimate
             return self._last

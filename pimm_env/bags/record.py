@@ -14,6 +14,8 @@ from pimm_env.errors import BagError
 
 #: A file beside the bag's own metadata saying what was recorded (world, scenario, seed, sensors).
 RECORD_FILE = "pimm_record.yaml"
+#: A sensors file beside it with the LiDARs' whole configuration, the 3D LiDAR's mount pose included.
+SENSORS_FILE = "sensors.yaml"
 
 
 class BagRecorder(gym.Wrapper):
@@ -82,6 +84,7 @@ def record_scenario(
     from pimm_env.driving.scenarios import get_scenario
     from pimm_env.envs.base_env import SimConfig
     from pimm_env.envs.iilab_env import IILabEnv
+    from pimm_env.sim.sensors import write_sensors_file
     from pimm_env.world.files import load_world
 
     out = Path(out)
@@ -102,4 +105,7 @@ def record_scenario(
     record = {"world": world, "scenario": scenario_name, "seed": seed, "sensors": sensors, "clouds": clouds}
     record.update(completed=result.completed, sim_seconds=round(result.duration_s, 3), messages=recorder.messages)
     (out / RECORD_FILE).write_text(yaml.safe_dump(record, sort_keys=False))
+    l3, l2 = env.config.lidar3d, env.config.lidar2d
+    note = f"The LiDARs this bag was recorded with ({sensors}): layouts, noise, rates and mount poses."
+    write_sensors_file(out / SENSORS_FILE, l3 if clouds else None, l2, note)
     return out

@@ -5,7 +5,7 @@ Concrete environments (see :mod:`pimm_env.envs.iilab_env`) choose the world and 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import gymnasium as gym
@@ -23,6 +23,7 @@ from pimm_env.sim.lidar import (
     beam_bearings_2d,
     directions_3d,
     elevations_3d,
+    mount_rotation,
     noisy_ranges,
 )
 from pimm_env.sim.raycast import BulletRayCaster, EmbreeRayCaster, PrismRayCaster, RayCaster
@@ -114,7 +115,10 @@ class LidarRobotEnv(gym.Env):
         self._world_arg = world
         self.world = world if isinstance(world, World) else load_world(world)
         self.maps: DerivedMaps = load_derived_maps(self.world)
-        self.scene = BulletScene(self.world, self.config.robot.footprint_radius)
+        #: pybullet's scene of the world, built only for the ``bullet`` ray caster (the others read the world)
+        self.scene = BulletScene(self.world, self.config.robot.footprint_radius) if self._uses_bullet() else None
+        #: one frame per control step
+        self.metadata = {**type(self).metadata, "render_fps": round(1.0 / self.config.robot.control_dt)}
         self.caster = self._make_caster()
         self._collision_clearance, self._start_cells = self._clearance_maps()
         self.robot = DiffDriveRobot(self.config.robot)
@@ -147,10 +151,20 @@ class LidarRobotEnv(gym.Env):
         if choice not in RAY_CASTERS:
             raise EnvError(f"ray_caster {choice!r}: expected one of {', '.join(RAY_CASTERS)}")
         if choice == "prism":
+            if not self.config.lidar3d.level:
+                raise EnvError("ray_caster 'prism' casts level LiDARs only: the 3D LiDAR's mount has roll or pitch")
             return PrismRayCaster(self.world)
         if choice == "bullet":
+            assert self.scene is not None
             return BulletRayCaster(self.scene.client, self.scene.body_classes)
         return EmbreeRayCaster(self.world)
+
+    def _uses_bullet(self) -> bool:
+        return self.config.ray_caster == "bullet"
+
+    def _place_body(self) -> None:
+        if self.scene is not None:
+            self.scene.place_robot(self.robot.pose)
 
     def _clearance_maps(self) -> tuple[np.ndarray, np.ndarray]:
         """Distance to anything the robot's body could touch, and the cells where a random start may be."""
@@ -220,7 +234,7 @@ class LidarRobotEnv(gym.Env):
             self._time = 0.0
             self._next_cloud = self._next_scan = 0.0
         self._collided = False
-        self.scene.place_robot(self.robot.pose)
+        self._place_body()
         self._sense()
         return self._observation(), self._info()
 
@@ -235,7 +249,7 @@ class LidarRobotEnv(gym.Env):
         self._time += self.config.robot.control_dt
         if self.movers is not None:
             self.movers.step(self.config.robot.control_dt, self.robot.pose[:2])
-        self.scene.place_robot(self.robot.pose)
+        self._place_body()
         self._sense()
         obs = self._observation()
         info = self._info()
@@ -327,6 +341,24 @@ class LidarRobotEnv(gym.Env):
         directions = _directions(azimuths, elevations).reshape(-1, 3)
         return self.movers.occlude(origin, directions, ranges, labels, max_range, self.world.floor_z)
 
+    def _cast_3d(self, x: float, y: float, theta: float) -> tuple[np.ndarray, np.ndarray]:
+        """The 3D LiDAR's ranges and labels (flattened, in the order of ``_directions3d``) from its mount on the
+        robot at (x, y, theta): a grid of azimuths and elevations for a level mount, rotated rays otherwise."""
+        l3 = self.config.lidar3d
+        c, s = np.cos(theta), np.sin(theta)
+        origin = np.array([x + c * l3.mount_x - s * l3.mount_y, y + s * l3.mount_x + c * l3.mount_y, 0.0])
+        origin[2] = self.world.floor_z + l3.height
+        if l3.level:
+            azimuths = self._azimuths3d + (theta + np.radians(l3.mount_yaw_deg))
+            ranges, labels = self.caster.cast(origin, azimuths, self._elevations, l3.max_range)
+            return self._with_movers(origin, azimuths, self._elevations, ranges, labels, l3.max_range)
+        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ mount_rotation(l3)
+        directions = self._directions3d @ turn.T
+        ranges, labels = self.caster.cast_directions(origin, directions, l3.max_range)  # type: ignore[attr-defined]
+        if self.movers is None:
+            return ranges, labels
+        return self.movers.occlude(origin, directions, ranges, labels, l3.max_range, self.world.floor_z)
+
     def _sense(self) -> None:
         """Take the scans that are due at the current time."""
         assert self._noise is not None, "reset() first"
@@ -336,11 +368,7 @@ class LidarRobotEnv(gym.Env):
         fresh_cloud = fresh_scan = False
         eps = 1e-9
         if l3.enabled and self._time + eps >= self._next_cloud:
-            origin = np.array([x, y, self.world.floor_z + l3.height])
-            ranges, labels = self.caster.cast(origin, self._azimuths3d + theta, self._elevations, l3.max_range)
-            ranges, labels = self._with_movers(
-                origin, self._azimuths3d + theta, self._elevations, ranges, labels, l3.max_range
-            )
+            ranges, labels = self._cast_3d(x, y, theta)
             hit = np.isfinite(ranges)
             noisy = noisy_ranges(
                 np.where(hit, ranges, 0) / l3.max_range, hit, l3.max_range, l3.min_range, l3.noise_std, noise3d
@@ -401,39 +429,23 @@ class LidarRobotEnv(gym.Env):
 
     # ------------------------------------------------------------------ pickling
     def __getstate__(self) -> dict[str, Any]:
-        dynamic = {
-            k: v
-            for k, v in self.__dict__.items()
-            if k.startswith("_")
-            and k
-            not in {
-                "_world_arg",
-                "_collision_clearance",
-                "_start_cells",
-                "_elevations",
-                "_azimuths3d",
-                "_azimuths2d",
-                "_directions3d",
-            }
-        }
+        """The constructor's arguments (world, the whole ``SimConfig``, render mode) and the state that changes:
+        the robot, the clock, scans, noise streams, movers; the rest is rebuilt from the world on unpickling."""
+        rebuilt = {"_world_arg", "_collision_clearance", "_start_cells", "_elevations", "_azimuths3d", "_azimuths2d"}
+        rebuilt.add("_directions3d")
+        dynamic = {k: v for k, v in self.__dict__.items() if k.startswith("_") and k not in rebuilt}
         return {
             "world": self._world_arg,
-            "config": asdict(self.config),
+            "config": self.config,
             "render_mode": self.render_mode,
             "robot": self.robot.__dict__.copy(),
+            "movers": self.movers,
             "dynamic": dynamic,
         }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        cfg = state["config"]
-        config = SimConfig(
-            robot=RobotConfig(**cfg["robot"]),
-            lidar3d=Lidar3DConfig(**cfg["lidar3d"]),
-            lidar2d=Lidar2DConfig(**cfg["lidar2d"]),
-            start_clearance=cfg["start_clearance"],
-            ray_caster=cfg["ray_caster"],
-        )
-        LidarRobotEnv.__init__(self, state["world"], config, state["render_mode"])
+        LidarRobotEnv.__init__(self, state["world"], state["config"], state["render_mode"])
         self.robot.__dict__.update(state["robot"])
+        self.movers = state["movers"]
         self.__dict__.update(state["dynamic"])
-        self.scene.place_robot(self.robot.pose)
+        self._place_body()

@@ -23,12 +23,29 @@ class Lidar3DConfig:
     min_range: float = 0.05
     noise_std: float = 0.01
     rate_hz: float = 10.0
-    height: float = 0.50  # above the floor
+    height: float = 0.50  # above the floor: the mount's z
     enabled: bool = True  # off: no rays are cast, the cloud stays empty (for localizers that do not read it)
+    #: The rest of the mount pose in the robot's frame (the thesis's LiDAR: centred and level): position (m)
+    #: and roll, pitch, yaw (deg, applied as R = Rz(yaw) Ry(pitch) Rx(roll), as a URDF joint's rpy).
+    mount_x: float = 0.0
+    mount_y: float = 0.0
+    mount_roll_deg: float = 0.0
+    mount_pitch_deg: float = 0.0
+    mount_yaw_deg: float = 0.0
 
     @property
     def num_points(self) -> int:
         return self.layers * self.points_per_layer
+
+    @property
+    def mount(self) -> tuple[float, float, float, float, float, float]:
+        """(x, y, z, roll, pitch, yaw): m and deg, in the robot's frame, z above the floor."""
+        return (self.mount_x, self.mount_y, self.height, self.mount_roll_deg, self.mount_pitch_deg, self.mount_yaw_deg)
+
+    @property
+    def level(self) -> bool:
+        """True when the sensor's rays are a grid of azimuths and elevations in the robot's frame."""
+        return self.mount_roll_deg == 0.0 and self.mount_pitch_deg == 0.0
 
 
 @dataclass(frozen=True)
@@ -123,3 +140,25 @@ def noisy_ranges(
     ranges = np.clip(ranges, 0.0, max_range)
     ranges[~hit | (ranges < min_range)] = max_range
     return ranges
+
+
+def mount_rotation(config: Lidar3DConfig) -> np.ndarray:
+    """The 3D LiDAR's orientation in the robot's frame, ``Rz(yaw) Ry(pitch) Rx(roll)`` (3 x 3)."""
+    roll, pitch, yaw = np.radians([config.mount_roll_deg, config.mount_pitch_deg, config.mount_yaw_deg])
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    return rz @ ry @ rx
+
+
+def to_robot_frame(points: np.ndarray, config: Lidar3DConfig) -> np.ndarray:
+    """Sensor-frame points in the robot's frame at the sensor's height: turned by the mount's roll, pitch and
+    yaw and moved by its x and y, with z still measured from the sensor (as a level, centred sensor gives it,
+    and as the thesis's network reads it). The points themselves for the thesis's mount."""
+    if config.mount == (0.0, 0.0, config.height, 0.0, 0.0, 0.0):
+        return points
+    turned = points @ mount_rotation(config).T.astype(points.dtype)
+    turned[:, 0] += config.mount_x
+    turned[:, 1] += config.mount_y
+    return turned

@@ -34,6 +34,15 @@ class RayCaster(Protocol):
         ...
 
 
+class DirectionCaster(Protocol):
+    def cast_directions(
+        self, origin: np.ndarray, directions: np.ndarray, max_range: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Range and label of rays along unit ``directions`` (N, 3) in the map frame, shape (N,): for a
+        tilted sensor, whose rays are no grid of azimuths and elevations."""
+        ...
+
+
 def _directions(azimuths: np.ndarray, elevations: np.ndarray) -> np.ndarray:
     """Unit vectors (E, A, 3) of the rays; each sine and cosine taken once per angle, not once per ray."""
     cos_el, sin_el = np.cos(elevations)[:, None], np.sin(elevations)[:, None]
@@ -52,15 +61,18 @@ class BulletRayCaster:
         self.body_classes = body_classes
 
     def cast(self, origin, azimuths, elevations, max_range):
-        dirs = _directions(azimuths, elevations).reshape(-1, 3)
-        origins = np.broadcast_to(origin, dirs.shape)
-        fractions, bodies = cast_rays(self.client, origins, origins + dirs * max_range)
+        ranges, labels = self.cast_directions(origin, _directions(azimuths, elevations).reshape(-1, 3), max_range)
+        shape = (len(elevations), len(azimuths))
+        return ranges.reshape(shape), labels.reshape(shape)
+
+    def cast_directions(self, origin, directions, max_range):
+        origins = np.broadcast_to(origin, directions.shape)
+        fractions, bodies = cast_rays(self.client, origins, origins + directions * max_range)
         hit = bodies >= 0
         ranges = np.where(hit, fractions * max_range, np.inf)
         labels = np.full(len(bodies), -1, dtype=np.int8)
         labels[hit] = self.body_classes[bodies[hit]]
-        shape = (len(elevations), len(azimuths))
-        return ranges.reshape(shape), labels.reshape(shape)
+        return ranges, labels
 
 
 class PrismRayCaster:
@@ -178,17 +190,20 @@ class EmbreeRayCaster:
             self.labels[geometry] = semantic
 
     def cast(self, origin, azimuths, elevations, max_range):
+        ranges, labels = self.cast_directions(origin, _directions(azimuths, elevations).reshape(-1, 3), max_range)
+        shape = (len(elevations), len(azimuths))
+        return ranges.reshape(shape), labels.reshape(shape)
+
+    def cast_directions(self, origin, directions, max_range):
         import open3d as o3d
 
-        dirs = _directions(azimuths, elevations).reshape(-1, 3)
-        rays = np.empty((len(dirs), 6), dtype=np.float32)
+        rays = np.empty((len(directions), 6), dtype=np.float32)
         rays[:, :3] = origin
-        rays[:, 3:] = dirs
+        rays[:, 3:] = directions
         answer = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
         t_hit = answer["t_hit"].numpy()
         geometry = answer["geometry_ids"].numpy().astype(np.int64)
         hit = np.isfinite(t_hit) & (t_hit <= max_range)
         ranges = np.where(hit, t_hit.astype(float), np.inf)
         labels = np.where(hit, self.labels[np.clip(geometry, 0, len(self.labels) - 1)], -1).astype(np.int8)
-        shape = (len(elevations), len(azimuths))
-        return ranges.reshape(shape), labels.reshape(shape)
+        return ranges, labels
