@@ -28,6 +28,7 @@ SENSORS = typer.Option("thesis", help="LiDAR presets, comma-separated (thesis, h
 BACKEND = typer.Option("local", help="local (worker processes) or ray (a local Ray, or --address)")
 ADDRESS = typer.Option(None, help="a Ray cluster to join, e.g. ray://head:10001 or auto")
 WORKERS = typer.Option(0, help="worker processes or Ray CPUs (0: one per core)")
+MARKDOWN = typer.Option(False, "--markdown", help="Markdown tables headed by the command, commit and machine")
 
 
 def command(group: typer.Typer = app, name: str | None = None) -> Callable[[Callable[..., Any]], Any]:
@@ -204,7 +205,7 @@ def score(
 @command()
 def report(
     folder: Path = typer.Argument(..., help="a results folder of run, sweep or replay"),
-    markdown: bool = typer.Option(False, "--markdown", help="Markdown tables for the docs (default: text tables)"),
+    markdown: bool = MARKDOWN,
     thesis: bool = typer.Option(True, help="the thesis's rows beside PIMM's and AMCL's"),
 ) -> None:
     """Print a results folder's tables again, as text or as Markdown naming the command, commit and machine."""
@@ -235,14 +236,18 @@ def rollout(
 
 
 @command()
-def bench(json_out: bool = JSON, repeats: int = typer.Option(30, help="timed repetitions per figure")) -> None:
+def bench(
+    json_out: bool = JSON, markdown: bool = MARKDOWN, repeats: int = typer.Option(30, help="timed repetitions")
+) -> None:
     """Time each stage on this machine (medians, ms) and the real-time factor of an area_a rollout."""
     from pimm_agents.measurement.benchmark import run_benchmarks
+    from pimm_agents.results.markdown import bench_markdown
     from pimm_agents.results.provenance import machine
     from pimm_agents.results.tables import format_bench
 
     figures = run_benchmarks(repeats=repeats)
-    typer.echo(json.dumps(figures) if json_out else format_bench(figures, machine()))
+    text = bench_markdown(figures, _command_line()) if markdown else format_bench(figures, machine())
+    typer.echo(json.dumps(figures) if json_out else text)
 
 
 @command()
@@ -251,15 +256,18 @@ def perception(
     scans: int = typer.Option(50, min=1, help="fresh scans at random free poses"),
     seed: int = typer.Option(1, help="seed of the scan poses (keep it apart from training seeds)"),
     json_out: bool = JSON,
+    markdown: bool = MARKDOWN,
     figure: Path | None = typer.Option(None, help="also draw retrievals and the confusion matrix to this PNG"),
 ) -> None:
     """Measure perception on fresh scans no training or map used: segmentation IoU, fingerprint retrieval,
     and the corner detector on true and on predicted labels (parts whose trained files are missing are left out)."""
     from pimm_agents.measurement.perception_quality import measure_world
+    from pimm_agents.results.markdown import perception_markdown
     from pimm_agents.results.tables import format_perception
 
     result = measure_world(world, scans, seed, figure, warn=lambda text: typer.echo(text, err=True))
-    typer.echo(json.dumps(result) if json_out else format_perception(result))
+    text = perception_markdown(result, _command_line()) if markdown else format_perception(result)
+    typer.echo(json.dumps(result) if json_out else text)
 
 
 @command(world_app, "import")

@@ -1,5 +1,6 @@
 """A results folder as Markdown for the docs (``evaluate.py report RESULTS_DIR --markdown``): one table per
-scenario, headed by the command, commit and machine that made it, so a table in the docs says where it came from."""
+results folder, headed by the command, commit and machine that made it, so a table in the docs says where it
+came from."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pimm_agents.scoring.thesis import THESIS_RESULTS
+from pimm_agents.scoring.thesis import THESIS_IOU, THESIS_RESULTS, THESIS_RETRIEVAL
 from pimm_env.errors import MissingFileError, ResultsError
 
 COLUMNS = ("trials", "conv. rate %", "conv. time s", "pos. err m", "ang. err deg")
@@ -43,33 +44,32 @@ def _cell(value: float | None, fmt: str, scale: float = 1.0) -> str:
     return "-" if value is None else format(scale * value, fmt)
 
 
-def scenario_table(scenario: str, rows: dict[str, Any], thesis: bool = True) -> list[str]:
-    """``| localizer | trials | ... |`` for one scenario, with the thesis's row under each localizer it ran."""
-    lines = [f"| {scenario} | " + " | ".join(COLUMNS) + " |", "|---|" + "---:|" * len(COLUMNS)]
-    for name, row in rows.items():
-        cells = (
-            str(row["trials"]),
-            _cell(row["convergence_rate"], ".0f", 100),
-            _cell(row["convergence_time_s"], ".2f"),
-            _cell(row["position_error_m"], ".2f"),
-            _cell(row["angle_error_deg"], ".2f"),
-        )
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-        reference = THESIS_RESULTS.get(scenario, {}).get(name) if thesis else None
-        if reference is not None:
-            rate, t, pos, ang = reference
-            cells = ("10", _cell(rate, ".0f", 100), _cell(t, ".2f"), _cell(pos, ".2f"), _cell(ang, ".2f"))
-            lines.append(f"| *{name}, thesis* | " + " | ".join(cells) + " |")
+def results_table(scenarios: dict[str, dict[str, Any]], thesis: bool = True) -> list[str]:
+    """One Markdown table of every scenario and localizer, the thesis's row (italic) under each localizer it
+    ran."""
+    lines = ["| scenario | localizer | " + " | ".join(COLUMNS) + " |", "|---|---|" + "---:|" * len(COLUMNS)]
+    for scenario, rows in scenarios.items():
+        for k, (name, row) in enumerate(rows.items()):
+            cells = (
+                str(row["trials"]),
+                _cell(row["convergence_rate"], ".0f", 100),
+                _cell(row["convergence_time_s"], ".2f"),
+                _cell(row["position_error_m"], ".3f"),
+                _cell(row["angle_error_deg"], ".2f"),
+            )
+            lines.append(f"| {scenario if k == 0 else ''} | {name} | " + " | ".join(cells) + " |")
+            reference = THESIS_RESULTS.get(scenario, {}).get(name) if thesis else None
+            if reference is not None:
+                rate, t, pos, ang = reference
+                cells = ("10", _cell(rate, ".0f", 100), _cell(t, ".2f"), _cell(pos, ".3f"), _cell(ang, ".2f"))
+                lines.append(f"| | *{name}, thesis* | " + " | ".join(f"*{c}*" for c in cells) + " |")
     return lines
 
 
 def markdown_report(folder: Path, thesis: bool = True) -> str:
-    """The folder's tables as Markdown, one per scenario, after a line naming command, commit and machine."""
+    """The folder's results as one Markdown table, after a line naming the command, commit and machine."""
     summary = read_summary(folder)
-    lines = [provenance_line(summary), ""]
-    for scenario, rows in summary["scenarios"].items():
-        lines += [*scenario_table(scenario, rows, thesis), ""]
-    return "\n".join(lines).rstrip() + "\n"
+    return "\n".join([provenance_line(summary), "", *results_table(summary["scenarios"], thesis)]) + "\n"
 
 
 def text_report(folder: Path) -> str:
@@ -78,3 +78,50 @@ def text_report(folder: Path) -> str:
 
     summary = read_summary(folder)
     return f"{provenance_line(summary)}{format_tables(summary)}\n"
+
+
+def provenance_here(command: str) -> str:
+    """The provenance line for figures made now, in this process: ``command``, this checkout's commit, this
+    machine."""
+    from pimm_agents.results.provenance import machine, provenance
+
+    return provenance_line({"run": {"command": command}, **provenance(), "machine": machine()})
+
+
+def perception_markdown(report: dict[str, Any], command: str) -> str:
+    """``evaluate.py perception --markdown``: segmentation IoU, retrieval and corners as Markdown tables."""
+    lines = [provenance_here(command), ""]
+    if "segmentation" in report:
+        seg = report["segmentation"]
+        names = list(seg["iou"])
+        lines += ["| IoU | " + " | ".join(names) + " | mean |", "|---|" + "---:|" * (len(names) + 1)]
+        ours = " | ".join(f"{seg['iou'][n]:.3f}" for n in names)
+        thesis = " | ".join(f"*{THESIS_IOU[n]:.3f}*" for n in names)
+        lines.append(f"| ours | {ours} | **{seg['miou']:.3f}** |")
+        lines += [f"| *thesis, table 3.2* | {thesis} | *{THESIS_IOU['mean']:.2f}* |", ""]
+    if "retrieval" in report:
+        ret = report["retrieval"]
+        header = "| retrieval, k = 3 | queries | recall@3 < 2 m | mean m | mean-min m | mean-max m | thesis (k = 5) |"
+        lines += [header, "|---|---:|---:|---:|---:|---:|---|"]
+        for area, r in [*ret["per_area"].items(), ("total", ret)]:
+            reference = THESIS_RETRIEVAL.get(area)
+            lines.append(
+                f"| {area} | {r['queries']} | {r['recall_at_3_2m']:.2f} | {r['mean_error_m']:.2f} | "
+                f"{r['mean_min_error_m']:.2f} | {r['mean_max_error_m']:.2f} | "
+                + (" / ".join(f"{v:.2f}" for v in reference) if reference else "-")
+                + " |"
+            )
+        lines.append("")
+    lines += ["| corners, labels | precision | recall | median position error m | median orientation error ° |"]
+    lines.append("|---|---:|---:|---:|---:|")
+    for which, stats in report["corners"].items():
+        cells = [_cell(stats[k], f) for k, f in zip(stats, (".2f", ".2f", ".3f", ".2f"), strict=True)]
+        lines.append(f"| {which.replace('_labels', '')} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def bench_markdown(figures: dict[str, float], command: str) -> str:
+    """``evaluate.py bench --markdown``: every figure of one run as a Markdown table."""
+    lines = [provenance_here(command), "", "| figure | median |", "|---|---:|"]
+    lines += [f"| `{key}` | {value:.3f} |" for key, value in figures.items()]
+    return "\n".join(lines) + "\n"
