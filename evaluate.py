@@ -92,25 +92,18 @@ def run(
     walkers: int = typer.Option(0, min=0, help="people walking about (not in the maps)"),
     unmapped: int = typer.Option(0, min=0, help="pieces of furniture along the walls that the maps do not have"),
 ) -> None:
-    """Run localizers on scenarios: one simulation per trial feeds every localizer; trials in parallel. Prints
-    the thesis's tables and writes logs and figures; each trial is saved as it finishes (see --resume)."""
-    from pimm_agents.experiments.experiment import Execution, Experiment
-    from pimm_agents.experiments.frames import write_videos
-    from pimm_agents.experiments.run_plan import RunPlan, read_plan, resolve_localizers
+    """Run localizers on scenarios (one simulation per trial feeds them all) into a resumable results folder."""
+    from pimm_agents.experiments import Execution, Experiment, RunPlan, read_plan, resolve_localizers, write_videos
     from pimm_agents.results.tables import format_run
-    from pimm_env.mapping.derived_maps import ensure_derived_maps
-    from pimm_env.world.files import load_world
 
-    if from_file is not None:
-        plan = read_plan(from_file)
-    else:
+    plan = read_plan(from_file) if from_file else None
+    if plan is None:
         chosen = resolve_localizers(localizers, params, settings)
         plan = RunPlan(world, chosen, tuple(scenarios or ()), trials, seed, sensors, start, fault, walkers, unmapped)
-    experiment = Experiment.of_plan(plan, Execution(workers, backend, address, progress=not json_out))
-    maps = ensure_derived_maps(load_world(plan.world))
-    outcome = experiment.run(out, resume, maps, _command_line())
+    execution = Execution(workers, backend, address, progress=not json_out)
+    outcome = Experiment.of_plan(plan, execution).run(out, resume, _command_line())
     if video is not None:
-        write_videos(outcome.folder, outcome.results, video, maps, progress=not json_out)
+        write_videos(outcome, video, progress=not json_out)
     typer.echo(_json(outcome.summary, outcome.folder) if json_out else format_run(outcome))
 
 
@@ -125,16 +118,11 @@ def sweep(
     json_out: bool = JSON,
 ) -> None:
     """Run a grid (worlds x scenarios x localizers x settings x trials) into one results folder and one table."""
-    from pimm_agents.experiments.experiment import Execution, Experiment
-    from pimm_agents.experiments.sweep import read_sweep
+    from pimm_agents.experiments import Execution, Experiment, read_sweep
     from pimm_agents.results.tables import format_tables
-    from pimm_env.mapping.derived_maps import ensure_derived_maps
-    from pimm_env.world.files import load_world
 
-    study = read_sweep(spec)
-    experiment = Experiment.of_sweep(study, spec, Execution(workers, backend, address, progress=not json_out))
-    maps = ensure_derived_maps(load_world(study.worlds[0])) if len(study.worlds) == 1 else None
-    outcome = experiment.run(out, resume, maps, _command_line())
+    experiment = Experiment.of_sweep(read_sweep(spec), spec, Execution(workers, backend, address, not json_out))
+    outcome = experiment.run(out, resume, _command_line())
     text = f"{format_tables(outcome.summary)}\n\n{outcome.trials_run} trials in {outcome.wall_s} s"
     typer.echo(_json(outcome.summary, outcome.folder) if json_out else f"{text}; results: {outcome.folder}/")
 
@@ -191,8 +179,7 @@ def score(
     drop_uninitialised: bool = typer.Option(False, "--drop-uninitialised", help="drop leading (0, 0) estimates"),
     json_out: bool = JSON,
 ) -> None:
-    """The thesis's metrics from trial logs made anywhere (columns timestamp_real ... cov_theta), grouped by
-    scenario and localizer where the sidecars or file names say so; reports faults a recorded log may have."""
+    """The thesis's metrics from trial logs in its CSV format made anywhere, with the faults recorded logs carry."""
     from pimm_agents.results.scored_logs import fault_warnings, find_logs, group_summaries, score_log, score_record
     from pimm_agents.results.tables import format_scores
 
@@ -259,8 +246,7 @@ def perception(
     markdown: bool = MARKDOWN,
     figure: Path | None = typer.Option(None, help="also draw retrievals and the confusion matrix to this PNG"),
 ) -> None:
-    """Measure perception on fresh scans no training or map used: segmentation IoU, fingerprint retrieval,
-    and the corner detector on true and on predicted labels (parts whose trained files are missing are left out)."""
+    """Segmentation IoU, fingerprint retrieval and corner quality on fresh scans no training or map used."""
     from pimm_agents.measurement.perception_quality import measure_world
     from pimm_agents.results.markdown import perception_markdown
     from pimm_agents.results.tables import format_perception

@@ -39,8 +39,6 @@ def measure_building(
     from pimm_agents.experiments.experiment import Execution, Experiment
     from pimm_agents.experiments.run_plan import RunPlan, resolve_localizers
     from pimm_agents.measurement.perception_quality import measure_world
-    from pimm_env.mapping.derived_maps import ensure_derived_maps
-    from pimm_env.world.files import load_world
 
     out.mkdir(parents=True, exist_ok=True)
     cached = out / "perception.json"
@@ -52,7 +50,7 @@ def measure_building(
         cached.write_text(json.dumps(perception, indent=1))
     plan = RunPlan(str(world_file), resolve_localizers(localizers), trials=trials)
     experiment = Experiment.of_plan(plan, Execution(workers, progress=False))
-    outcome = experiment.run(out, resume=True, maps=ensure_derived_maps(load_world(str(world_file))))
+    outcome = experiment.run(out, resume=True)
     return {"perception": perception, "run": {**outcome.summary, "folder": str(outcome.folder)}}
 
 

@@ -56,6 +56,7 @@ class Outcome:
     trials_reused: int
     wall_s: float
     record: dict[str, Any] = field(default_factory=dict)
+    maps: Any = None  # the world's DerivedMaps when the experiment ran in one world, for figures and videos
 
 
 def new_folder(out: Path, kind: str) -> Path:
@@ -83,6 +84,7 @@ class Experiment:
         execution: Execution | None = None,
     ) -> None:
         self.specs = list(specs)
+        self.worlds = list(dict.fromkeys(spec.world for spec in self.specs))
         self.kind = kind
         self.record = record
         self.write_record = write_record
@@ -115,12 +117,17 @@ class Experiment:
 
         return cls(sweep_specs(sweep), "sweep", {"worlds": sweep.worlds}, write, execution)
 
-    def run(self, out: Path = Path("results"), resume: bool = False, maps: Any = None, command: str = "") -> Outcome:
-        """Run the trials the folder lacks, save each as it ends, and write the results folder. ``maps``
-        (``DerivedMaps``) gives the figures their map; without it they are left out. With ``resume``, the newest
-        folder of this kind under ``out`` is continued (a new one is made if there is none). ``command``, the
-        command line that asked for the run, is kept in the record."""
+    def run(self, out: Path = Path("results"), resume: bool = False, command: str = "") -> Outcome:
+        """Run the trials the folder lacks, save each as it ends, and write the results folder (its figures on
+        the world's map when all trials share one world). With ``resume``, the newest folder of this kind under
+        ``out`` is continued (a new one is made if there is none). ``command``, the command line that asked for
+        the run, is kept in the record."""
         from tqdm import tqdm
+
+        from pimm_env.mapping.derived_maps import ensure_derived_maps
+        from pimm_env.world.files import load_world
+
+        maps = ensure_derived_maps(load_world(self.worlds[0])) if len(self.worlds) == 1 else None
 
         earlier = latest_folder(out, self.kind) if resume else None
         folder = earlier or new_folder(out, self.kind)
@@ -152,4 +159,4 @@ class Experiment:
         occupancy = None if maps is None else maps.occupancy
         corners = None if maps is None else maps.corners.xy
         summary = write_results(folder, results, record, occupancy, corners)
-        return Outcome(folder, results, summary, len(todo), len(stored), made["wall_s"], record)
+        return Outcome(folder, results, summary, len(todo), len(stored), made["wall_s"], record, maps)

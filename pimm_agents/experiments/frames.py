@@ -8,9 +8,10 @@ from typing import Any
 
 import numpy as np
 
+from pimm_agents.experiments.experiment import Outcome
 from pimm_agents.experiments.runner import run_shared
 from pimm_agents.results.video import EVERY_SCANS, Frame
-from pimm_agents.scoring.trial import TrialResult, TrialSpec
+from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.errors import ExperimentError
 
 
@@ -49,9 +50,9 @@ def collect_frames(spec: TrialSpec, every: int = EVERY_SCANS, max_particles: int
     return frames
 
 
-def write_videos(folder: Path, results: Sequence[TrialResult], which: str, maps: Any, progress: bool = True) -> None:
-    """Simulate the chosen trials (``best``, ``worst`` or ``all``) of every scenario and localizer again and
-    write their animations under ``folder/videos``."""
+def write_videos(outcome: Outcome, which: str, progress: bool = True) -> None:
+    """Simulate the chosen trials (``best``, ``worst`` or ``all``) of every scenario and localizer of a finished
+    experiment again and write their animations under its folder's ``videos/``."""
     from tqdm import tqdm
 
     from pimm_agents.results.folder import file_safe
@@ -59,8 +60,9 @@ def write_videos(folder: Path, results: Sequence[TrialResult], which: str, maps:
     from pimm_agents.scoring.metrics import best_and_worst
     from pimm_agents.scoring.summaries import grouped
 
-    if which not in ("best", "worst", "all"):
-        raise ExperimentError(f"videos: expected best, worst or all, got {which!r}")
+    folder, results, maps = outcome.folder, outcome.results, outcome.maps
+    if which not in ("best", "worst", "all") or maps is None:
+        raise ExperimentError(f"videos: expected best, worst or all, of a run in one world; got {which!r}")
     jobs = []
     for (scenario, localizer), trials in grouped(results, [r.spec for r in results]).items():
         best, worst = best_and_worst([t.metrics for t in trials])

@@ -77,7 +77,7 @@ def text_report(folder: Path) -> str:
     from pimm_agents.results.tables import format_tables
 
     summary = read_summary(folder)
-    return f"{provenance_line(summary)}{format_tables(summary)}\n"
+    return f"{provenance_line(summary)}\n{format_tables(summary)}\n"
 
 
 def provenance_here(command: str) -> str:
