@@ -220,6 +220,7 @@ def heldout(
     import json
 
     from pimm_agents.preparation.prepare import prepare_world
+    from pimm_agents.results.markdown import provenance_here
     from training.buildings import DEVELOPMENT_SEEDS, HELD_OUT_SEEDS, write_building
     from training.heldout import building_row, format_table, measure_building, needs_preparing, summarize
 
@@ -247,7 +248,8 @@ def heldout(
         table = format_table({**rows, "all (mean; time: median)": summary}, localizers)
         record = {"trials_per_route": done, "seeds": chosen, "rows": rows, "summary": summary, "raw": results}
         (out / "heldout.json").write_text(json.dumps(record, indent=1))
-        (out / "heldout.md").write_text(f"{done} trial(s) per route, seeds {seeds}\n\n{table}\n")
+        made = provenance_here("python -m training " + shlex.join(sys.argv[1:]))
+        (out / "heldout.md").write_text(f"{made}\n\n{done} trial(s) per route, seeds {seeds}\n\n{table}\n")
         typer.echo(f"\n{done} trial(s) per route:\n{table}")
 
 
