@@ -58,19 +58,9 @@ def merge_params(base: Mapping[str, Any], extra: Mapping[str, Any]) -> Params:
 
 def read_params_file(path: Path) -> dict[str, Params]:
     """A params file: ``{localizer name: section}``; errors name the file and the section."""
-    import yaml
+    from pimm_env.yaml_file import read_yaml_mapping
 
-    path = Path(path)
-    if not path.is_file():
-        raise ParamsError(f"params file {path} does not exist")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as error:
-        raise ParamsError(f"{path}: not valid YAML: {error}") from None
-    if data is None:
-        return {}
-    if not isinstance(data, Mapping):
-        raise ParamsError(f"{path}: expected a mapping of localizer name -> settings, got {type(data).__name__}")
+    data = read_yaml_mapping(path, "params file", ParamsError, empty_ok=True)
     for name, section in data.items():
         if not isinstance(section, Mapping) and section is not None:
             raise ParamsError(f"{path}: section {name!r}: expected a mapping of settings, got {section!r}")

@@ -32,7 +32,7 @@ def test_a_bad_plan_names_the_file_and_the_field(tmp_path):
         ("world: iilab\nspeed: 3\n", "unknown field 'speed'"),
         ("trials: many\n", "trials: expected int"),
         ("localizers: {amcl: 5}\n", r"localizers.amcl: expected a mapping"),
-        ("- a list\n", "expected a mapping"),
+        ("- a list\n", "holds a mapping, got list"),
     ]:
         path.write_text(text)
         with pytest.raises(ExperimentError, match=message):

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from pimm_agents.scoring.trial import TrialSpec
-from pimm_env.errors import ExperimentError, MissingFileError
+from pimm_env.errors import ExperimentError
 
 #: The thesis's four scenarios, the main job's default on the iiLab world.
 THESIS_SCENARIOS = ("area_a", "area_b", "a_c_b", "a_c_b_kidnap")
@@ -111,17 +111,9 @@ class RunPlan:
 
 def read_plan(path: Path) -> RunPlan:
     """The plan in a ``run.yaml``; every problem names the file and the field."""
-    import yaml
+    from pimm_env.yaml_file import read_yaml_mapping
 
-    path = Path(path)
-    if not path.is_file():
-        raise MissingFileError(f"{path}: no such run record (a results folder's run.yaml)")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as error:
-        raise ExperimentError(f"{path}: not valid YAML: {error}") from None
-    if not isinstance(data, dict):
-        raise ExperimentError(f"{path}: expected a mapping of the run's fields")
+    data = read_yaml_mapping(path, "run record (a results folder's run.yaml)", ExperimentError)
     data.pop("made", None)
     valid = [f.name for f in fields(RunPlan)]
     unknown = sorted(set(data) - set(valid))

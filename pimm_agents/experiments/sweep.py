@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from pimm_agents.scoring.trial import TrialSpec
-from pimm_env.errors import ExperimentError, MissingFileError
+from pimm_env.errors import ExperimentError
 
 KEYS = ("worlds", "scenarios", "localizers", "grid", "trials", "seed", "sensors", "start")
 
@@ -45,17 +45,9 @@ class Sweep:
 
 def read_sweep(path: Path) -> Sweep:
     """The sweep in ``path``; every problem names the file and the field."""
-    import yaml
+    from pimm_env.yaml_file import read_yaml_mapping
 
-    path = Path(path)
-    if not path.is_file():
-        raise MissingFileError(f"{path}: no such sweep file")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as error:
-        raise ExperimentError(f"{path}: not valid YAML: {error}") from None
-    if not isinstance(data, dict):
-        raise ExperimentError(f"{path}: expected a mapping with {', '.join(KEYS)}")
+    data = read_yaml_mapping(path, "sweep file", ExperimentError)
     unknown = sorted(set(data) - set(KEYS))
     if unknown:
         raise ExperimentError(f"{path}: unknown key {unknown[0]!r}; valid keys: {', '.join(KEYS)}")

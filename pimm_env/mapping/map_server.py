@@ -66,17 +66,10 @@ def read_image(path: Path) -> np.ndarray:
 
 def read_ros_map(yaml_path: Path) -> RasterMap:
     """The map at ``yaml_path``; every problem names the file and the field."""
-    import yaml
+    from pimm_env.yaml_file import read_yaml_mapping
 
     yaml_path = Path(yaml_path)
-    if not yaml_path.is_file():
-        raise MapFileError(f"{yaml_path}: no such map file")
-    try:
-        meta = yaml.safe_load(yaml_path.read_text())
-    except yaml.YAMLError as error:
-        raise MapFileError(f"{yaml_path}: not valid YAML: {error}") from None
-    if not isinstance(meta, Mapping):
-        raise MapFileError(f"{yaml_path}: expected a map_server mapping (image, resolution, origin, ...)")
+    meta = read_yaml_mapping(yaml_path, "map_server map (image, resolution, origin, ...)", MapFileError)
     image_name = meta.get("image")
     if not isinstance(image_name, str) or not image_name:
         raise MapFileError(f"{yaml_path}: image: expected the image file's name, got {image_name!r}")
