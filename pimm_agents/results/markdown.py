@@ -57,7 +57,8 @@ def results_table(scenarios: dict[str, dict[str, Any]], thesis: bool = True) -> 
                 _cell(row["position_error_m"], ".3f"),
                 _cell(row["angle_error_deg"], ".2f"),
             )
-            lines.append(f"| {scenario if k == 0 else ''} | {name} | " + " | ".join(cells) + " |")
+            first = f" {scenario} " if k == 0 else " "
+            lines.append(f"|{first}| {name} | " + " | ".join(cells) + " |")
             reference = THESIS_RESULTS.get(scenario, {}).get(name) if thesis else None
             if reference is not None:
                 rate, t, pos, ang = reference
