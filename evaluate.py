@@ -185,7 +185,7 @@ def score(
 
     scored = [score_log(p, drop_repeated, drop_uninitialised) for p in find_logs(paths)]
     typer.echo(json.dumps(score_record(scored)) if json_out else format_scores(scored, group_summaries(scored)))
-    for warning in fault_warnings(scored, drop_repeated and drop_uninitialised):
+    for warning in [] if json_out else fault_warnings(scored, drop_repeated and drop_uninitialised):
         typer.echo(warning, err=True)
 
 

@@ -7,7 +7,7 @@ no longer reproduces its observations, and ``gym.make("pimm/IILab-v0")`` says to
 
 from gymnasium.envs.registration import register
 
-from pimm_env.envs.base_env import SimConfig
+from pimm_env.envs.sim_config import SimConfig
 from pimm_env.errors import PimmError
 from pimm_env.world.semantics import SemanticClass
 

@@ -14,7 +14,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pimm_agents import available_localizers, make_localizer
-from pimm_env.envs.base_env import SimConfig, observation_space
+from pimm_env.envs.base_env import SimConfig
+from pimm_env.envs.env_spaces import observation_space
 
 SPACE = observation_space(SimConfig())
 CLOUD_N = SPACE["cloud"].shape[0]

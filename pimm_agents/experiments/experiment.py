@@ -143,11 +143,12 @@ class Experiment:
 
             fresh = iter(run_trials(todo, ex.worker_count(len(todo)), done, ex.backend, ex.address))
         results = [stored[i] if i in stored else next(fresh) for i in range(len(self.specs))]
+        wall_s = round(time.perf_counter() - began, 1)
         repeat = f"python evaluate.py {'run --from' if self.kind == 'run' else 'sweep'} {folder}/"
         repeat += "run.yaml" if self.kind == "run" else "sweep.yaml"
-        made = {
+        made: dict[str, Any] = {
             "command": command or repeat,
-            "wall_s": round(time.perf_counter() - began, 1),
+            "wall_s": wall_s,
             "trials_run": len(todo),
             "trials_reused": len(stored),
             "workers": ex.worker_count(len(todo)),
@@ -159,4 +160,4 @@ class Experiment:
         occupancy = None if maps is None else maps.occupancy
         corners = None if maps is None else maps.corners.xy
         summary = write_results(folder, results, record, occupancy, corners)
-        return Outcome(folder, results, summary, len(todo), len(stored), made["wall_s"], record, maps)
+        return Outcome(folder, results, summary, len(todo), len(stored), wall_s, record, maps)

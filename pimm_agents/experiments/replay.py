@@ -25,7 +25,7 @@ def replay_bag(
     from pimm_agents.factory import make_localizer
     from pimm_env.bags.read import BagTopics, read_steps
     from pimm_env.bags.replay_env import BagEnv
-    from pimm_env.envs.base_env import SimConfig, with_sensors
+    from pimm_env.envs.sim_config import SimConfig, with_sensors
 
     if not specs:
         return [], True

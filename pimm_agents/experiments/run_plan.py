@@ -29,8 +29,6 @@ from typing import Any
 from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.errors import ExperimentError
 
-#: The thesis's four scenarios, the main job's default on the iiLab world.
-THESIS_SCENARIOS = ("area_a", "area_b", "a_c_b", "a_c_b_kidnap")
 STARTS = ("global", "known")
 
 

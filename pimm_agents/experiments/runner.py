@@ -49,7 +49,7 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
     start = time.perf_counter()
     world = load_world(first.world)  # read once, passed to everything below
     scenario = get_scenario(first.scenario, world)
-    from pimm_env.envs.base_env import with_sensors
+    from pimm_env.envs.sim_config import with_sensors
 
     localizers = [make_localizer(spec.localizer, world, params=spec.params, sensors=spec.sensors) for spec in specs]
     config = replace(with_sensors(SimConfig(), first.sensors), walkers=first.walkers, unmapped=first.unmapped)

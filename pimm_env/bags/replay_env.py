@@ -10,7 +10,8 @@ import gymnasium as gym
 import numpy as np
 
 from pimm_env.bags.read import Step
-from pimm_env.envs.base_env import SimConfig, action_space, observation_space
+from pimm_env.envs.base_env import SimConfig
+from pimm_env.envs.env_spaces import action_space, observation_space
 from pimm_env.errors import BagError
 
 

@@ -5,20 +5,18 @@ Concrete environments (see :mod:`pimm_env.envs.iilab_env`) choose the world and 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from scipy import ndimage
 
+from pimm_env.envs.env_spaces import MAX_ODOM, action_space, observation_space
+from pimm_env.envs.sim_config import RAY_CASTERS, SimConfig
 from pimm_env.errors import EnvError, WorldError
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.derived_maps import DerivedMaps, load_derived_maps
 from pimm_env.sim.lidar import (
-    Lidar2DConfig,
-    Lidar3DConfig,
     azimuths_3d,
     beam_bearings_2d,
     directions_3d,
@@ -27,77 +25,12 @@ from pimm_env.sim.lidar import (
     noisy_ranges,
 )
 from pimm_env.sim.raycast import BulletRayCaster, EmbreeRayCaster, PrismRayCaster, RayCaster
-from pimm_env.sim.robot import DiffDriveRobot, RobotConfig
+from pimm_env.sim.robot import DiffDriveRobot
 from pimm_env.sim.scene import BulletScene
 from pimm_env.world.files import World, load_world
 from pimm_env.world.semantics import SemanticClass
 
-MAX_TIME = 1.0e6  # s; bound of the time fields of the observation
-MAX_ODOM = 1.0e4  # m; bound of the odometry position
 RESET_OPTIONS = frozenset({"pose", "kidnap"})
-RAY_CASTERS = ("auto", "prism", "embree", "bullet")
-
-
-@dataclass(frozen=True)
-class SimConfig:
-    """Everything that defines a simulation besides the world."""
-
-    robot: RobotConfig = field(default_factory=RobotConfig)
-    lidar3d: Lidar3DConfig = field(default_factory=Lidar3DConfig)
-    lidar2d: Lidar2DConfig = field(default_factory=Lidar2DConfig)
-    start_clearance: float = 0.15  # extra free space around random start poses (m)
-    #: "auto" (= "embree": Open3D's Embree scene, any world, 3-4 ms per 3D scan whatever the element count),
-    #: "prism" (exact, boxes and cylinders only, its cost grows with the elements) or "bullet" (slowest)
-    ray_caster: str = "auto"
-    #: people walking about and furniture that the derived maps do not have (``sim/movers.py``), drawn per
-    #: episode from the reset's seed; seen by both LiDARs as clutter, reported in ``info``
-    walkers: int = 0
-    unmapped: int = 0
-
-
-def with_sensors(config: SimConfig, spec: str | None) -> SimConfig:
-    """``config`` with the LiDARs that ``spec`` names (``sim/sensors.py``'s presets; their ``enabled`` flags
-    kept)."""
-    from pimm_env.sim.sensors import sensor_layouts
-
-    lidar3d, lidar2d = sensor_layouts(spec)
-    return replace(
-        config,
-        lidar3d=replace(lidar3d, enabled=config.lidar3d.enabled),
-        lidar2d=replace(lidar2d, enabled=config.lidar2d.enabled),
-    )
-
-
-def action_space(config: SimConfig) -> spaces.Box:
-    """``cmd_vel``: linear and angular velocity (m/s, rad/s) within the robot's limits."""
-    r = config.robot
-    return spaces.Box(
-        low=np.array([-r.max_linear, -r.max_angular], dtype=np.float32),
-        high=np.array([r.max_linear, r.max_angular], dtype=np.float32),
-        dtype=np.float32,
-    )
-
-
-def observation_space(config: SimConfig) -> spaces.Dict:
-    """The observation's keys and fixed shapes for these LiDARs (ARCHITECTURE.md's contract)."""
-    l3, l2 = config.lidar3d, config.lidar2d
-    n = l3.num_points
-    time_box = spaces.Box(low=np.float64(0.0), high=np.float64(MAX_TIME), shape=(1,), dtype=np.float64)
-    return spaces.Dict(
-        {
-            "odom": spaces.Box(
-                low=np.array([-MAX_ODOM, -MAX_ODOM, -np.pi], dtype=np.float32),
-                high=np.array([MAX_ODOM, MAX_ODOM, np.pi], dtype=np.float32),
-                dtype=np.float32,
-            ),
-            "cloud": spaces.Box(np.float32(-l3.max_range), np.float32(l3.max_range), (n, 3), np.float32),
-            "cloud_mask": spaces.MultiBinary(n),
-            "scan": spaces.Box(np.float32(0.0), np.float32(l2.max_range), (l2.beams,), np.float32),
-            "time": time_box,
-            "cloud_time": time_box,
-            "scan_time": time_box,
-        }
-    )
 
 
 class LidarRobotEnv(gym.Env):
@@ -273,8 +206,9 @@ class LidarRobotEnv(gym.Env):
         )
 
     def close(self) -> None:
-        if getattr(self, "scene", None) is not None:
-            self.scene.close()
+        scene = getattr(self, "scene", None)  # close() may run on an env whose __init__ failed
+        if scene is not None:
+            scene.close()
 
     # ------------------------------------------------------------------ hooks for concrete envs
     def _reward(self, info: dict[str, Any]) -> float:

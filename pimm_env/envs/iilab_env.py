@@ -7,7 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.envs.base_env import LidarRobotEnv, SimConfig, with_sensors
+from pimm_env.envs.base_env import LidarRobotEnv
+from pimm_env.envs.sim_config import SimConfig, with_sensors
 from pimm_env.errors import EnvError
 from pimm_env.world.files import World
 
