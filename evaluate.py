@@ -33,23 +33,19 @@ MARKDOWN = typer.Option(False, "--markdown", help="Markdown tables headed by the
 
 def command(group: typer.Typer = app, name: str | None = None) -> Callable[[Callable[..., Any]], Any]:
     """Register a command that reports a PimmError (which names the file, field or value) as one line, exit 1."""
+    return lambda fn: group.command(name)(functools.wraps(fn)(functools.partial(_reporting_errors, fn)))
 
-    def register(fn: Callable[..., Any]) -> Callable[..., Any]:
-        @functools.wraps(fn)
-        def wrapped(*args: Any, **kwargs: Any) -> Any:
-            from pimm_env.errors import PimmError
 
-            try:
-                return fn(*args, **kwargs)
-            except PimmError as error:
-                if os.environ.get("PIMM_DEBUG"):
-                    raise
-                typer.echo(f"error: {error}", err=True)
-                raise typer.Exit(1) from None
+def _reporting_errors(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    from pimm_env.errors import PimmError
 
-        return group.command(name)(wrapped)
-
-    return register
+    try:
+        return fn(*args, **kwargs)
+    except PimmError as error:
+        if os.environ.get("PIMM_DEBUG"):
+            raise
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(1) from None
 
 
 def _json(record: dict[str, Any], folder: Path) -> str:
