@@ -59,10 +59,10 @@ def _command_line() -> str:
 @app.callback(invoke_without_command=True)
 def main(ctx: typer.Context) -> None:
     """With no command: the main job, 3 trials of every scenario with every localizer on the default world."""
+    from pimm_agents.experiments import Execution, RunPlan, resolve_localizers
+
     if ctx.invoked_subcommand is None:
-        run(from_file=None, scenarios=None, localizers=None, trials=3, seed=0, world="iilab", out=Path("results"),
-            workers=0, params=None, settings=[], json_out=False, resume=False, video=None, sensors="thesis",
-            start="global", backend="local", address=None, fault="", walkers=0, unmapped=0)  # fmt: skip
+        _run_plan(RunPlan(localizers=resolve_localizers(None), trials=3), Execution(), Path("results"))
 
 
 @command()
@@ -89,18 +89,24 @@ def run(
     unmapped: int = typer.Option(0, min=0, help="pieces of furniture along the walls that the maps do not have"),
 ) -> None:
     """Run localizers on scenarios (one simulation per trial feeds them all) into a resumable results folder."""
-    from pimm_agents.experiments import Execution, Experiment, RunPlan, read_plan, resolve_localizers, write_videos
-    from pimm_agents.results.tables import format_run
+    from pimm_agents.experiments import Execution, RunPlan, read_plan, resolve_localizers
 
     plan = read_plan(from_file) if from_file else None
     if plan is None:
         chosen = resolve_localizers(localizers, params, settings)
         plan = RunPlan(world, chosen, tuple(scenarios or ()), trials, seed, sensors, start, fault, walkers, unmapped)
-    execution = Execution(workers, backend, address, progress=not json_out)
+    _run_plan(plan, Execution(workers, backend, address, progress=not json_out), out, resume, video)
+
+
+def _run_plan(plan: Any, execution: Any, out: Path, resume: bool = False, video: str | None = None) -> None:
+    """Run ``plan`` (``run`` and the main job); print its tables, or its JSON when there is no progress bar."""
+    from pimm_agents.experiments import Experiment, write_videos
+    from pimm_agents.results.tables import format_run
+
     outcome = Experiment.of_plan(plan, execution).run(out, resume, _command_line())
     if video is not None:
-        write_videos(outcome, video, progress=not json_out)
-    typer.echo(_json(outcome.summary, outcome.folder) if json_out else format_run(outcome))
+        write_videos(outcome, video, progress=execution.progress)
+    typer.echo(format_run(outcome) if execution.progress else _json(outcome.summary, outcome.folder))
 
 
 @command()
