@@ -45,7 +45,7 @@ def test_bad_values_name_the_key_and_shape():
         guard.check(_obs(0.0, [0.0, 0.0]), ("odom",))
     with pytest.raises(ObservationError, match="observation has no 'cloud_time'"):
         guard.check(_obs(0.0, [0, 0, 0]), ("cloud_time",))
-    # a transposed cloud is named as such, not reported as a wrong mask (issue 18)
+    # a transposed cloud is named as such, not reported as a wrong mask
     transposed = {"cloud": np.zeros((3, 14400), np.float32), "cloud_mask": np.ones(14400, np.int8)}
     with pytest.raises(ValueError, match=r"observation 'cloud' has shape \(3, 14400\), expected \(N, 3\) points"):
         guard.cloud(transposed)

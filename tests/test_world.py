@@ -50,7 +50,7 @@ def test_room_world_from_file(room_file):
         ({"box": {"min": [0, 0, 0], "max": [1, 0, 1]}}, "elements[0] (w).box.max", "min [0.0, 0.0, 0.0]"),
         ({"box": {"min": [0, 0], "max": [1, 1, 1]}}, "elements[0] (w).box.min", "[0, 0]"),
         ({"occupancy": "yes"}, "elements[0] (w).occupancy", "'yes'"),
-        ({"colour": "red"}, "elements[0] (w).colour", "unknown key"),  # issue 18: was silently ignored
+        ({"colour": "red"}, "elements[0] (w).colour", "unknown key"),  # once silently ignored
         (
             {"cylinder": {"center": [0, 0], "radius": -1, "z": [0, 1]}, "box": None},
             "elements[0] (w).cylinder.radius",

@@ -24,7 +24,7 @@ import numpy as np
 
 #: Buildings the shipped network is trained on (with the iilab).
 TRAINING_SEEDS = tuple(range(100, 130))
-#: Buildings no training used, but whose routes were traced while the filter was tuned (session 3, 2026-11-23):
+#: Buildings no training used, but whose routes were traced while the filter was tuned:
 #: for diagnosis, not for the generalization figures.
 DEVELOPMENT_SEEDS = tuple(range(900, 910))
 #: Buildings no training, tuning or fingerprint choice may use or look at: the generalization benchmark

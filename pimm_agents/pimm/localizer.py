@@ -34,7 +34,7 @@ from pimm_env.world.semantics import SemanticClass
 
 @dataclass(frozen=True)
 class WallFieldConfig:
-    """Ours (round two; not in the thesis): the wall points of each scan, as the network labels them,
+    """Ours (not in the thesis): the wall points of each scan, as the network labels them,
     scored against the occupancy map with a likelihood field on nav2's defaults. Corners are rare in
     corridors and in small rooms seen from a few metres; the walls are always there, and without clutter
     (the network takes it out) they fit the map. Applied once per scan. ``enabled: false`` gives the

@@ -34,7 +34,7 @@ LIDAR_2D: dict[str, Lidar2DConfig] = {
 }
 LIDAR_3D: dict[str, Lidar3DConfig] = {
     "thesis": Lidar3DConfig(),
-    # Ouster OS0-64: 64 rings over 90 deg (+-45), 1024 columns, 35 m (as issue 16 gives it), 10 Hz.
+    # Ouster OS0-64: 64 rings over 90 deg (+-45), 1024 columns, 35 m, 10 Hz.
     "os0-64": Lidar3DConfig(layers=64, points_per_layer=1024, vertical_fov_deg=90.0, max_range=35.0),
     # Velodyne VLP-16: 16 rings over 30 deg (+-15), 0.2 deg at 10 Hz (1 800 columns), 100 m.
     "vlp-16": Lidar3DConfig(layers=16, points_per_layer=1800, vertical_fov_deg=30.0, max_range=100.0),
