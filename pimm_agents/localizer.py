@@ -12,11 +12,28 @@ from pimm_env.errors import LocalizerError, ObservationError
 Observation = dict[str, np.ndarray]
 
 
+#: What a localizer says of its own estimate: it does not know where it is, it holds several places that fit
+#: alike, or it holds one. A localizer that reports no status counts as ``localized`` whenever it gives a pose.
+STATUSES = ("lost", "ambiguous", "localized")
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One mode of a localizer's belief: a pose in the map frame, its share of the belief and its covariance."""
+
+    x: float
+    y: float
+    theta: float
+    weight: float
+    covariance: np.ndarray
+
+
 @dataclass(frozen=True)
 class PoseEstimate:
     """A pose in the map frame with its 3 x 3 covariance (x, y, theta) and per-stage timings in ms.
 
-    ``stamp`` is the sim time of the observation the estimate was made from.
+    ``stamp`` is the sim time of the observation the estimate was made from. ``status`` is one of ``STATUSES``;
+    ``hypotheses`` are the belief's best modes, heaviest first (empty for a localizer that keeps none).
     """
 
     x: float
@@ -25,6 +42,8 @@ class PoseEstimate:
     covariance: np.ndarray
     stamp: float = 0.0
     timings: dict[str, float] = field(default_factory=dict)
+    status: str = "localized"
+    hypotheses: tuple[Hypothesis, ...] = ()
 
     def __post_init__(self) -> None:
         values = np.array([self.x, self.y, self.theta])
@@ -32,6 +51,8 @@ class PoseEstimate:
             raise LocalizerError(f"pose estimate is not finite: {values}")
         if np.shape(self.covariance) != (3, 3):
             raise LocalizerError(f"covariance must be 3 x 3, got shape {np.shape(self.covariance)}")
+        if self.status not in STATUSES:
+            raise LocalizerError(f"status {self.status!r}: expected one of {', '.join(STATUSES)}")
 
     @property
     def pose(self) -> np.ndarray:

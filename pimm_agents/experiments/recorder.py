@@ -7,7 +7,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from pimm_agents.localizer import Localizer
+from pimm_agents.localizer import STATUSES, Localizer
 from pimm_agents.scoring.trial_log import TrialLog
 from pimm_env.errors import ExperimentError
 
@@ -30,7 +30,7 @@ class LocalizationRecorder(gym.Wrapper):
             raise ExperimentError(f"start must be one of {STARTS}, got {start!r}")
         self.localizer = localizer
         self.start = start
-        self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray, float, int]] = []
         self._timings: list[dict[str, float]] = []
         self._kidnap_rows: list[int] = []  # the first row after each kidnap; metrics count from the last
         self._corners: list[np.ndarray] = []  # (k, 3): row, x, y
@@ -69,15 +69,19 @@ class LocalizationRecorder(gym.Wrapper):
                 row = np.full((len(corners), 1), float(len(self._rows) if record else max(len(self._rows) - 1, 0)))
                 self._corners.append(np.hstack([row, np.asarray(corners, dtype=float)[:, :2]]))
         if record:
-            cov = np.diag(np.asarray(estimate.covariance, dtype=float))
+            covariance = np.asarray(estimate.covariance, dtype=float)
             time = float(np.asarray(obs["time"]).reshape(-1)[0])
-            self._rows.append((time, float(estimate.stamp), np.asarray(info["true_pose"], float), estimate.pose, cov))
+            true = np.asarray(info["true_pose"], float)
+            status = STATUSES.index(estimate.status)
+            self._rows.append(
+                (time, float(estimate.stamp), true, estimate.pose, np.diag(covariance), covariance[0, 1], status)
+            )
 
     def trial_log(self) -> TrialLog:
         if not self._rows:
             empty = np.zeros((0, 3))
             return TrialLog(np.zeros(0), np.zeros(0), empty, empty, empty, None, [])
-        times, stamps, true, est, cov = zip(*self._rows, strict=True)
+        times, stamps, true, est, cov, cov_xy, status = zip(*self._rows, strict=True)
         return TrialLog(
             np.array(times),
             np.array(stamps),
@@ -88,4 +92,6 @@ class LocalizationRecorder(gym.Wrapper):
             list(self._timings),
             np.vstack(self._corners) if self._corners else np.zeros((0, 3)),
             tuple(self._kidnap_rows),
+            np.array(status, dtype=np.int8),
+            np.array(cov_xy),
         )

@@ -91,6 +91,8 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
             cov=log.cov,
             timings=timings,
             corners=log.corners,
+            status=np.asarray(log.status, dtype=np.int8),
+            cov_xy=np.asarray(log.cov_xy, dtype=float),
         )
     os.replace(partial, target)
     return target
@@ -115,6 +117,8 @@ def load_trial(path: Path) -> TrialResult:
                 timings,
                 data["corners"] if "corners" in data.files else np.zeros((0, 3)),
                 tuple(meta.get("kidnap_rows", ())),  # older files: TrialLog derives it from kidnap_index
+                data["status"] if "status" in data.files else None,  # older files: always localized
+                data["cov_xy"] if "cov_xy" in data.files else None,
             )
         spec = TrialSpec(**meta["spec"])
     except (OSError, KeyError, ValueError, TypeError) as error:

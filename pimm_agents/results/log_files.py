@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from pimm_agents.localizer import STATUSES
 from pimm_agents.scoring.trial import TrialResult
 from pimm_agents.scoring.trial_log import TrialLog
 from pimm_env.errors import MissingFileError, ResultsError
@@ -92,8 +93,9 @@ def read_sidecar(csv_path: Path) -> dict[str, Any]:
 
 
 def write_sidecar(path: Path, result: TrialResult) -> Path:
-    """What a trial's CSV holds, beside it: scenario, localizer, trial, seed, world, and the first row after
-    the kidnap (the thesis's 11 columns stay as they are, so the thesis's tools still read the CSV)."""
+    """What a trial's CSV holds, beside it: scenario, localizer, trial, seed, world, the first row after the
+    kidnap, and the localizer's status as ``[first row, status]`` wherever it changed (the thesis's 11 columns
+    stay as they are, so the thesis's tools still read the CSV)."""
     s = result.spec
     record = {
         "scenario": s.case,
@@ -105,6 +107,7 @@ def write_sidecar(path: Path, result: TrialResult) -> Path:
         "kidnap_row": result.log.kidnap_index,
         "kidnap_rows": list(result.log.kidnap_rows),
         "rows": len(result.log),
+        "status": status_changes(np.asarray(result.log.status)),
     }
     Path(path).write_text(json.dumps(record, indent=1))
     return Path(path)
@@ -118,3 +121,19 @@ def write_csv(log: TrialLog, path: Path) -> Path:
         writer.writerow(CSV_COLUMNS)
         writer.writerows([[f"{v:.6f}" for v in row] for row in table])
     return Path(path)
+
+
+def status_changes(status: np.ndarray) -> list[list[int | str]]:
+    """``[row, status name]`` at the first row and wherever the status changes."""
+    rows = np.flatnonzero(np.concatenate([[True], status[1:] != status[:-1]])) if len(status) else []
+    return [[int(row), STATUSES[int(status[row])]] for row in rows]
+
+
+def status_rows(changes: list[Any], rows: int, where: Path) -> np.ndarray:
+    """Per-row status codes from a sidecar's ``status`` changes; errors name the sidecar."""
+    status = np.full(rows, STATUSES.index("localized"), dtype=np.int8)
+    for k, change in enumerate(changes):
+        if not (isinstance(change, list) and len(change) == 2 and change[1] in STATUSES and 0 <= change[0] < rows):
+            raise ResultsError(f"{where}: status[{k}]: expected [row < {rows}, one of {STATUSES}], got {change!r}")
+        status[int(change[0]) :] = STATUSES.index(change[1])
+    return status

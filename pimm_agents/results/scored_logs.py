@@ -21,9 +21,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pimm_agents.results.log_files import read_csv, read_sidecar
+from pimm_agents.results.log_files import read_csv, read_sidecar, status_rows
+from pimm_agents.scoring.honesty import HonestyMetrics, honesty_metrics
 from pimm_agents.scoring.log_faults import LogFaults, cleaned, faults_of
 from pimm_agents.scoring.metrics import TrialMetrics, summarize, trial_metrics
+from pimm_agents.scoring.summaries import honesty_summary
 from pimm_agents.scoring.trial_log import TrialLog
 from pimm_env.errors import MissingFileError, ResultsError
 
@@ -67,6 +69,8 @@ def score_log(path: Path, drop_repeated: bool = False, drop_uninitialised: bool 
             raise ResultsError(f"{Path(path).with_suffix('.json')}: kidnap_row {sidecar['kidnap_row']} is past the "
                              f"log's {len(log)} rows")  # fmt: skip
         log.kidnap_index = int(sidecar["kidnap_row"])
+    if sidecar.get("status"):
+        log.status = status_rows(sidecar["status"], len(log), Path(path).with_suffix(".json"))
     faults = faults_of(log)
     try:
         log = cleaned(log, drop_repeated, drop_uninitialised)
@@ -81,16 +85,27 @@ def score_log(path: Path, drop_repeated: bool = False, drop_uninitialised: bool 
 
 
 def group_summaries(scored: list[ScoredLog]) -> dict[str, dict[str, Any]]:
-    """The thesis's summary per group, in order of first appearance."""
-    groups: dict[str, list[TrialMetrics]] = {}
+    """The thesis's summary per group, in order of first appearance, with the honesty metrics beside it (a log
+    whose sidecar gives no status counts as localized throughout)."""
+    groups: dict[str, list[ScoredLog]] = {}
     for item in scored:
-        groups.setdefault(item.group, []).append(item.metrics)
-    return {name: summarize(metrics) for name, metrics in groups.items()}
+        groups.setdefault(item.group, []).append(item)
+    return {
+        name: {**summarize([i.metrics for i in items]), **honesty_summary([honesty_of(i) for i in items])}
+        for name, items in groups.items()
+    }
+
+
+def honesty_of(item: ScoredLog) -> HonestyMetrics:
+    return honesty_metrics(item.log.after_kidnap(), item.metrics.convergence_time_s)
 
 
 def score_record(scored: list[ScoredLog]) -> dict[str, Any]:
     """``evaluate.py score --json``: every log's metrics, group and faults, and the groups' summaries."""
-    trials = {str(s.path): {**vars(s.metrics), "group": s.group, "faults": vars(s.faults)} for s in scored}
+    trials = {
+        str(s.path): {**vars(s.metrics), **vars(honesty_of(s)), "group": s.group, "faults": vars(s.faults)}
+        for s in scored
+    }
     return {"trials": trials, "groups": group_summaries(scored)}
 
 

@@ -158,7 +158,7 @@ def format_run(outcome: Any) -> str:
     reused = f" ({outcome.trials_reused} more from the earlier run)" if outcome.trials_reused else ""
     return (
         f"start: {'the true pose, nav2 initial covariance' if known else 'global (pose unknown)'}"
-        f"{format_tables(summary)}\n{format_timings(summary)}\n\n"
+        f"{format_tables(summary)}\n{format_honesty(summary)}\n{format_timings(summary)}\n\n"
         f"{outcome.trials_run} trials in {outcome.wall_s} s{reused}; results: {outcome.folder}/"
     )
 
@@ -175,3 +175,25 @@ def format_replay(replay: Any, truth_topic: str) -> str:
     if not replay.has_truth:
         return f"no {truth_topic} in the bag: estimates only, in {replay.folder}/tum/<localizer>/est.tum"
     return f"{format_tables(replay.summary)}\n\nresults: {replay.folder}/"
+
+
+def format_honesty(summary: dict[str, Any]) -> str:
+    """Does each localizer know when it is right: time to a right ``localized``, time ``localized`` while wrong
+    (mean per trial, share of all localized time, longest spell, trials with none) and covariance consistency."""
+    w = _name_width((name for rows in summary["scenarios"].values() for name in rows), 16)
+    head = f"{'loc. time s':>12}{'false loc. s':>13}{'false %':>9}{'longest s':>10}{'none %':>8}{'3-sigma %':>10}"
+    lines = [f"\n  {'knowing when it is right':<{w}}{head}"]
+    for scenario, by_localizer in summary["scenarios"].items():
+        lines.append(f"  {scenario}")
+        for name, row in by_localizer.items():
+            lines.append(
+                f"  {'  ' + name:<{w}}{_cell(row.get('time_to_localized_s'), '.2f'):>12}"
+                f"{_cell(row.get('false_localized_s'), '.2f'):>13}{_percent(row.get('false_localized_rate')):>9}"
+                f"{_cell(row.get('max_false_localized_s'), '.2f'):>10}{_percent(row.get('false_free_share')):>8}"
+                f"{_percent(row.get('within_3sigma')):>10}"
+            )
+    return "\n".join(lines)
+
+
+def _percent(value: float | None) -> str:
+    return "-" if value is None else f"{100 * value:.0f}"

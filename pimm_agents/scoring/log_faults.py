@@ -59,8 +59,9 @@ def _rows(log: TrialLog, keep: np.ndarray) -> TrialLog:
     if log.kidnap_index is not None:
         kidnap = int(np.count_nonzero(keep[: log.kidnap_index]))
     timings = [t for t, k in zip(log.timings, keep, strict=False) if k] if len(log.timings) == len(keep) else []
+    status, cov_xy = np.asarray(log.status)[keep], np.asarray(log.cov_xy)[keep]
     return TrialLog(log.time[keep], log.estimate_time[keep], log.true[keep], log.estimate[keep], log.cov[keep],
-                    kidnap, timings)  # fmt: skip
+                    kidnap, timings, status=status, cov_xy=cov_xy)  # fmt: skip
 
 
 def cleaned(log: TrialLog, drop_repeated: bool = False, drop_uninitialised: bool = False) -> TrialLog:

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from dataclasses import asdict
 from typing import Any, TypeVar
 
 import numpy as np
 
+from pimm_agents.scoring.honesty import HonestyMetrics, honesty_metrics
 from pimm_agents.scoring.metrics import kidnap_recoveries, summarize, timing_summary
 from pimm_agents.scoring.trial import TrialResult, TrialSpec
 
@@ -33,6 +35,9 @@ def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] 
         entry["timings_ms"] = timing_summary([timing for t in trials for timing in t.log.timings])
         rows = [_trial_row(results[i], errors[i] if errors else None) for i in indices]
         entry["per_trial"] = rows
+        entry.update(
+            honesty_summary([honesty_metrics(t.log.after_kidnap(), t.metrics.convergence_time_s) for t in trials])
+        )
         entry["spread"] = _spread(rows)
         for kind in ("ape", "rpe"):
             stats = [r[kind] for r in rows if r.get(kind)]
@@ -52,6 +57,7 @@ def _trial_row(result: TrialResult, errors: dict[str, Any] | None) -> dict[str, 
         "angle_error_deg": m.angle_error_deg,
         "completed": result.completed,
         "wall_s": round(result.wall_s, 2),
+        **asdict(honesty_metrics(result.log.after_kidnap(), m.convergence_time_s)),
     }
     if len(result.log.kidnap_rows) > 1:  # a fault run's kidnaps: how long each took to recover from
         row["kidnap_recoveries_s"] = kidnap_recoveries(result.log)
@@ -70,3 +76,25 @@ def _spread(rows: list[dict[str, Any]]) -> dict[str, dict[str, float] | None]:
             else None
         )
     return out
+
+
+def honesty_summary(trials: list[HonestyMetrics]) -> dict[str, float | None]:
+    """Over a scenario's trials: the median time to localized (of the trials that got there), the mean and
+    longest false-localized time, the false-localized rate over all localized time, the share of trials with no
+    false-localized time at all, and the mean 3-sigma share and NEES."""
+
+    def finite(values: list[float | None]) -> list[float]:
+        return [v for v in values if v is not None and np.isfinite(v)]
+
+    times = finite([t.time_to_localized_s for t in trials])
+    localized = sum(t.localized_s for t in trials)
+    within, nees = finite([t.within_3sigma for t in trials]), finite([t.nees for t in trials])
+    return {
+        "time_to_localized_s": float(np.median(times)) if times else None,
+        "false_localized_s": float(np.mean([t.false_localized_s for t in trials])) if trials else None,
+        "false_localized_rate": sum(t.false_localized_s for t in trials) / localized if localized > 0 else None,
+        "max_false_localized_s": max((t.max_false_localized_s for t in trials), default=None),
+        "false_free_share": float(np.mean([t.false_localized_s == 0 for t in trials])) if trials else None,
+        "within_3sigma": float(np.mean(within)) if within else None,
+        "nees": float(np.median(nees)) if nees else None,
+    }

@@ -6,13 +6,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pimm_agents.localizer import STATUSES
+
 
 @dataclass
 class TrialLog:
     """Row i: sim time ``time[i]``, true pose ``true[i]``, estimate ``estimate[i]`` made at ``estimate_time[i]``
-    with covariance diagonal ``cov[i]``. ``kidnap_index`` is the first row after the last kidnap, if there was
-    one (the metrics count from it); ``kidnap_rows`` the first row after each kidnap (a fault run may have
-    several)."""
+    with covariance diagonal ``cov[i]`` and x-y covariance ``cov_xy[i]``, and the localizer's ``status[i]`` (an
+    index into ``localizer.STATUSES``; a log without them reads as uncorrelated and always localized).
+    ``kidnap_index`` is the first row after the last kidnap, if there was one (the metrics count from it);
+    ``kidnap_rows`` the first row after each kidnap (a fault run may have several)."""
 
     time: np.ndarray
     estimate_time: np.ndarray
@@ -25,10 +28,21 @@ class TrialLog:
     #: (for figures; empty for localizers that detect none)
     corners: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False)
     kidnap_rows: tuple[int, ...] = ()
+    status: np.ndarray | None = None
+    cov_xy: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.kidnap_index is not None and not self.kidnap_rows:
             self.kidnap_rows = (self.kidnap_index,)
+        if self.status is None:
+            self.status = np.full(len(self.time), STATUSES.index("localized"), dtype=np.int8)
+        if self.cov_xy is None:
+            self.cov_xy = np.zeros(len(self.time))
+
+    @property
+    def localized(self) -> np.ndarray:
+        """Per row: did the localizer say it was localized?"""
+        return np.asarray(self.status) == STATUSES.index("localized")
 
     def __len__(self) -> int:
         return len(self.time)
@@ -46,4 +60,7 @@ class TrialLog:
             None,
             self.timings[start:],
             corners,
+            (),
+            None if self.status is None else self.status[start:],
+            None if self.cov_xy is None else self.cov_xy[start:],
         )
