@@ -67,10 +67,33 @@ def results_table(scenarios: dict[str, dict[str, Any]], thesis: bool = True) -> 
     return lines
 
 
+def honesty_table(scenarios: dict[str, dict[str, Any]]) -> list[str]:
+    """Whether each localizer knew when it was right (docs/evaluation.md): one Markdown table."""
+    columns = ("time to localized s", "false localized s", "false %", "longest s", "trials without %", "3-sigma %")
+    lines = ["| scenario | localizer | " + " | ".join(columns) + " |", "|---|---|" + "---:|" * len(columns)]
+    for scenario, rows in scenarios.items():
+        for k, (name, row) in enumerate(rows.items()):
+            cells = (
+                _cell(row.get("time_to_localized_s"), ".2f"),
+                _cell(row.get("false_localized_s"), ".2f"),
+                _cell(row.get("false_localized_rate"), ".0f", 100),
+                _cell(row.get("max_false_localized_s"), ".2f"),
+                _cell(row.get("false_free_share"), ".0f", 100),
+                _cell(row.get("within_3sigma"), ".0f", 100),
+            )
+            lines.append(f"|{f' {scenario} ' if k == 0 else ' '}| {name} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def markdown_report(folder: Path, thesis: bool = True) -> str:
-    """The folder's results as one Markdown table, after a line naming the command, commit and machine."""
+    """The folder's results as Markdown, after a line naming the command, commit and machine: the thesis's
+    metrics, and whether each localizer knew when it was right (where the summary has those figures)."""
     summary = read_summary(folder)
-    return "\n".join([provenance_line(summary), "", *results_table(summary["scenarios"], thesis)]) + "\n"
+    lines = [provenance_line(summary), "", *results_table(summary["scenarios"], thesis)]
+    rows = [row for by in summary["scenarios"].values() for row in by.values()]
+    if rows and "false_localized_s" in rows[0]:
+        lines += ["", *honesty_table(summary["scenarios"])]
+    return "\n".join(lines) + "\n"
 
 
 def text_report(folder: Path) -> str:
