@@ -125,8 +125,8 @@ def write_csv(log: TrialLog, path: Path) -> Path:
 
 def status_changes(status: np.ndarray) -> list[list[int | str]]:
     """``[row, status name]`` at the first row and wherever the status changes."""
-    rows = np.flatnonzero(np.concatenate([[True], status[1:] != status[:-1]])) if len(status) else []
-    return [[int(row), STATUSES[int(status[row])]] for row in rows]
+    changed = np.concatenate([[True], status[1:] != status[:-1]]) if len(status) else np.zeros(0, dtype=bool)
+    return [[int(row), STATUSES[int(status[row])]] for row in np.flatnonzero(changed)]
 
 
 def status_rows(changes: list[Any], rows: int, where: Path) -> np.ndarray:
