@@ -41,6 +41,7 @@ class ScoredLog:
     log: TrialLog
     faults: LogFaults
     metrics: TrialMetrics
+    honesty: HonestyMetrics
     sidecar: dict[str, Any] = field(default_factory=dict)
 
 
@@ -81,7 +82,9 @@ def score_log(path: Path, drop_repeated: bool = False, drop_uninitialised: bool 
     else:
         match = _GROUPED_NAME.match(Path(path).stem)
         group = match["group"] if match else Path(path).stem
-    return ScoredLog(Path(path), group, log, faults, trial_metrics(log.after_kidnap()), sidecar)
+    metrics = trial_metrics(log.after_kidnap())
+    honesty = honesty_metrics(log.after_kidnap(), metrics.convergence_time_s)
+    return ScoredLog(Path(path), group, log, faults, metrics, honesty, sidecar)
 
 
 def group_summaries(scored: list[ScoredLog]) -> dict[str, dict[str, Any]]:
@@ -91,20 +94,15 @@ def group_summaries(scored: list[ScoredLog]) -> dict[str, dict[str, Any]]:
     for item in scored:
         groups.setdefault(item.group, []).append(item)
     return {
-        name: {**summarize([i.metrics for i in items]), **honesty_summary([honesty_of(i) for i in items])}
+        name: {**summarize([i.metrics for i in items]), **honesty_summary([i.honesty for i in items])}
         for name, items in groups.items()
     }
-
-
-def honesty_of(item: ScoredLog) -> HonestyMetrics:
-    return honesty_metrics(item.log.after_kidnap(), item.metrics.convergence_time_s)
 
 
 def score_record(scored: list[ScoredLog]) -> dict[str, Any]:
     """``evaluate.py score --json``: every log's metrics, group and faults, and the groups' summaries."""
     trials = {
-        str(s.path): {**vars(s.metrics), **vars(honesty_of(s)), "group": s.group, "faults": vars(s.faults)}
-        for s in scored
+        str(s.path): {**vars(s.metrics), **vars(s.honesty), "group": s.group, "faults": vars(s.faults)} for s in scored
     }
     return {"trials": trials, "groups": group_summaries(scored)}
 

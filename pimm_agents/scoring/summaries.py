@@ -33,11 +33,10 @@ def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] 
         trials = [results[i] for i in indices]
         entry: dict[str, Any] = summarize([t.metrics for t in trials])
         entry["timings_ms"] = timing_summary([timing for t in trials for timing in t.log.timings])
-        rows = [_trial_row(results[i], errors[i] if errors else None) for i in indices]
+        honesty = [honesty_metrics(t.log.after_kidnap(), t.metrics.convergence_time_s) for t in trials]
+        rows = [_trial_row(results[i], h, errors[i] if errors else None) for i, h in zip(indices, honesty, strict=True)]
         entry["per_trial"] = rows
-        entry.update(
-            honesty_summary([honesty_metrics(t.log.after_kidnap(), t.metrics.convergence_time_s) for t in trials])
-        )
+        entry.update(honesty_summary(honesty))
         entry["spread"] = _spread(rows)
         for kind in ("ape", "rpe"):
             stats = [r[kind] for r in rows if r.get(kind)]
@@ -46,7 +45,7 @@ def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] 
     return {"scenarios": scenarios}
 
 
-def _trial_row(result: TrialResult, errors: dict[str, Any] | None) -> dict[str, Any]:
+def _trial_row(result: TrialResult, honesty: HonestyMetrics, errors: dict[str, Any] | None) -> dict[str, Any]:
     m = result.metrics
     row: dict[str, Any] = {
         "trial": result.spec.trial,
@@ -57,7 +56,7 @@ def _trial_row(result: TrialResult, errors: dict[str, Any] | None) -> dict[str, 
         "angle_error_deg": m.angle_error_deg,
         "completed": result.completed,
         "wall_s": round(result.wall_s, 2),
-        **asdict(honesty_metrics(result.log.after_kidnap(), m.convergence_time_s)),
+        **asdict(honesty),
     }
     if len(result.log.kidnap_rows) > 1:  # a fault run's kidnaps: how long each took to recover from
         row["kidnap_recoveries_s"] = kidnap_recoveries(result.log)
