@@ -292,7 +292,6 @@ class PimmLocalizer:
         timings: dict[str, float] = {}
         self.guard.check(obs, ("odom", "time", "cloud_time"))
         cloud, mask = self.guard.cloud(obs)
-        cloud = to_robot_frame(cloud, self.lidar3d)  # the sensors file's mount pose
         taken = self.guard.take(obs)
         if taken is None and self._last is not None:  # a glitch: keep the estimate
             return self._last
@@ -303,6 +302,7 @@ class PimmLocalizer:
         cloud_time = float(require(obs, "cloud_time", (1,))[0])
         if np.isfinite(cloud_time) and cloud_time > self._last_cloud_time:
             self._last_cloud_time = cloud_time
+            cloud = to_robot_frame(cloud, self.lidar3d)  # the sensors file's mount pose
             if self.resample is not None:  # another sensor's layout, read as the network's (perception/resample.py)
                 cloud, mask = self.resample(cloud, mask)
             if np.any(valid_returns(cloud, mask)):

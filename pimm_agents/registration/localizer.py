@@ -102,7 +102,6 @@ class RegistrationLocalizer:
         timings: dict[str, float] = {}
         self.guard.check(obs, ("odom", "time", "cloud_time"))
         cloud, mask = self.guard.cloud(obs)
-        cloud = to_robot_frame(cloud, self.lidar3d)  # the sensors file's mount pose
         taken = self.guard.take(obs)
         if taken is None and self._last is not None:  # a glitch: keep the estimate
             return self._last
@@ -115,7 +114,7 @@ class RegistrationLocalizer:
         cloud_time = float(require(obs, "cloud_time", (1,))[0])
         if np.isfinite(cloud_time) and cloud_time > self._last_cloud_time:
             self._last_cloud_time = cloud_time
-            points = cloud[valid_returns(cloud, mask)].astype(np.float64)
+            points = to_robot_frame(cloud, self.lidar3d)[valid_returns(cloud, mask)].astype(np.float64)  # its mount
             points[:, 2] += self.lidar3d.height  # z above the floor, as the map's
             if len(points) >= 20:
                 predicted = self._correct(points, predicted, stamp, timings)
