@@ -4,17 +4,17 @@ A PimmError (a user's mistake) prints as one line; any other error shows its tra
 
 from __future__ import annotations
 
-import functools
 import json
-import os
 import shlex
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import typer
 
+from pimm_agents import command_line
+
+command = command_line.command
 app = typer.Typer(add_completion=False, no_args_is_help=False, help=__doc__)
 world_app = typer.Typer(add_completion=False, help="Bring your own building: import a ROS map or a mesh, prepare it.")
 app.add_typer(world_app, name="world")
@@ -29,23 +29,6 @@ BACKEND = typer.Option("local", help="local (worker processes) or ray (a local R
 ADDRESS = typer.Option(None, help="a Ray cluster to join, e.g. ray://head:10001 or auto")
 WORKERS = typer.Option(0, help="worker processes or Ray CPUs (0: one per core)")
 MARKDOWN = typer.Option(False, "--markdown", help="Markdown tables headed by the command, commit and machine")
-
-
-def command(group: typer.Typer = app, name: str | None = None) -> Callable[[Callable[..., Any]], Any]:
-    """Register a command that reports a PimmError (which names the file, field or value) as one line, exit 1."""
-    return lambda fn: group.command(name)(functools.wraps(fn)(functools.partial(_reporting_errors, fn)))
-
-
-def _reporting_errors(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-    from pimm_env.errors import PimmError
-
-    try:
-        return fn(*args, **kwargs)
-    except PimmError as error:
-        if os.environ.get("PIMM_DEBUG"):
-            raise
-        typer.echo(f"error: {error}", err=True)
-        raise typer.Exit(1) from None
 
 
 def _json(record: dict[str, Any], folder: Path) -> str:
@@ -65,7 +48,7 @@ def main(ctx: typer.Context) -> None:
         _run_plan(RunPlan(localizers=resolve_localizers(None), trials=3), Execution(), Path("results"))
 
 
-@command()
+@command(app)
 def run(
     from_file: Path | None = typer.Option(None, "--from", help="a results folder's run.yaml: repeat that run"),
     scenarios: list[str] | None = typer.Option(None, "--scenarios", help="scenario names (default: the world's)"),
@@ -109,7 +92,7 @@ def _run_plan(plan: Any, execution: Any, out: Path, resume: bool = False, video:
     typer.echo(format_run(outcome) if execution.progress else _json(outcome.summary, outcome.folder))
 
 
-@command()
+@command(app)
 def sweep(
     spec: Path = typer.Argument(..., help="the sweep file (worlds, scenarios, localizers, grid, trials)"),
     out: Path = OUT,
@@ -129,7 +112,7 @@ def sweep(
     typer.echo(_json(outcome.summary, outcome.folder) if json_out else f"{text}; results: {outcome.folder}/")
 
 
-@command()
+@command(app)
 def record(
     scenario: str = typer.Option(..., help="the scenario to drive"),
     world: str = WORLD,
@@ -145,7 +128,7 @@ def record(
     typer.echo(f"wrote {path} (python evaluate.py replay {path} --world {world} --seed {seed} --localizers ...)")
 
 
-@command()
+@command(app)
 def replay(
     bag: Path = typer.Argument(..., help="a rosbag2 folder or a ROS 1 .bag"),
     localizers: list[str] = typer.Option(["amcl"], "--localizers", help="names or module:factory"),
@@ -174,7 +157,7 @@ def replay(
     typer.echo(_json(done.summary, done.folder) if json_out and done.has_truth else format_replay(done, truth_topic))
 
 
-@command()
+@command(app)
 def score(
     paths: list[Path] = typer.Argument(..., help="trial logs (thesis CSV format) or folders holding them"),
     drop_repeated: bool = typer.Option(False, "--drop-repeated", help="drop rows that repeat the previous stamp"),
@@ -191,7 +174,7 @@ def score(
         typer.echo(warning, err=True)
 
 
-@command()
+@command(app)
 def report(
     folder: Path = typer.Argument(..., help="a results folder of run, sweep or replay"),
     markdown: bool = MARKDOWN,
@@ -203,7 +186,7 @@ def report(
     typer.echo(markdown_report(folder, thesis) if markdown else text_report(folder), nl=False)
 
 
-@command()
+@command(app)
 def rollout(
     scenarios: list[str] | None = typer.Option(None, "--scenarios", help="scenario names (default: the world's)"),
     world: str = WORLD,
@@ -224,7 +207,7 @@ def rollout(
     typer.echo(_json(record, folder) if json_out else text)
 
 
-@command()
+@command(app)
 def bench(
     json_out: bool = JSON, markdown: bool = MARKDOWN, repeats: int = typer.Option(30, help="timed repetitions")
 ) -> None:
@@ -239,7 +222,7 @@ def bench(
     typer.echo(json.dumps(figures) if json_out else text)
 
 
-@command()
+@command(app)
 def perception(
     world: str = WORLD,
     scans: int = typer.Option(50, min=1, help="fresh scans at random free poses"),
@@ -296,24 +279,16 @@ def world_prepare(
     typer.echo(describe(prepare_world(name, RouteConfig(count=routes), seed, spacing, new_routes)))
 
 
-def expand_list_options(argv: list[str], lists: tuple[str, ...] = ("--scenarios", "--localizers")) -> list[str]:
-    """Rewrite ``--scenarios a b`` (as the docs write it) as ``--scenarios a --scenarios b``, as click parses."""
-    out: list[str] = []
-    current = None
-    for token in argv:
-        if token.startswith("-"):
-            current = token if token in lists else None
-            out.append(token)
-        elif current is not None and out[-1] != current:
-            out += [current, token]
-        else:
-            out.append(token)
-    return out
+#: Options that take several values after one flag (``--scenarios a b c``), as the docs write them.
+LIST_OPTIONS = ("--scenarios", "--localizers")
+
+
+def expand_list_options(argv: list[str]) -> list[str]:
+    return command_line.expand_list_options(argv, LIST_OPTIONS)
 
 
 def cli() -> int:
-    """The command line, with ``--scenarios a b c`` accepted as the docs write it."""
-    return app(args=expand_list_options(sys.argv[1:]))
+    return command_line.run_app(app, LIST_OPTIONS)
 
 
 if __name__ == "__main__":

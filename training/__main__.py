@@ -16,6 +16,8 @@ from pathlib import Path
 
 import typer
 
+from pimm_agents import command_line
+
 app = typer.Typer(add_completion=False, help=__doc__)
 DATA_DIR = Path("build/datasets")
 
@@ -35,7 +37,7 @@ def _dataset_paths(world: str) -> tuple[Path, Path]:
     return folder / "scans.npz", folder / "validation.npz"
 
 
-@app.command()
+@command_line.command(app)
 def dataset(
     world: str = typer.Option("iilab", help="world name or world file"),
     scans: int = typer.Option(2300, min=10, help="scans for training + test (the thesis's 2300)"),
@@ -57,7 +59,7 @@ def dataset(
     typer.echo(f"wrote {main_path} ({scans} scans) and {val_path} ({validation} scans)")
 
 
-@app.command()
+@command_line.command(app)
 def train(
     worlds: list[str] = typer.Option(["iilab"], "--world", help="world name or file; repeat to pool several"),
     epochs: int = typer.Option(40, min=1),
@@ -118,7 +120,7 @@ def train(
     typer.echo(f"wrote {target} ({size:.2f} MB, {record['parameters']} parameters)")
 
 
-@app.command()
+@command_line.command(app)
 def validate(
     world: str = typer.Option("iilab", help="world name or world file"),
     checkpoint: Path | None = typer.Option(None, help="weights to score (default: the weights the world uses)"),
@@ -146,7 +148,7 @@ def validate(
         typer.echo(f"recorded in {record_path}")
 
 
-@app.command()
+@command_line.command(app)
 def fingerprints(
     world: str = typer.Option("iilab", help="world name or world file"),
     spacing: float = typer.Option(0.5, min=0.05, help="grid spacing of the map positions (m)"),
@@ -179,7 +181,7 @@ def _check_backend(backend: str, address: str | None) -> None:
         raise typer.BadParameter(str(error), param_hint="--backend") from None
 
 
-@app.command()
+@command_line.command(app)
 def buildings(
     seeds: str = typer.Option(
         "100-129", help="building seeds: 'A-B' or 'A,B,C' (held out: 910-919, never train on them)"
@@ -202,7 +204,7 @@ def buildings(
     typer.echo(f"wrote {len(chosen)} buildings to {out}/gen-<seed>/")
 
 
-@app.command()
+@command_line.command(app)
 def heldout(
     localizers: list[str] = typer.Option(["pimm", "amcl"], "--localizers", help="localizers to run"),
     trials: int = typer.Option(3, min=1, help="trials per route"),
@@ -263,7 +265,7 @@ def _seed_list(text: str) -> list[int]:
         raise typer.BadParameter(f"expected 'A-B' or 'A,B,C', got {text!r}", param_hint="--seeds") from None
 
 
-@app.command()
+@command_line.command(app)
 def rebuild(
     world: str = typer.Option("iilab", help="world name or world file"),
     scans: int = typer.Option(2300, min=10),
@@ -290,19 +292,8 @@ def rebuild(
 
 
 def main() -> int:
-    """``python -m training``: a PimmError (a user's mistake) prints as one line, anything else as a traceback."""
-    import os
-
-    from pimm_env.errors import PimmError
-
-    try:
-        app()
-    except PimmError as error:
-        if os.environ.get("PIMM_DEBUG"):
-            raise
-        typer.echo(f"error: {error}", err=True)
-        return 1
-    return 0
+    """``python -m training``, with ``--world a b`` and ``--localizers a b`` read as the docs write them."""
+    return command_line.run_app(app, ("--world", "--localizers"))
 
 
 if __name__ == "__main__":
