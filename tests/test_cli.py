@@ -134,3 +134,14 @@ def test_a_runs_config_yaml_repeats_it_exactly(tmp_path):
 
     assert without_clock(first) == without_clock(again)
     assert (Path(again["folder"]) / "config.yaml").read_text() == config.read_text()
+
+
+def test_both_command_lines_take_several_values_after_one_flag():
+    from pimm_agents.command_line import expand_list_options
+
+    argv = ["train", "--world", "iilab", "gen.yaml", "--epochs", "2", "--localizers", "pimm", "amcl"]
+    assert expand_list_options(argv, ("--world", "--localizers")) == [
+        "train", "--world", "iilab", "--world", "gen.yaml", "--epochs", "2", "--localizers", "pimm",
+        "--localizers", "amcl",
+    ]  # fmt: skip
+    assert expand_list_options(argv, ()) == argv
