@@ -117,16 +117,19 @@ def test_localizes_globally_tracks_and_recovers_from_a_kidnap():
     loc.reset(seed=0)
     start = np.array([2.0, 2.0, 0.3])
     estimate = loc.update(observation(scan_at(start, rng, surfaces), (0.0, 0.0, 0.0), 0.0))
-    assert loc.tracking and np.hypot(*(estimate.pose[:2] - start[:2])) < 0.1
+    assert loc.tracking and np.hypot(*(estimate.pose[:2] - start[:2])) < 0.1 and estimate.status == "localized"
     # drive 1 m along the robot's heading with odometry that says 0.95 m: ICP takes out the difference
     moved = start + np.array([np.cos(0.3), np.sin(0.3), 0.0])
     estimate = loc.update(observation(scan_at(moved, rng, surfaces), (0.95, 0.0, 0.0), 2.0))
     assert np.hypot(*(estimate.pose[:2] - moved[:2])) < 0.05
     # kidnapped to the other wing; the odometry does not know
     elsewhere = np.array([9.5, 2.0, 2.5])
+    statuses = []
     for step in range(6):
         estimate = loc.update(observation(scan_at(elsewhere, rng, surfaces), (0.95, 0.0, 0.0), 2.1 + 0.1 * step))
+        statuses.append(estimate.status)
     assert loc.tracking and np.hypot(*(estimate.pose[:2] - elsewhere[:2])) < 0.1
+    assert "lost" in statuses and statuses[-1] == "localized"  # it said so while it searched
     assert abs(wrap_angle(estimate.pose[2] - elsewhere[2])) < np.radians(2)
 
 

@@ -121,9 +121,9 @@ class RegistrationLocalizer:
         self._pose, self._odom = predicted, odom.copy()
         timings["total"] = 1000 * (time.perf_counter() - began)
         cov = TRACKING_COV if self._tracking else LOST_COV
-        self._last = PoseEstimate(
-            float(predicted[0]), float(predicted[1]), float(predicted[2]), cov.copy(), stamp, timings
-        )
+        status = "localized" if self._tracking else "lost"  # lost: searching globally, the pose a guess
+        x, y, theta = (float(v) for v in predicted)
+        self._last = PoseEstimate(x, y, theta, cov.copy(), stamp, timings, status)
         return self._last
 
     @property
