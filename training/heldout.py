@@ -93,8 +93,7 @@ def _excursions(folder: Path, localizer: str, held_s: float = 0.0) -> float | No
 
 
 def format_table(rows: dict[str, dict[str, dict[str, float | None]]], localizers: list[str]) -> str:
-    def cell(value: float | None, fmt: str, scale: float = 1.0) -> str:
-        return "-" if value is None else format(scale * value, fmt)
+    from pimm_agents.results.tables import cell
 
     lines = [
         "| building | localizer | mIoU | recall@3 (2 m) | corner recall | conv. rate | conv. time s | pos. err m "

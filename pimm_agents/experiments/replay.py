@@ -73,8 +73,8 @@ def replay_specs(
 ) -> list[TrialSpec]:
     """One spec per localizer, named after the scenario the bag's record file gives (else the bag's name). The
     LiDAR layouts: ``sensors`` if given, else the sensors file recorded with the bag (else its record file's
-    presets), else
-    read from the bag's first scan and cloud into ``folder``/sensors.yaml (``pimm_env/bags/layout.py``)."""
+    presets), else read from the bag's first scan and cloud into ``folder``/sensors.yaml
+    (``pimm_env/bags/layout.py``)."""
     from pimm_env.bags.record import RECORD_FILE, SENSORS_FILE
 
     scenario, recorded = Path(bag).name, None

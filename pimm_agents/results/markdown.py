@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from pimm_agents.results.tables import cell
 from pimm_agents.scoring.thesis import THESIS_IOU, THESIS_RESULTS, THESIS_RETRIEVAL
 from pimm_env.errors import MissingFileError, ResultsError
 
@@ -40,10 +41,6 @@ def provenance_line(summary: dict[str, Any]) -> str:
     return f"Made by `{command}` at commit `{commit}` (pimm {summary.get('version', '?')}) on {where}."
 
 
-def _cell(value: float | None, fmt: str, scale: float = 1.0) -> str:
-    return "-" if value is None else format(scale * value, fmt)
-
-
 def results_table(scenarios: dict[str, dict[str, Any]], thesis: bool = True) -> list[str]:
     """One Markdown table of every scenario and localizer, the thesis's row (italic) under each localizer it
     ran."""
@@ -52,17 +49,17 @@ def results_table(scenarios: dict[str, dict[str, Any]], thesis: bool = True) -> 
         for k, (name, row) in enumerate(rows.items()):
             cells = (
                 str(row["trials"]),
-                _cell(row["convergence_rate"], ".0f", 100),
-                _cell(row["convergence_time_s"], ".2f"),
-                _cell(row["position_error_m"], ".3f"),
-                _cell(row["angle_error_deg"], ".2f"),
+                cell(row["convergence_rate"], ".0f", 100),
+                cell(row["convergence_time_s"], ".2f"),
+                cell(row["position_error_m"], ".3f"),
+                cell(row["angle_error_deg"], ".2f"),
             )
             first = f" {scenario} " if k == 0 else " "
             lines.append(f"|{first}| {name} | " + " | ".join(cells) + " |")
             reference = THESIS_RESULTS.get(scenario, {}).get(name) if thesis else None
             if reference is not None:
                 rate, t, pos, ang = reference
-                cells = ("10", _cell(rate, ".0f", 100), _cell(t, ".2f"), _cell(pos, ".3f"), _cell(ang, ".2f"))
+                cells = ("10", cell(rate, ".0f", 100), cell(t, ".2f"), cell(pos, ".3f"), cell(ang, ".2f"))
                 lines.append(f"| | *{name}, thesis* | " + " | ".join(f"*{c}*" for c in cells) + " |")
     return lines
 
@@ -74,12 +71,12 @@ def honesty_table(scenarios: dict[str, dict[str, Any]]) -> list[str]:
     for scenario, rows in scenarios.items():
         for k, (name, row) in enumerate(rows.items()):
             cells = (
-                _cell(row.get("time_to_localized_s"), ".2f"),
-                _cell(row.get("false_localized_s"), ".2f"),
-                _cell(row.get("false_localized_rate"), ".0f", 100),
-                _cell(row.get("max_false_localized_s"), ".2f"),
-                _cell(row.get("false_free_share"), ".0f", 100),
-                _cell(row.get("within_3sigma"), ".0f", 100),
+                cell(row.get("time_to_localized_s"), ".2f"),
+                cell(row.get("false_localized_s"), ".2f"),
+                cell(row.get("false_localized_rate"), ".0f", 100),
+                cell(row.get("max_false_localized_s"), ".2f"),
+                cell(row.get("false_free_share"), ".0f", 100),
+                cell(row.get("within_3sigma"), ".0f", 100),
             )
             lines.append(f"|{f' {scenario} ' if k == 0 else ' '}| {name} | " + " | ".join(cells) + " |")
     return lines
@@ -139,7 +136,7 @@ def perception_markdown(report: dict[str, Any], command: str) -> str:
     lines += ["| corners, labels | precision | recall | median position error m | median orientation error ° |"]
     lines.append("|---|---:|---:|---:|---:|")
     for which, stats in report["corners"].items():
-        cells = [_cell(stats[k], f) for k, f in zip(stats, (".2f", ".2f", ".3f", ".2f"), strict=True)]
+        cells = [cell(stats[k], f) for k, f in zip(stats, (".2f", ".2f", ".3f", ".2f"), strict=True)]
         lines.append(f"| {which.replace('_labels', '')} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 

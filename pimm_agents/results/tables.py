@@ -9,8 +9,9 @@ import numpy as np
 from pimm_agents.scoring.thesis import THESIS_IOU, THESIS_RESULTS, THESIS_RETRIEVAL
 
 
-def _cell(value: float | None, fmt: str) -> str:
-    return "-" if value is None else format(value, fmt)
+def cell(value: float | None, fmt: str = ".3f", scale: float = 1.0) -> str:
+    """A table cell: ``value`` (times ``scale``) in ``fmt``, or "-" where there is none."""
+    return "-" if value is None else format(scale * value, fmt)
 
 
 def _name_width(names: Any, least: int) -> int:
@@ -31,15 +32,15 @@ def format_tables(summary: dict[str, Any]) -> str:
         for localizer, row in by_localizer.items():
             lines.append(
                 f"  {localizer:<{w}}{row['trials']:>7}{100 * row['convergence_rate']:>14.0f}"
-                f"{_cell(row['convergence_time_s'], '.2f'):>14}{_cell(row['position_error_m'], '.2f'):>12}"
-                f"{_cell(row['angle_error_deg'], '.2f'):>14}"
+                f"{cell(row['convergence_time_s'], '.2f'):>14}{cell(row['position_error_m'], '.2f'):>12}"
+                f"{cell(row['angle_error_deg'], '.2f'):>14}"
             )
             thesis = THESIS_RESULTS.get(scenario, {}).get(localizer.split("-")[0])
             if thesis is not None and localizer in ("amcl", "pimm"):
                 rate, t, pos, ang = thesis
                 lines.append(
-                    f"  {'  thesis':<{w}}{10:>7}{100 * rate:>14.0f}{_cell(t, '.2f'):>14}{_cell(pos, '.2f'):>12}"
-                    f"{_cell(ang, '.2f'):>14}"
+                    f"  {'  thesis':<{w}}{10:>7}{100 * rate:>14.0f}{cell(t, '.2f'):>14}{cell(pos, '.2f'):>12}"
+                    f"{cell(ang, '.2f'):>14}"
                 )
     return "\n".join(lines)
 
@@ -71,13 +72,9 @@ def format_segmentation(scores: dict[str, Any], what: str) -> list[str]:
     """The IoU table of :func:`segmentation_scores`, with thesis table 3.2 beside it."""
     lines = [f"{'segmentation IoU, ' + what:<40}ours   thesis (table 3.2)"]
     for name in ("floor", "ceiling", "wall", "clutter"):
-        lines.append(f"  {name:<38}{_num(scores['iou'][name])}   {THESIS_IOU[name]:.3f}")
-    lines.append(f"  {'mean':<38}{_num(scores['miou'])}   {THESIS_IOU['mean']:.3f}")
+        lines.append(f"  {name:<38}{cell(scores['iou'][name])}   {THESIS_IOU[name]:.3f}")
+    lines.append(f"  {'mean':<38}{cell(scores['miou'])}   {THESIS_IOU['mean']:.3f}")
     return lines
-
-
-def _num(value: float | None, fmt: str = ".3f") -> str:
-    return "-" if value is None else format(value, fmt)
 
 
 def format_perception(report: dict[str, Any]) -> str:
@@ -105,7 +102,7 @@ def format_perception(report: dict[str, Any]) -> str:
     for which, stats in report["corners"].items():
         lines.append(
             f"  {which:<24} "
-            + "  ".join(f"{_num(stats[k]):>{max(12, len(h))}}" for k, h in zip(stats, headers, strict=True))
+            + "  ".join(f"{cell(stats[k]):>{max(12, len(h))}}" for k, h in zip(stats, headers, strict=True))
         )
     return "\n".join(lines)
 
@@ -128,8 +125,8 @@ def format_scores(scored: list[Any], groups: dict[str, dict[str, Any]]) -> str:
     for name, row in groups.items():
         lines.append(
             f"{name:<{w}}{row['trials']:>7}{100 * float(row['convergence_rate']):>14.0f}"
-            f"{_cell(row['convergence_time_s'], '.2f'):>14}{_cell(row['position_error_m'], '.2f'):>12}"
-            f"{_cell(row['angle_error_deg'], '.2f'):>14}"
+            f"{cell(row['convergence_time_s'], '.2f'):>14}{cell(row['position_error_m'], '.2f'):>12}"
+            f"{cell(row['angle_error_deg'], '.2f'):>14}"
         )
     return "\n".join(lines)
 
@@ -144,8 +141,8 @@ def format_rollouts(rollouts: dict[str, dict[str, Any]]) -> str:
         ok = "yes" if row["completed"] and not row["collided"] else "NO"
         lines.append(
             f"{name:<14}{row['length_m']:>10.2f}{row['thesis_length_m'] or 0:>10.2f}{row['duration_s']:>9.1f}"
-            f"{row['thesis_duration_s'] or 0:>10.2f}{_cell(row['odometry_drift_m'], '.2f'):>9}"
-            f"{_cell(row['odometry_drift_percent'], '.2f'):>9}{row['realtime_factor']:>6.1f}  {ok}"
+            f"{row['thesis_duration_s'] or 0:>10.2f}{cell(row['odometry_drift_m'], '.2f'):>9}"
+            f"{cell(row['odometry_drift_percent'], '.2f'):>9}{row['realtime_factor']:>6.1f}  {ok}"
         )
     return "\n".join(lines)
 
@@ -187,13 +184,9 @@ def format_honesty(summary: dict[str, Any]) -> str:
         lines.append(f"  {scenario}")
         for name, row in by_localizer.items():
             lines.append(
-                f"  {'  ' + name:<{w}}{_cell(row.get('time_to_localized_s'), '.2f'):>12}"
-                f"{_cell(row.get('false_localized_s'), '.2f'):>13}{_percent(row.get('false_localized_rate')):>9}"
-                f"{_cell(row.get('max_false_localized_s'), '.2f'):>10}{_percent(row.get('false_free_share')):>8}"
-                f"{_percent(row.get('within_3sigma')):>10}"
+                f"  {'  ' + name:<{w}}{cell(row.get('time_to_localized_s'), '.2f'):>12}"
+                f"{cell(row.get('false_localized_s'), '.2f'):>13}{cell(row.get('false_localized_rate'), '.0f', 100):>9}"
+                f"{cell(row.get('max_false_localized_s'), '.2f'):>10}{cell(row.get('false_free_share'), '.0f', 100):>8}"
+                f"{cell(row.get('within_3sigma'), '.0f', 100):>10}"
             )
     return "\n".join(lines)
-
-
-def _percent(value: float | None) -> str:
-    return "-" if value is None else f"{100 * value:.0f}"
