@@ -101,7 +101,7 @@ def test_perceiving_a_scan_only_when_it_weighs_gives_the_same_estimates_in_half_
 
 
 def test_unknown_pimm_setting_lists_the_valid_ones():
-    with pytest.raises(ValueError, match="pimm: unknown key 'particles'; valid keys: corners, filter"):
+    with pytest.raises(ValueError, match="pimm: unknown key 'particles'; valid keys: belief, corners, filter"):
         make_localizer("pimm", particles=10)
     with pytest.raises(ValueError, match="pimm.filter: unknown key 'particles'; valid keys: .*num_particles"):
         make_localizer("pimm", filter={"particles": 10})

@@ -37,19 +37,39 @@ def cluster_labels(poses: np.ndarray, xy_size: float, theta_size: float) -> np.n
     return compact
 
 
-def heaviest_cluster(poses: np.ndarray, weights: np.ndarray, labels: np.ndarray) -> PoseCluster:
-    """Weight, weighted mean (circular in theta) and covariance of the cluster with the most weight.
+def cluster_statistics(
+    poses: np.ndarray, weights: np.ndarray, labels: np.ndarray, limit: int | None = None
+) -> list[PoseCluster]:
+    """Weight, weighted mean (circular in theta) and covariance of every cluster (the ``limit`` heaviest),
+    heaviest first.
 
-    x and y get their weighted covariance; theta the circular variance -2 ln R, R the mean resultant length.
+    x and y get their weighted covariance; theta the circular variance -2 ln R, R the mean resultant length,
+    and no correlation with x and y (nav2 reports the same). A cluster of no weight gets its particles'
+    unweighted statistics.
     """
-    total = np.bincount(labels, weights)
-    best = int(np.argmax(total))
-    members = labels == best
-    p, w = poses[members], weights[members] / total[best]
-    mean_xy = w @ p[:, :2]
-    centred = p[:, :2] - mean_xy
-    cov = np.zeros((3, 3))
-    cov[:2, :2] = (centred * w[:, None]).T @ centred
-    mc, ms = w @ np.cos(p[:, 2]), w @ np.sin(p[:, 2])
-    cov[2, 2] = -2.0 * np.log(np.clip(np.hypot(mc, ms), 1e-12, 1.0))
-    return PoseCluster(float(total[best]), np.array([mean_xy[0], mean_xy[1], np.arctan2(ms, mc)]), cov)
+    count = int(labels.max()) + 1 if len(labels) else 0
+    total = np.bincount(labels, weights, minlength=count)
+    members = np.bincount(labels, minlength=count).astype(float)
+    # Within-cluster weights: a weightless cluster weighs its particles alike.
+    share = np.where(total[labels] > 0, weights / np.where(total[labels] > 0, total[labels], 1.0), 0.0)
+    share = np.where(total[labels] > 0, share, 1.0 / members[labels])
+    sums = [np.bincount(labels, share * column, minlength=count) for column in (poses[:, 0], poses[:, 1])]
+    mx, my = sums
+    mc = np.bincount(labels, share * np.cos(poses[:, 2]), minlength=count)
+    ms = np.bincount(labels, share * np.sin(poses[:, 2]), minlength=count)
+    dx, dy = poses[:, 0] - mx[labels], poses[:, 1] - my[labels]
+    cxx = np.bincount(labels, share * dx * dx, minlength=count)
+    cyy = np.bincount(labels, share * dy * dy, minlength=count)
+    cxy = np.bincount(labels, share * dx * dy, minlength=count)
+    ctt = -2.0 * np.log(np.clip(np.hypot(mc, ms), 1e-12, 1.0))
+    clusters = []
+    for k in np.argsort(-total, kind="stable")[:limit]:
+        cov = np.array([[cxx[k], cxy[k], 0.0], [cxy[k], cyy[k], 0.0], [0.0, 0.0, ctt[k]]])
+        mean = np.array([mx[k], my[k], np.arctan2(ms[k], mc[k])])
+        clusters.append(PoseCluster(float(total[k]), mean, cov))
+    return clusters
+
+
+def heaviest_cluster(poses: np.ndarray, weights: np.ndarray, labels: np.ndarray) -> PoseCluster:
+    """The cluster with the most weight (``cluster_statistics``' first)."""
+    return cluster_statistics(poses, weights, labels, limit=1)[0]

@@ -11,6 +11,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from pimm_agents.corners.lookup import NearestCornerGrid
+from pimm_agents.localizer import Hypothesis
+from pimm_agents.particles.belief import (
+    Belief,
+    BeliefConfig,
+    Confirmation,
+    belief_status,
+    covariance_about,
+    hypotheses_of,
+    read_belief,
+)
 from pimm_agents.particles.free_space import FreeSpace
 from pimm_agents.particles.initial_pose import gaussian_poses
 from pimm_agents.particles.kld import bin_keys, kld_sample_count
@@ -64,6 +74,12 @@ class FeatureFilterConfig:
     kld_z: float = 0.99  # nav2 pf_z
     kld_bin_xy: float = 0.5  # nav2's bins
     kld_bin_theta: float = float(np.radians(10.0))
+    #: ours: per-mode particle budgets. At resampling every mode (cluster of the belief, belief.py) weighing at
+    #: least ``mode_keep_ratio`` of the heaviest keeps at least ``mode_min_particles`` particles, its weight
+    #: shared among them, so a look-alike place is not starved of particles while the evidence cannot yet
+    #: tell it from the heaviest; it is dropped once the evidence has made it light. 0 particles: the thesis's.
+    mode_min_particles: int = 100
+    mode_keep_ratio: float = 0.01
 
     def __post_init__(self) -> None:
         if self.num_particles < 1:
@@ -77,9 +93,22 @@ class FeatureFilterConfig:
                 f"estimate_bin_xy must be at least 0 and estimate_bin_theta above 0, got {self.estimate_bin_xy}"
                 f" and {self.estimate_bin_theta}"
             )
-        for name in ("resample_ess_threshold", "replace_worst_fraction", "smart_share", "occupied_penalty"):
+        if self.mode_min_particles < 0:
+            raise LocalizerError(f"mode_min_particles must be at least 0, got {self.mode_min_particles}")
+        names = ("resample_ess_threshold", "replace_worst_fraction", "smart_share", "occupied_penalty", "mode_keep_ratio")
+        for name in names:
             if not 0 <= getattr(self, name) <= 1:
                 raise LocalizerError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class BeliefReading:
+    """What the filter's belief says of an estimate: its status, covariance (of the estimate's mode, about the
+    estimate) and the belief's heaviest modes."""
+
+    status: str
+    covariance: np.ndarray
+    hypotheses: tuple[Hypothesis, ...]
 
 
 #: Columns of the feature array the filter takes: x, y, theta (robot frame), sigma_pos (m), sigma_theta (rad).
@@ -94,8 +123,11 @@ class FeatureFilter:
         config: FeatureFilterConfig = FeatureFilterConfig(),
         wall_field: LikelihoodField | None = None,
         wall_temperature: float | None = None,
+        belief: BeliefConfig = BeliefConfig(),
     ) -> None:
         self.config = config
+        self.belief_config = belief
+        self.confirmation = Confirmation(belief.confirm_updates)
         self.corners = corners
         self.wall_field = wall_field
         self.wall_temperature = wall_temperature  # None: nav2's sum of cubes; else the tempered product
@@ -108,6 +140,8 @@ class FeatureFilter:
         self.weights = np.full(config.num_particles, 1.0 / config.num_particles)
         self.ess = float(config.num_particles)
         self.informed = False  # whether the last measurement update had anything to weigh with
+        self.belief: Belief | None = None  # the modes after the last measurement update
+        self.reading = BeliefReading("lost", np.eye(3), ())
         self._odom_ref: np.ndarray | None = None
 
     # ------------------------------------------------------------------ life cycle
@@ -126,6 +160,9 @@ class FeatureFilter:
         self.weights = np.full(self.config.num_particles, 1.0 / self.config.num_particles)
         self.ess = float(self.config.num_particles)
         self._odom_ref = None
+        self.belief = None
+        self.confirmation.reset()
+        self.reading = BeliefReading("lost", self.covariance(self.best_mean()), ())
 
     # ------------------------------------------------------------------ motion
     def motion_update(self, odom: np.ndarray) -> bool:
@@ -227,21 +264,51 @@ class FeatureFilter:
 
     # ------------------------------------------------------------------ resampling and injection
     def resample_if_degenerate(self) -> bool:
-        """Residual resampling when ESS <= tau * N (eq. 3.17); with ``adaptive``, num_particles draws of which
-        KLD's bound keeps as many as the bins they occupy need. Returns whether it resampled."""
+        """Residual resampling when ESS <= tau * N (eq. 3.17); with ``adaptive``, as many particles as KLD's bound
+        keeps of num_particles draws; with ``mode_min_particles``, drawn mode by mode (``mode_draws``).
+        Returns whether it resampled."""
         n = len(self.particles)
         c = self.config
         if self.ess > c.resample_ess_threshold * n:
             return False
-        if not c.adaptive:
-            self.particles = self.particles[residual_resample(self.weights, self.rng)]
-        else:
+        if c.adaptive:
             drawn = self.particles[self.rng.permutation(residual_resample(self.weights, self.rng, c.num_particles))]
             keys = bin_keys(drawn, c.kld_bin_xy, c.kld_bin_theta)
-            self.particles = drawn[: kld_sample_count(keys, c.kld_err, c.kld_z, c.min_particles, c.num_particles)]
-        n = len(self.particles)
-        self.weights = np.full(n, 1.0 / n)
+            n = kld_sample_count(keys, c.kld_err, c.kld_z, c.min_particles, c.num_particles)
+            if c.mode_min_particles == 0 or self.belief is None:
+                self.particles, self.weights = drawn[:n], np.full(n, 1.0 / n)
+                return True
+        elif c.mode_min_particles == 0 or self.belief is None:
+            self.particles, self.weights = self.particles[residual_resample(self.weights, self.rng)], np.full(n, 1.0 / n)
+            return True
+        index, weights = self.mode_draws(n)
+        self.particles, self.weights = self.particles[index], weights
         return True
+
+    def mode_draws(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` draws (indices, and their weights) that give each kept mode (weighing at least mode_keep_ratio of
+        the heaviest) max(mode_min_particles, its share of n) particles and the rest of the set the remainder;
+        each group's particles share its weight, so the belief's modes weigh what they weighed."""
+        assert self.belief is not None
+        c = self.config
+        modes, of = self.belief.modes, self.belief.particle_mode
+        kept = [k for k, m in enumerate(modes) if m.weight >= c.mode_keep_ratio * modes[0].weight and m.weight > 0]
+        mode_weights = np.array([modes[k].weight for k in kept])
+        counts = np.maximum(c.mode_min_particles, np.rint(n * mode_weights)).astype(int)
+        if counts.sum() > n:  # more kept modes than the set can give their floor: share n by weight
+            counts = np.maximum(1, np.floor(n * mode_weights / mode_weights.sum())).astype(int)
+        groups = [(np.flatnonzero(of == k), counts[i]) for i, k in enumerate(kept)]
+        rest = np.flatnonzero(~np.isin(of, kept))
+        rest_count = n - int(counts.sum())
+        if len(rest) and rest_count > 0 and self.weights[rest].sum() > 0:
+            groups.append((rest, rest_count))
+        index, weights = [], []
+        for members, count in groups:
+            w = self.weights[members]
+            index.append(members[residual_resample(w, self.rng, int(count))])
+            weights.append(np.full(int(count), w.sum() / count))
+        all_weights = np.concatenate(weights)
+        return np.concatenate(index), all_weights / all_weights.sum()
 
     def inject(self, suggestions: np.ndarray) -> np.ndarray:
         """Replace the worst ``replace_worst_fraction`` of the particles: ``smart_share`` of them around the
@@ -291,17 +358,35 @@ class FeatureFilter:
         nothing about which particles are worst, and replacing an arbitrary 5 % per step would wear the
         tracked cluster away while the robot drives through a stretch with no corners."""
         self.measurement_update(features, wall_points)
+        self.belief = read_belief(self.particles, self.weights, self.belief_config)
         estimate = self.best_mean() if self.converged() else None
         r = self.config.switch_radius_m
         if estimate is not None and previous is not None and r > 0 and np.hypot(*(estimate[:2] - previous[:2])) > r:
             if self.weight_near(estimate, r) <= self.weight_near(previous, r):
                 estimate = None
+        pose = estimate if estimate is not None else previous
+        reading = self.read(pose)
+        jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
+        self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
         self.resample_if_degenerate()
         if self.informed:
             self.inject(suggestions)
         return estimate
 
     # ------------------------------------------------------------------ estimate
+    def read(self, pose: np.ndarray | None) -> BeliefReading:
+        """The status, covariance and hypotheses of the belief for an estimate at ``pose`` (None: no estimate
+        yet, lost), from the modes of the last measurement update."""
+        if self.belief is None:
+            self.belief = read_belief(self.particles, self.weights, self.belief_config)
+        hypotheses = hypotheses_of(self.belief, self.belief_config.hypotheses)
+        if pose is None:
+            return BeliefReading("lost", self.covariance(self.best_mean()), hypotheses)
+        chosen = self.belief.mode_of(pose, self.particles)
+        status = belief_status(self.belief, chosen, self.belief_config)
+        cov = covariance_about(self.belief.modes[chosen], pose) if chosen >= 0 else self.covariance(pose)
+        return BeliefReading(status, cov, hypotheses)
+
     def weight_near(self, pose: np.ndarray, radius: float, max_angle: float = np.radians(30.0)) -> float:
         """Total weight of the particles within ``radius`` and ``max_angle`` of ``pose``."""
         d = self.particles - pose

@@ -18,6 +18,7 @@ from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, dete
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.localizer import Observation, PoseEstimate, particle_sample, require
 from pimm_agents.observation_guard import ObservationGuard
+from pimm_agents.particles.belief import BeliefConfig
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.perception.fingerprint_map import FingerprintMap
 from pimm_agents.perception.point_features import valid_returns
@@ -88,6 +89,7 @@ class PimmConfig:
     filter: FeatureFilterConfig = field(default_factory=FeatureFilterConfig)
     corners: CornerDetectorConfig = field(default_factory=CornerDetectorConfig)
     wall_field: WallFieldConfig = field(default_factory=WallFieldConfig)
+    belief: BeliefConfig = field(default_factory=BeliefConfig)  # modes, status (particles/belief.py)
     use_suggestions: bool = True  # seed injected particles around the fingerprint map's suggestions
     # Ours: weigh (and resample and inject) once per scan, at the first motion update after it, as nav2 uses
     # each laser scan once. The thesis weighed the latest features after every motion update (0.1 m or
@@ -209,6 +211,7 @@ class PimmLocalizer:
             config.filter,
             LikelihoodField(occupancy, field_params) if walls.enabled else None,
             wall_temperature=walls.temperature if walls.model == "product" else None,
+            belief=config.belief,
         )
         self.history = OdometryHistory(config.odometry_history_s)
         self.guard = ObservationGuard()
@@ -333,7 +336,9 @@ class PimmLocalizer:
             self._estimate, self._estimate_odom = self.filter.best_mean(), odom.copy()
         pose = carry(self._estimate, self._estimate_odom, odom)
         timings["total"] = 1000 * (time.perf_counter() - began)
+        reading = self.filter.reading
         self._last = PoseEstimate(
-            float(pose[0]), float(pose[1]), float(pose[2]), self.filter.covariance(pose), stamp, timings
-        )
+            float(pose[0]), float(pose[1]), float(pose[2]), reading.covariance.copy(), stamp, timings,
+            reading.status, reading.hypotheses,
+        )  # fmt: skip
         return self._last

@@ -1,0 +1,138 @@
+"""A particle belief read as a navigation stack needs it: its modes, the chosen mode's covariance, a status.
+
+The particles are grouped into modes by nav2's pose clusters (bins that touch). A mode is *compact* when its
+position and heading spreads are within ``BeliefConfig``'s limits: a place, not a cloud still searching. The
+status of an estimate that lies in mode ``chosen``:
+
+- ``lost``: the chosen mode is not compact, or holds less than ``localized_min_weight`` of the belief;
+- ``ambiguous``: another compact mode weighs at least ``rival_ratio`` of the chosen one (a look-alike place
+  the evidence has not ruled out, or a heavier mode the estimate has not moved to yet);
+- ``localized``: otherwise, once that has held for ``confirm_updates`` measurement updates in a row with the
+  estimate in one place (``Confirmation``): a mode the first scans favour is often a wrong one whose rival has
+  no particles yet, and the next scans rule it out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pimm_agents.localizer import Hypothesis
+from pimm_agents.particles.pose_clusters import PoseCluster, cluster_labels, cluster_statistics
+from pimm_env.errors import LocalizerError
+from pimm_env.geometry import wrap_angle
+
+
+@dataclass(frozen=True)
+class BeliefConfig:
+    """Ours: nav2 reports its heaviest cluster only, with no status."""
+
+    bin_xy: float = 0.5  # nav2's pose-cluster bins (m)
+    bin_theta: float = float(np.radians(10.0))
+    hypotheses: int = 3  # modes reported, heaviest first
+    #: a compact mode with at least this share of the chosen mode's weight keeps the status ambiguous
+    rival_ratio: float = 0.1
+    #: the chosen mode's share of the whole belief below which the status is lost
+    localized_min_weight: float = 0.5
+    #: a mode is compact when its largest position standard deviation and its heading's are under these
+    compact_std_m: float = 0.5
+    compact_std_deg: float = 10.0
+    modes_examined: int = 20  # the heaviest modes looked at for rivals (a rival is among them)
+    confirm_updates: int = 10  # measurement updates in a row a localized reading needs before it is reported
+
+    def __post_init__(self) -> None:
+        if self.bin_xy <= 0 or self.bin_theta <= 0:
+            raise LocalizerError(f"belief bins must be positive, got {self.bin_xy} m and {self.bin_theta} rad")
+        if self.confirm_updates < 0:
+            raise LocalizerError(f"belief.confirm_updates must be at least 0, got {self.confirm_updates}")
+        if self.hypotheses < 1 or self.modes_examined < 1:
+            raise LocalizerError(
+                f"belief.hypotheses and modes_examined must be at least 1, got {self.hypotheses}, {self.modes_examined}"
+            )
+        for name in ("rival_ratio", "localized_min_weight"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise LocalizerError(f"belief.{name} must be in [0, 1], got {getattr(self, name)}")
+        if self.compact_std_m <= 0 or self.compact_std_deg <= 0:
+            raise LocalizerError("belief.compact_std_m and compact_std_deg must be positive")
+
+
+@dataclass(frozen=True)
+class Belief:
+    """The modes of a particle set, heaviest first, and each particle's mode index."""
+
+    modes: list[PoseCluster]
+    particle_mode: np.ndarray  # (N,) index into ``modes``; -1 for a mode past ``modes_examined``
+
+    def mode_of(self, pose: np.ndarray, particles: np.ndarray) -> int:
+        """The mode of the particle nearest ``pose`` (heading weighed as 1 m a radian); -1 past the examined."""
+        d = particles - pose
+        distance = d[:, 0] ** 2 + d[:, 1] ** 2 + wrap_angle(d[:, 2]) ** 2
+        return int(self.particle_mode[int(np.argmin(distance))])
+
+
+def read_belief(particles: np.ndarray, weights: np.ndarray, config: BeliefConfig) -> Belief:
+    """Cluster the weighted particles into modes (heaviest first, ``modes_examined`` of them)."""
+    labels = cluster_labels(particles, config.bin_xy, config.bin_theta)
+    total = np.bincount(labels, weights)
+    order = np.argsort(-total, kind="stable")[: config.modes_examined]
+    rank = np.full(len(total), -1)
+    rank[order] = np.arange(len(order))
+    modes = cluster_statistics(particles, weights, labels, limit=config.modes_examined)
+    return Belief(modes, rank[labels])
+
+
+def is_compact(mode: PoseCluster, config: BeliefConfig) -> bool:
+    """Whether the mode's largest position spread and its heading spread are within the config's limits."""
+    largest = float(np.linalg.eigvalsh(mode.covariance[:2, :2])[-1])
+    return largest <= config.compact_std_m**2 and mode.covariance[2, 2] <= np.radians(config.compact_std_deg) ** 2
+
+
+def belief_status(belief: Belief, chosen: int, config: BeliefConfig) -> str:
+    """``lost``, ``ambiguous`` or ``localized`` for an estimate in mode ``chosen`` (see the module's text)."""
+    if chosen < 0:
+        return "lost"
+    mode = belief.modes[chosen]
+    if not is_compact(mode, config) or mode.weight < config.localized_min_weight:
+        return "lost"
+    for index, other in enumerate(belief.modes):
+        if index != chosen and other.weight >= config.rival_ratio * mode.weight and is_compact(other, config):
+            return "ambiguous"
+    return "localized"
+
+
+def covariance_about(mode: PoseCluster, pose: np.ndarray) -> np.ndarray:
+    """The mode's covariance about ``pose`` rather than its mean: its spread plus the offset between them."""
+    offset = np.array([pose[0] - mode.mean[0], pose[1] - mode.mean[1], wrap_angle(pose[2] - mode.mean[2])])
+    cov = mode.covariance + np.outer(offset, offset)
+    cov[2, :2] = cov[:2, 2] = 0.0
+    return cov
+
+
+def hypotheses_of(belief: Belief, count: int) -> tuple[Hypothesis, ...]:
+    """The ``count`` heaviest modes as hypotheses."""
+    return tuple(
+        Hypothesis(float(m.mean[0]), float(m.mean[1]), float(m.mean[2]), m.weight, m.covariance.copy())
+        for m in belief.modes[:count]
+    )
+
+
+class Confirmation:
+    """Holds back ``localized`` until it has been read at ``updates`` measurement updates in a row with the
+    estimate staying in one place; until then the status is ``ambiguous``."""
+
+    def __init__(self, updates: int) -> None:
+        self.updates = updates
+        self.streak = 0
+
+    def reset(self) -> None:
+        self.streak = 0
+
+    def __call__(self, status: str, moved_place: bool) -> str:
+        """The status to report for a reading ``status`` at an update; ``moved_place``: the estimate jumped to
+        another place at this update."""
+        if status != "localized":
+            self.streak = 0
+            return status
+        self.streak = 1 if moved_place else self.streak + 1
+        return "localized" if self.streak >= self.updates else "ambiguous"
