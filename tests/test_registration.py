@@ -113,7 +113,7 @@ def test_planar_icp_pulls_an_offset_scan_onto_the_map():
 def test_localizes_globally_tracks_and_recovers_from_a_kidnap():
     rng = np.random.default_rng(3)
     surfaces = room_surfaces(0.12)[0]
-    loc = RegistrationLocalizer(room_map(), RegistrationConfig(global_period_s=0.0))
+    loc = RegistrationLocalizer(room_map(), RegistrationConfig(global_period_s=0.0, confirm_updates=1))
     loc.reset(seed=0)
     start = np.array([2.0, 2.0, 0.3])
     estimate = loc.update(observation(scan_at(start, rng, surfaces), (0.0, 0.0, 0.0), 0.0))

@@ -9,19 +9,19 @@ injection, so it injects one burst and stops. ``amcl-recovery`` keeps them, as A
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from pimm_agents.localizer import Observation, PoseEstimate, particle_sample, require
+from pimm_agents.localizer import Hypothesis, Observation, PoseEstimate, particle_sample, require
 from pimm_agents.observation_guard import ObservationGuard
 from pimm_agents.particles.beam_model import BeamModel, BeamModelParams
+from pimm_agents.particles.belief import BeliefConfig, Confirmation, belief_status, hypotheses_of, read_belief
 from pimm_agents.particles.free_space import FreeSpace
 from pimm_agents.particles.initial_pose import gaussian_poses
 from pimm_agents.particles.kld import bin_keys, kld_sample_count
 from pimm_agents.particles.likelihood_field import BeamSkip, LikelihoodField, LikelihoodFieldParams
 from pimm_agents.particles.motion_model import odometry_delta, sample_differential
-from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import multinomial_resample
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry, wrap_angle
@@ -74,6 +74,8 @@ class AmclConfig:
     #: KLD and cluster bins: nav2's 0.5 m x 0.5 m x 10 deg.
     bin_xy: float = 0.5
     bin_theta: float = np.radians(10.0)
+    #: ours: how the clusters are read as hypotheses and a status (particles/belief.py); nav2 has no status
+    belief: BeliefConfig = field(default_factory=BeliefConfig)
 
     def __post_init__(self) -> None:
         if self.laser_model_type not in LASER_MODELS:
@@ -82,7 +84,7 @@ class AmclConfig:
             )
         for f in fields(self):
             value = getattr(self, f.name)
-            if isinstance(value, str):
+            if isinstance(value, str | BeliefConfig):
                 continue
             if not np.isfinite(value) or value < 0:
                 raise LocalizerError(f"AmclConfig.{f.name} must be finite and non-negative, got {value!r}")
@@ -182,7 +184,8 @@ class Amcl:
         self._updates = 0
         self._last_scan_time: float | None = None
         self._odom_at_update: np.ndarray | None = None
-        self._pose_at_update = self._heaviest_cluster()
+        self.confirmation = Confirmation(self.config.belief.confirm_updates)
+        self._pose_at_update = self._read_clusters()
         self._estimate: PoseEstimate | None = None
 
     def snapshot(self, max_particles: int = 500) -> dict[str, np.ndarray]:
@@ -232,8 +235,9 @@ class Amcl:
         if self._updates % self.config.resample_interval == 0:
             self._resample()
         resampled = time.perf_counter()
+        carried = None if self._odom_at_update is None else carry(self._pose_at_update[0], self._odom_at_update, odom)
         self._odom_at_update = odom.copy()
-        self._pose_at_update = self._heaviest_cluster()
+        self._pose_at_update = self._read_clusters(update=True, previous=carried)
         done = time.perf_counter()
         timings.update(
             motion=1000 * (moved - start),
@@ -293,19 +297,32 @@ class Amcl:
         if w_diff > 0 and c.reset_recovery_averages:  # nav2: so as not to spiral into complete randomness
             self.w_slow = self.w_fast = 0.0
 
-    def _heaviest_cluster(self) -> tuple[np.ndarray, np.ndarray]:
-        labels = cluster_labels(self.particles, self.config.bin_xy, self.config.bin_theta)
-        best = heaviest_cluster(self.particles, self.weights, labels)
-        return best.mean, best.covariance
+    def _read_clusters(
+        self, update: bool = False, previous: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, str, tuple[Hypothesis, ...]]:
+        """nav2's estimate (the heaviest cluster's mean and covariance), with the status and hypotheses the
+        clusters give (particles/belief.py); ``update``: read at a measurement update (the status's
+        confirmation counts it), ``previous`` the last estimate carried to it by the odometry."""
+        belief = read_belief(self.particles, self.weights, self.config.belief)
+        best = belief.modes[0]
+        status = belief_status(belief, 0, self.config.belief)
+        if update:
+            moved = previous is None or np.hypot(*(best.mean[:2] - previous[:2])) > 0.5
+            status = self.confirmation(status, bool(moved))
+        else:
+            status = "lost"  # no scan weighed yet
+        return best.mean, best.covariance, status, hypotheses_of(belief, self.config.belief.hypotheses)
 
     def _report(self, odom: np.ndarray, stamp: float, timings: dict[str, float]) -> PoseEstimate:
         """The last filter pose carried forward by the odometry since that update."""
-        mean, cov = self._pose_at_update
+        mean, cov, status, hypotheses = self._pose_at_update
         if self._odom_at_update is None:
             pose = mean
         else:
             pose = carry(mean, self._odom_at_update, odom)
-        return PoseEstimate(float(pose[0]), float(pose[1]), float(pose[2]), cov.copy(), stamp, timings)
+        return PoseEstimate(
+            float(pose[0]), float(pose[1]), float(pose[2]), cov.copy(), stamp, timings, status, hypotheses
+        )
 
     @property
     def particle_count(self) -> int:

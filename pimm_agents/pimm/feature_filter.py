@@ -95,7 +95,13 @@ class FeatureFilterConfig:
             )
         if self.mode_min_particles < 0:
             raise LocalizerError(f"mode_min_particles must be at least 0, got {self.mode_min_particles}")
-        names = ("resample_ess_threshold", "replace_worst_fraction", "smart_share", "occupied_penalty", "mode_keep_ratio")
+        names = (
+            "resample_ess_threshold",
+            "replace_worst_fraction",
+            "smart_share",
+            "occupied_penalty",
+            "mode_keep_ratio",
+        )
         for name in names:
             if not 0 <= getattr(self, name) <= 1:
                 raise LocalizerError(f"{name} must be in [0, 1], got {getattr(self, name)}")
@@ -279,7 +285,10 @@ class FeatureFilter:
                 self.particles, self.weights = drawn[:n], np.full(n, 1.0 / n)
                 return True
         elif c.mode_min_particles == 0 or self.belief is None:
-            self.particles, self.weights = self.particles[residual_resample(self.weights, self.rng)], np.full(n, 1.0 / n)
+            self.particles, self.weights = (
+                self.particles[residual_resample(self.weights, self.rng)],
+                np.full(n, 1.0 / n),
+            )
             return True
         index, weights = self.mode_draws(n)
         self.particles, self.weights = self.particles[index], weights

@@ -41,6 +41,22 @@ class PlanarIcp:
                 break
         return pose
 
+    def covariance(self, scan: np.ndarray, pose: np.ndarray, max_distance: float) -> np.ndarray | None:
+        """The Gauss-Newton covariance of ``pose`` (x, y, yaw): s^2 (J^T J)^-1 over the point-to-plane pairs
+        closer than ``max_distance``, s^2 their residuals' variance; None with fewer than 6 pairs. Along a
+        direction the map's planes do not constrain (a corridor's axis) it is large, as it should be."""
+        moved = transform(scan, pose)
+        distance, nearest = self.tree.query(moved, distance_upper_bound=max_distance)
+        paired = np.isfinite(distance)
+        if np.count_nonzero(paired) < 6:
+            return None
+        p, q, n = moved[paired], self.points[nearest[paired]], self.normals[nearest[paired]]
+        lever = n[:, 1] * (p[:, 0] - pose[0]) - n[:, 0] * (p[:, 1] - pose[1])
+        jacobian = np.stack([n[:, 0], n[:, 1], lever], axis=1)
+        residual = np.einsum("ij,ij->i", n, p - q)
+        variance = float(residual @ residual) / max(1, len(residual) - 3)
+        return variance * np.linalg.pinv(jacobian.T @ jacobian)
+
     def fitness(self, scan: np.ndarray, pose: np.ndarray, distance: float) -> float:
         """Share of the scan's points within ``distance`` of a map point at ``pose``."""
         d, _ = self.tree.query(transform(scan, pose), distance_upper_bound=distance)

@@ -83,7 +83,7 @@ def score_log(path: Path, drop_repeated: bool = False, drop_uninitialised: bool 
         match = _GROUPED_NAME.match(Path(path).stem)
         group = match["group"] if match else Path(path).stem
     metrics = trial_metrics(log.after_kidnap())
-    honesty = honesty_metrics(log.after_kidnap(), metrics.convergence_time_s)
+    honesty = honesty_metrics(log.after_kidnap(), metrics.convergence_time_s, log.kidnap_index is not None)
     return ScoredLog(Path(path), group, log, faults, metrics, honesty, sidecar)
 
 

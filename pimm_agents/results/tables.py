@@ -178,7 +178,10 @@ def format_honesty(summary: dict[str, Any]) -> str:
     """Does each localizer know when it is right: time to a right ``localized``, time ``localized`` while wrong
     (mean per trial, share of all localized time, longest spell, trials with none) and covariance consistency."""
     w = _name_width((name for rows in summary["scenarios"].values() for name in rows), 16)
-    head = f"{'loc. time s':>12}{'false loc. s':>13}{'false %':>9}{'longest s':>10}{'none %':>8}{'3-sigma %':>10}"
+    head = (
+        f"{'loc. time s':>12}{'false loc. s':>13}{'false %':>9}{'longest s':>10}{'none %':>8}{'3-sigma %':>10}"
+        f"{'kidnap noticed s':>17}"
+    )
     lines = [f"\n  {'knowing when it is right':<{w}}{head}"]
     for scenario, by_localizer in summary["scenarios"].items():
         lines.append(f"  {scenario}")
@@ -187,6 +190,6 @@ def format_honesty(summary: dict[str, Any]) -> str:
                 f"  {'  ' + name:<{w}}{cell(row.get('time_to_localized_s'), '.2f'):>12}"
                 f"{cell(row.get('false_localized_s'), '.2f'):>13}{cell(row.get('false_localized_rate'), '.0f', 100):>9}"
                 f"{cell(row.get('max_false_localized_s'), '.2f'):>10}{cell(row.get('false_free_share'), '.0f', 100):>8}"
-                f"{cell(row.get('within_3sigma'), '.0f', 100):>10}"
+                f"{cell(row.get('within_3sigma'), '.0f', 100):>10}{cell(row.get('kidnap_noticed_s'), '.2f'):>17}"
             )
     return "\n".join(lines)

@@ -17,6 +17,9 @@ from pimm_agents.scoring.trial_log import TrialLog
 
 RIGHT_POSITION_M = 1.0
 RIGHT_ANGLE_DEG = 10.0
+#: A kidnap must be noticed (the status leave ``localized``) within this time (s); the localized rows until it
+#: is noticed are not counted false when it is (no localizer can know of a kidnap before it sees a scan).
+KIDNAP_NOTICE_S = 2.0
 #: Mahalanobis distance of the 3-sigma ellipse (2-D position: 98.9 % of a consistent estimate's errors).
 SIGMAS = 3.0
 
@@ -31,6 +34,8 @@ class HonestyMetrics:
     max_false_localized_s: float  # the longest such spell
     within_3sigma: float | None  # share of rows from convergence on whose position error is inside the 3-sigma ellipse
     nees: float | None  # mean normalized estimation error squared of the position there (2 when consistent)
+    #: a log that starts at a kidnap: seconds until the status first left localized (inf: it never did)
+    kidnap_noticed_s: float | None = None
 
 
 def row_durations(time: np.ndarray) -> np.ndarray:
@@ -59,14 +64,22 @@ def position_nees(log: TrialLog) -> np.ndarray:
     return np.where(det > 0, d2, np.where(exact, 0.0, np.inf))
 
 
-def honesty_metrics(log: TrialLog, convergence_time_s: float | None) -> HonestyMetrics:
-    """The metrics of ``log``; covariance consistency over the rows from ``convergence_time_s`` on (None: none)."""
+def honesty_metrics(log: TrialLog, convergence_time_s: float | None, kidnapped: bool = False) -> HonestyMetrics:
+    """The metrics of ``log``; covariance consistency over the rows from ``convergence_time_s`` on (None: none).
+    ``kidnapped``: the log starts at a kidnap; the rows until the status first leaves localized are not false
+    if that is within ``KIDNAP_NOTICE_S``, and the time it took is ``kidnap_noticed_s``."""
     if len(log) == 0:
-        return HonestyMetrics(None, 0.0, 0.0, None, 0.0, None, None)
+        return HonestyMetrics(None, 0.0, 0.0, None, 0.0, None, None, None)
     right = (position_errors(log) < RIGHT_POSITION_M) & (angle_errors_deg(log) < RIGHT_ANGLE_DEG)
     localized = log.localized
     durations = row_durations(log.time)
     false = localized & ~right
+    noticed = None
+    if kidnapped:
+        left = np.flatnonzero(~localized)
+        noticed = float(log.time[left[0]] - log.time[0]) if len(left) else float("inf")
+        if noticed <= KIDNAP_NOTICE_S:
+            false[: left[0]] = False
     localized_s, false_s = float(durations[localized].sum()), float(durations[false].sum())
     after_last_false = np.flatnonzero(false)[-1] + 1 if np.any(false) else 0
     found = np.flatnonzero((localized & right)[after_last_false:])
@@ -86,4 +99,5 @@ def honesty_metrics(log: TrialLog, convergence_time_s: float | None) -> HonestyM
         longest_spell(false, durations),
         within,
         nees,
+        noticed,
     )

@@ -33,7 +33,10 @@ def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] 
         trials = [results[i] for i in indices]
         entry: dict[str, Any] = summarize([t.metrics for t in trials])
         entry["timings_ms"] = timing_summary([timing for t in trials for timing in t.log.timings])
-        honesty = [honesty_metrics(t.log.after_kidnap(), t.metrics.convergence_time_s) for t in trials]
+        honesty = [
+            honesty_metrics(t.log.after_kidnap(), t.metrics.convergence_time_s, t.log.kidnap_index is not None)
+            for t in trials
+        ]
         rows = [_trial_row(results[i], h, errors[i] if errors else None) for i, h in zip(indices, honesty, strict=True)]
         entry["per_trial"] = rows
         entry.update(honesty_summary(honesty))
@@ -80,7 +83,8 @@ def _spread(rows: list[dict[str, Any]]) -> dict[str, dict[str, float] | None]:
 def honesty_summary(trials: list[HonestyMetrics]) -> dict[str, float | None]:
     """Over a scenario's trials: the median time to localized (of the trials that got there), the mean and
     longest false-localized time, the false-localized rate over all localized time, the share of trials with no
-    false-localized time at all, and the mean 3-sigma share and NEES."""
+    false-localized time at all, the mean 3-sigma share and the median NEES, and after kidnaps the longest time
+    to notice one."""
 
     def finite(values: list[float | None]) -> list[float]:
         return [v for v in values if v is not None and np.isfinite(v)]
@@ -88,6 +92,7 @@ def honesty_summary(trials: list[HonestyMetrics]) -> dict[str, float | None]:
     times = finite([t.time_to_localized_s for t in trials])
     localized = sum(t.localized_s for t in trials)
     within, nees = finite([t.within_3sigma for t in trials]), finite([t.nees for t in trials])
+    noticed = [t.kidnap_noticed_s for t in trials if t.kidnap_noticed_s is not None]
     return {
         "time_to_localized_s": float(np.median(times)) if times else None,
         "false_localized_s": float(np.mean([t.false_localized_s for t in trials])) if trials else None,
@@ -96,4 +101,5 @@ def honesty_summary(trials: list[HonestyMetrics]) -> dict[str, float | None]:
         "false_free_share": float(np.mean([t.false_localized_s == 0 for t in trials])) if trials else None,
         "within_3sigma": float(np.mean(within)) if within else None,
         "nees": float(np.median(nees)) if nees else None,
+        "kidnap_noticed_s": max(noticed) if noticed else None,
     }
