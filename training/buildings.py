@@ -10,13 +10,19 @@ cabinets), halls get columns and beams, and some walls a glass pane (class wall,
 The plan is drawn as free-space rectangles on a 0.05 m raster and turned into a world with the same importer
 that reads ROS maps, so a generated building is exactly what a user's imported floor plan becomes.
 
+Two look-alike families are drawn only for their own seeds: ``periodic`` (a long corridor of identical
+bays: offices on both sides, pillars at every bay, and only its two ends differ, one closed, one opening
+into a lobby; the rows are longer than the LiDAR sees) and ``mirror`` (a lobby with two identical wings,
+the floor the same turned half a turn about the lobby's centre, so every place has an exact twin, except for
+one store room off the lobby). They are where a localizer must say ``ambiguous`` rather than pick a twin.
+
 The seeds used for training and those kept for evaluation are fixed here: no training or tuning may use
-``HELD_OUT_SEEDS``.
+``HELD_OUT_SEEDS`` or ``LOOKALIKE_HELD_OUT_SEEDS``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +37,12 @@ DEVELOPMENT_SEEDS = tuple(range(900, 910))
 #: (fixed 2026-11-23, before any run on them).
 HELD_OUT_SEEDS = tuple(range(910, 920))
 FAMILIES = ("offices", "hall", "L", "U")
+#: Look-alike buildings for developing and tuning the localizers (no network is trained on them).
+LOOKALIKE_DEVELOPMENT_SEEDS = tuple(range(940, 948))
+#: Look-alike buildings no training, tuning or fingerprint choice may use or look at (fixed 2026-11-25, before
+#: any run on them).
+LOOKALIKE_HELD_OUT_SEEDS = tuple(range(960, 968))
+LOOKALIKE_FAMILIES = ("periodic", "mirror")
 RES = 0.05
 
 
@@ -48,6 +60,7 @@ class Plan:
     rooms: list[Room]
     doors: list[tuple[float, float, float, float]]
     wall: float  # wall thickness (m)
+    pillars: list[tuple[float, float]] = field(default_factory=list)  # 0.4 m square, floor to ceiling
 
 
 def _corridor_with_offices(
@@ -96,9 +109,68 @@ def _overlaps(box: tuple[float, float, float, float], plan: Plan, margin: float)
     return False
 
 
+def _periodic(rng: np.random.Generator, plan: Plan, ceiling: float) -> None:
+    """A corridor of 7-10 identical bays along x: an office on each side of every bay, a pillar pair at every
+    bay's end; closed at x = 0, opening into a lobby at the far end."""
+    t = plan.wall
+    bay, bays = float(rng.uniform(4.0, 6.0)), int(rng.integers(7, 11))
+    width, depth = float(rng.uniform(1.8, 2.6)), float(rng.uniform(3.5, 5.0))
+    door_at = float(rng.uniform(0.3, bay - 1.3))
+    length = bays * (bay + t) - t
+    plan.rooms.append(Room((0.0, 0.0, length, width), ceiling, "corridor"))
+    for k in range(bays):
+        a = k * (bay + t)
+        plan.rooms.append(Room((a, width + t, a + bay, width + t + depth), ceiling, "office"))
+        plan.doors.append((a + door_at, width, a + door_at + 0.9, width + t))
+        plan.rooms.append(Room((a, -t - depth, a + bay, -t), ceiling, "office"))
+        plan.doors.append((a + door_at, -t, a + door_at + 0.9, 0.0))
+        if k:
+            plan.pillars += [(a - t / 2, 0.2), (a - t / 2, width - 0.2)]
+    lobby = float(rng.uniform(5.0, 8.0))
+    plan.rooms.append(
+        Room((length + t, -lobby / 2 + width / 2, length + t + lobby, lobby / 2 + width / 2), ceiling, "hall")
+    )
+    plan.doors.append((length, 0.2, length + t, width - 0.2))
+
+
+def _mirror(rng: np.random.Generator, plan: Plan, ceiling: float) -> None:
+    """A lobby centred on the origin and two wings, each the other turned half a turn about the origin (offices
+    on both sides of a corridor), and one store room off the lobby that has no twin."""
+    t = plan.wall
+    half_w, half_d = float(rng.uniform(2.5, 4.0)), float(rng.uniform(2.5, 4.0))
+    plan.rooms.append(Room((-half_w, -half_d, half_w, half_d), ceiling, "hall"))
+    width = float(rng.uniform(1.8, 2.4))
+    office, depth, count = float(rng.uniform(3.0, 4.5)), float(rng.uniform(3.5, 5.0)), int(rng.integers(3, 6))
+    door_at = float(rng.uniform(0.3, office - 1.3))
+    wing: list[Room] = [
+        Room((half_w + t, -width / 2, half_w + t + count * (office + t), width / 2), ceiling, "corridor")
+    ]
+    doors = [(half_w, -width / 2 + 0.2, half_w + t, width / 2 - 0.2)]
+    for k in range(count):
+        a = half_w + t + k * (office + t)
+        wing.append(Room((a, width / 2 + t, a + office, width / 2 + t + depth), ceiling, "office"))
+        doors.append((a + door_at, width / 2, a + door_at + 0.9, width / 2 + t))
+        wing.append(Room((a, -width / 2 - t - depth, a + office, -width / 2 - t), ceiling, "office"))
+        doors.append((a + office - door_at - 0.9, -width / 2 - t, a + office - door_at, -width / 2))
+    for room in wing:
+        x0, y0, x1, y1 = room.box
+        plan.rooms += [room, Room((-x1, -y1, -x0, -y0), room.ceiling, room.kind)]
+    for x0, y0, x1, y1 in doors:
+        plan.doors += [(x0, y0, x1, y1), (-x1, -y1, -x0, -y0)]
+    store = float(rng.uniform(1.5, 2.5))
+    x = float(rng.uniform(-half_w, half_w - store))
+    plan.rooms.append(Room((x, half_d + t, x + store, half_d + t + store), ceiling, "office"))
+    plan.doors.append((x + 0.3, half_d, x + 1.2, half_d + t))
+
+
 def draw_plan(seed: int) -> tuple[str, Plan]:
     """The rooms and doors of building ``seed``."""
     rng = np.random.default_rng(seed)
+    if seed in LOOKALIKE_DEVELOPMENT_SEEDS or seed in LOOKALIKE_HELD_OUT_SEEDS:
+        family = LOOKALIKE_FAMILIES[int(rng.integers(len(LOOKALIKE_FAMILIES)))]
+        plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
+        (_periodic if family == "periodic" else _mirror)(rng, plan, float(rng.uniform(2.4, 3.0)))
+        return family, plan
     family = FAMILIES[int(rng.integers(len(FAMILIES)))]
     plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
     ceiling = float(rng.uniform(2.4, 3.0))
@@ -211,6 +283,19 @@ def _room_furniture(plan: Plan, rng: np.random.Generator) -> list[dict[str, Any]
     return elements
 
 
+def _pillars(plan: Plan) -> list[dict[str, Any]]:
+    """The plan's pillars, floor to the corridor's ceiling (class clutter, as the halls' columns)."""
+    height = max((r.ceiling for r in plan.rooms if r.kind == "corridor"), default=2.5)
+    return [
+        {
+            "name": f"pillar_{k}",
+            "class": "clutter",
+            "box": {"center": [round(x, 3), round(y, 3), height / 2], "size": [0.4, 0.4, height]},
+        }
+        for k, (x, y) in enumerate(plan.pillars)
+    ]
+
+
 def building_spec(seed: int) -> dict[str, Any]:
     """The ``pimm-world/1`` mapping of building ``seed`` (deterministic)."""
     from pimm_env.importers.floor_plan import CeilingArea, world_spec
@@ -240,7 +325,7 @@ def building_spec(seed: int) -> dict[str, Any]:
     ]
     default = max(r.ceiling for r in plan.rooms if r.kind == "corridor")
     spec = world_spec(f"{family}-{seed}", floor_plan, default, ceilings)
-    spec["elements"] += _hall_fixtures(plan, rng) + _room_furniture(plan, rng)
+    spec["elements"] += _hall_fixtures(plan, rng) + _room_furniture(plan, rng) + _pillars(plan)
     return spec
 
 

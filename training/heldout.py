@@ -78,6 +78,31 @@ def building_row(result: dict[str, Any], localizer: str) -> dict[str, float | No
         "convergence_time_s": pooled(routes, "convergence_time_s"),
         "position_error_m": pooled(rows, "position_error_m"),
         "kidnap_recovery": float(np.mean([r["convergence_rate"] for r in kidnaps])) if kidnaps else None,
+        **_honesty(Path(result["run"]["folder"]), localizer),
+    }
+
+
+def _honesty(folder: Path, localizer: str) -> dict[str, float | None]:
+    """Its trials' honesty (every trial, kidnaps from the kidnap on): pooled sums that add up over buildings
+    (trials, trials with no false-localized time, false-localized and localized seconds, the longest spell,
+    trials localized right), with the median time to localized and the mean 3-sigma share."""
+    from pimm_agents.results.folder import file_safe
+    from pimm_agents.results.scored_logs import score_log
+
+    honesty = [score_log(p).honesty for p in sorted((folder / "logs").glob(f"*_{file_safe(localizer)}_trial*.csv"))]
+    times = [h.time_to_localized_s for h in honesty if h.time_to_localized_s is not None]
+    within = [h.within_3sigma for h in honesty if h.within_3sigma is not None]
+    noticed = [h.kidnap_noticed_s for h in honesty if h.kidnap_noticed_s is not None]
+    return {
+        "trials": float(len(honesty)),
+        "false_free_trials": float(sum(h.false_localized_s == 0 for h in honesty)),
+        "false_localized_s": float(sum(h.false_localized_s for h in honesty)),
+        "localized_s": float(sum(h.localized_s for h in honesty)),
+        "max_false_localized_s": max((h.max_false_localized_s for h in honesty), default=None),
+        "localized_right_trials": float(len(times)),
+        "time_to_localized_s": float(np.median(times)) if times else None,
+        "within_3sigma": float(np.mean(within)) if within else None,
+        "kidnap_noticed_s": max(noticed) if noticed else None,
     }
 
 
@@ -97,8 +122,9 @@ def format_table(rows: dict[str, dict[str, dict[str, float | None]]], localizers
 
     lines = [
         "| building | localizer | mIoU | recall@3 (2 m) | corner recall | conv. rate | conv. time s | pos. err m "
-        "| excursions / trial | after 5 s held | kidnap |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| excursions / trial | after 5 s held | kidnap | loc. time s | false-free trials | false loc. % "
+        "| longest false s | 3-sigma % | kidnap noticed s |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for building, by_localizer in rows.items():
         for localizer in localizers:
@@ -108,13 +134,24 @@ def format_table(rows: dict[str, dict[str, dict[str, float | None]]], localizers
                 f"{cell(r['corner_recall'], '.2f')} | {cell(r['convergence_rate'], '.0f', 100)} % | "
                 f"{cell(r['convergence_time_s'], '.1f')} | {cell(r['position_error_m'], '.2f')} | "
                 f"{cell(r['excursions_per_trial'], '.2f')} | {cell(r.get('excursions_held_per_trial'), '.2f')} | "
-                f"{cell(r['kidnap_recovery'], '.0f', 100)} % |"
+                f"{cell(r['kidnap_recovery'], '.0f', 100)} % | {cell(r.get('time_to_localized_s'), '.1f')} | "
+                f"{_share(r.get('false_free_trials'), r.get('trials'))} | "
+                f"{_share(r.get('false_localized_s'), r.get('localized_s'), '.1f')} | "
+                f"{cell(r.get('max_false_localized_s'), '.1f')} | {cell(r.get('within_3sigma'), '.0f', 100)} | "
+                f"{cell(r.get('kidnap_noticed_s'), '.1f')} |"
             )
     return "\n".join(lines)
 
 
+def _share(part: float | None, whole: float | None, spec: str = ".0f") -> str:
+    from pimm_agents.results.tables import cell
+
+    return cell(part / whole if part is not None and whole else None, spec, 100) + " %"
+
+
 def summarize(rows: dict[str, dict[str, dict[str, float | None]]], localizer: str) -> dict[str, float | None]:
-    """Means over buildings (median for the convergence time)."""
+    """Means over buildings (median for the convergence and localization times); the honesty counts summed
+    (their shares are then pooled over all trials) and the longest spells the longest."""
     items = [by[localizer] for by in rows.values()]
 
     def mean(key: str) -> float | None:
@@ -124,4 +161,11 @@ def summarize(rows: dict[str, dict[str, dict[str, float | None]]], localizer: st
     times = [t for t in (r["convergence_time_s"] for r in items) if t is not None]
     summary = {key: mean(key) for key in items[0]}
     summary["convergence_time_s"] = float(np.median(times)) if times else None
+    for key in ("trials", "false_free_trials", "false_localized_s", "localized_s", "localized_right_trials"):
+        summary[key] = float(sum(r.get(key) or 0.0 for r in items))
+    for key in ("max_false_localized_s", "kidnap_noticed_s"):
+        values = [v for v in (r.get(key) for r in items) if v is not None]
+        summary[key] = max(values) if values else None
+    located = [t for t in (r.get("time_to_localized_s") for r in items) if t is not None]
+    summary["time_to_localized_s"] = float(np.median(located)) if located else None
     return summary
