@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from pimm_agents.corners.lookup import NearestCornerGrid
+from pimm_agents.particles.belief import BeliefConfig, read_belief
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.pimm.localizer import OdometryHistory, WallFieldConfig, compensate, wall_points
@@ -281,3 +282,123 @@ def test_adaptive_injection_joins_a_small_set_and_replaces_in_a_full_one():
     assert len(full.particles) == 2000
     with pytest.raises(ValueError, match="min_particles must be at least 1, got 0"):
         FeatureFilterConfig(num_particles=100, min_particles=0)
+
+
+# Two identical rooms, 10 m x 4 m, 2 m apart, each cut in two by a partition at its x = 5 with a door at its
+# y = 0.5-1.5; the second room (x = 12-22) also has a block in the north-east corner of its east half, hidden
+# from the west half by the partition.
+BLOCK = (21.0, 21.7, 3.0, 3.8)
+
+
+def twin_rooms() -> OccupancyGrid:
+    grid = GridSpec.covering(np.array([0.0, 0.0]), np.array([22.0, 4.0]), 0.1, margin=0.5)
+    gx, gy = grid.cell_centers()
+
+    def room(x0: float) -> np.ndarray:
+        x = gx - x0
+        partition = (x > 4.9) & (x < 5.1) & ~((gy > 0.5) & (gy < 1.5))
+        return (x > 0) & (x < 10) & (gy > 0) & (gy < 4) & ~partition
+
+    block = (gx > BLOCK[0]) & (gx < BLOCK[1]) & (gy > BLOCK[2]) & (gy < BLOCK[3])
+    free = (room(0.0) | room(12.0)) & ~block
+    return OccupancyGrid(grid, occupied=~free, free=free)
+
+
+def rays_from(occupancy: OccupancyGrid, pose: np.ndarray, reach: float, count: int = 60) -> np.ndarray:
+    """End points (robot frame) of ``count`` rays from ``pose`` that hit an obstacle within ``reach``."""
+    steps = np.arange(0.05, reach, 0.02)
+    points = []
+    for a in np.linspace(-np.pi, np.pi, count, endpoint=False):
+        ray = pose[:2] + steps[:, None] * [np.cos(pose[2] + a), np.sin(pose[2] + a)]
+        rows, cols, valid = occupancy.grid.cells_of(ray)
+        hit = np.nonzero(valid & occupancy.occupied[np.where(valid, rows, 0), np.where(valid, cols, 0)])[0]
+        if len(hit):
+            points.append(relative_motion(pose, np.array([*ray[hit[0]], 0.0]))[:2])
+    return np.array(points).reshape(-1, 2)
+
+
+def track(
+    filt: FeatureFilter, odometry: np.ndarray, truths: np.ndarray, scan
+) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Drive the filter as the localizer does: the last estimate carried by the odometry is the one a new
+    estimate must outweigh. ``scan(truth)`` gives (features, wall points). Per update: status, estimate, truth."""
+    out: list[tuple[str, np.ndarray, np.ndarray]] = []
+    estimate, at = None, None
+    for odom, truth in zip(odometry, truths, strict=True):
+        if filt.motion_update(odom):
+            previous = None if estimate is None else carry(estimate, at, odom)
+            features, walls = scan(truth)
+            found = filt.correct(features, np.zeros((0, 2)), previous, walls)
+            if found is not None:
+                estimate, at = found, odom
+            elif previous is not None:
+                estimate, at = previous, odom
+            out.append((filt.reading.status, None if estimate is None else estimate.copy(), truth))
+    return out
+
+
+def test_twin_rooms_are_ambiguous_until_the_block_that_tells_them_apart_is_seen():
+    occupancy = twin_rooms()
+    corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
+    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=4000), wall_field_for(occupancy), 0.2)
+    filt.reset(np.random.default_rng(0))
+    # in the second room's west half, round and about, then east through the door
+    turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
+    truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 20.0, 0.12)]])
+    updates = track(filt, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
+    # the block is in sight through the door from x = 15.6 on
+    before = [status for status, _, pose in updates if pose[0] < 15.5]
+    assert "localized" not in before and before[-20:] == ["ambiguous"] * 20
+    twins = filt.reading.hypotheses
+    assert updates[-1][0] == "localized" and np.hypot(*(updates[-1][1][:2] - truth[-1, :2])) < 0.3
+    assert twins[0].x > 12 and (len(twins) == 1 or twins[1].weight < 0.1 * twins[0].weight)
+
+
+def test_per_mode_budgets_keep_a_light_twin_alive_with_its_weight():
+    filt = make_filter(2000, adaptive=False)
+    rng = np.random.default_rng(4)
+    filt.particles = np.vstack(
+        [[2.0, 1.5, 0.0] + rng.normal(0, 0.05, (1900, 3)), [2.0, 4.5, 0] + rng.normal(0, 0.05, (100, 3))]
+    )
+    filt.weights = np.concatenate([np.full(1900, 0.98 / 1900), np.full(100, 0.02 / 100)])
+    filt.ess = 1.0  # degenerate: resample now
+    filt.belief = read_belief(filt.particles, filt.weights, BeliefConfig())
+    assert filt.resample_if_degenerate()
+    twin = filt.particles[:, 1] > 3
+    # the twin keeps its 2 % of the belief and mode_min_particles particles (its share alone would be 40)
+    assert twin.sum() == 100 and filt.weights[twin].sum() == pytest.approx(0.02)
+    plain = make_filter(2000, adaptive=False, mode_min_particles=0)
+    plain.particles, plain.weights, plain.ess = filt.particles.copy(), filt.weights.copy(), 1.0
+    plain.weights = np.where(twin, 0.02 / twin.sum(), 0.98 / (~twin).sum())
+    plain.resample_if_degenerate()
+    assert (plain.particles[:, 1] > 3).sum() < 80
+
+
+def test_a_kidnap_turns_localized_off_within_a_few_updates():
+    occupancy, corners = l_room()
+    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=3000), wall_field_for(occupancy), 0.2)
+    filt.reset(np.random.default_rng(0))
+    # east along y = 1.5, then the robot is carried to the east wing's far end, facing west, while the odometry
+    # goes on east: its scans are then the east wing's
+    odometry = np.array([[x, 1.5, 0.0] for x in np.arange(1.0, 9.0, 0.15)])
+    carried = np.array([[9.5 - 0.15 * k, 1.5, np.pi] for k in range(len(odometry))])
+    truths = np.where((odometry[:, 0] < 6.0)[:, None], odometry, carried)
+    updates = track(filt, odometry, truths, lambda pose: (features_from(pose), walls_seen_from(pose)))
+    kidnap = int(np.argmax(odometry[1:, 0] >= 6.0))
+    assert updates[kidnap - 1][0] == "localized"
+    assert "localized" not in [status for status, _, _ in updates[kidnap + 1 : kidnap + 4]]  # the first may hold it
+
+
+def test_the_reported_covariance_is_consistent_with_the_error_on_a_tracked_run():
+    occupancy, corners = l_room()
+    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=3000), wall_field_for(occupancy), 0.2)
+    filt.reset(np.random.default_rng(1))
+    inside, traces = [], []
+    poses = path()
+    for status, estimate, pose in track(filt, poses, poses, lambda p: (features_from(p), walls_seen_from(p))):
+        if status == "localized":
+            error, cov = estimate[:2] - pose[:2], filt.reading.covariance[:2, :2]
+            inside.append(error @ np.linalg.solve(cov, error) <= 9.0)
+            traces.append(np.trace(cov))
+    assert len(inside) > 20 and np.mean(inside) >= 0.9
+    assert max(traces) < 0.5  # the estimate's mode, not the whole particle set (the L room: ~8 m^2)

@@ -43,6 +43,9 @@ LOOKALIKE_DEVELOPMENT_SEEDS = tuple(range(940, 948))
 #: any run on them).
 LOOKALIKE_HELD_OUT_SEEDS = tuple(range(960, 968))
 LOOKALIKE_FAMILIES = ("periodic", "mirror")
+#: Door width in the look-alike families (m): wide enough for the route planner's 0.5 m clearance, so routes
+#: go into the rooms rather than only up and down one corridor.
+DOOR = 1.3
 RES = 0.05
 
 
@@ -115,15 +118,15 @@ def _periodic(rng: np.random.Generator, plan: Plan, ceiling: float) -> None:
     t = plan.wall
     bay, bays = float(rng.uniform(4.0, 6.0)), int(rng.integers(7, 11))
     width, depth = float(rng.uniform(1.8, 2.6)), float(rng.uniform(3.5, 5.0))
-    door_at = float(rng.uniform(0.3, bay - 1.3))
+    door_at = float(rng.uniform(0.3, bay - DOOR - 0.3))
     length = bays * (bay + t) - t
     plan.rooms.append(Room((0.0, 0.0, length, width), ceiling, "corridor"))
     for k in range(bays):
         a = k * (bay + t)
         plan.rooms.append(Room((a, width + t, a + bay, width + t + depth), ceiling, "office"))
-        plan.doors.append((a + door_at, width, a + door_at + 0.9, width + t))
+        plan.doors.append((a + door_at, width, a + door_at + DOOR, width + t))
         plan.rooms.append(Room((a, -t - depth, a + bay, -t), ceiling, "office"))
-        plan.doors.append((a + door_at, -t, a + door_at + 0.9, 0.0))
+        plan.doors.append((a + door_at, -t, a + door_at + DOOR, 0.0))
         if k:
             plan.pillars += [(a - t / 2, 0.2), (a - t / 2, width - 0.2)]
     lobby = float(rng.uniform(5.0, 8.0))
@@ -141,7 +144,7 @@ def _mirror(rng: np.random.Generator, plan: Plan, ceiling: float) -> None:
     plan.rooms.append(Room((-half_w, -half_d, half_w, half_d), ceiling, "hall"))
     width = float(rng.uniform(1.8, 2.4))
     office, depth, count = float(rng.uniform(3.0, 4.5)), float(rng.uniform(3.5, 5.0)), int(rng.integers(3, 6))
-    door_at = float(rng.uniform(0.3, office - 1.3))
+    door_at = float(rng.uniform(0.3, office - DOOR - 0.3))
     wing: list[Room] = [
         Room((half_w + t, -width / 2, half_w + t + count * (office + t), width / 2), ceiling, "corridor")
     ]
@@ -149,18 +152,18 @@ def _mirror(rng: np.random.Generator, plan: Plan, ceiling: float) -> None:
     for k in range(count):
         a = half_w + t + k * (office + t)
         wing.append(Room((a, width / 2 + t, a + office, width / 2 + t + depth), ceiling, "office"))
-        doors.append((a + door_at, width / 2, a + door_at + 0.9, width / 2 + t))
+        doors.append((a + door_at, width / 2, a + door_at + DOOR, width / 2 + t))
         wing.append(Room((a, -width / 2 - t - depth, a + office, -width / 2 - t), ceiling, "office"))
-        doors.append((a + office - door_at - 0.9, -width / 2 - t, a + office - door_at, -width / 2))
+        doors.append((a + office - door_at - DOOR, -width / 2 - t, a + office - door_at, -width / 2))
     for room in wing:
         x0, y0, x1, y1 = room.box
         plan.rooms += [room, Room((-x1, -y1, -x0, -y0), room.ceiling, room.kind)]
     for x0, y0, x1, y1 in doors:
         plan.doors += [(x0, y0, x1, y1), (-x1, -y1, -x0, -y0)]
-    store = float(rng.uniform(1.5, 2.5))
+    store = float(rng.uniform(2.0, 3.0))
     x = float(rng.uniform(-half_w, half_w - store))
     plan.rooms.append(Room((x, half_d + t, x + store, half_d + t + store), ceiling, "office"))
-    plan.doors.append((x + 0.3, half_d, x + 1.2, half_d + t))
+    plan.doors.append((x + 0.1, half_d, x + 0.1 + DOOR, half_d + t))
 
 
 def draw_plan(seed: int) -> tuple[str, Plan]:

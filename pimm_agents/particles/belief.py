@@ -72,9 +72,13 @@ class Belief:
         return int(self.particle_mode[int(np.argmin(distance))])
 
 
-def read_belief(particles: np.ndarray, weights: np.ndarray, config: BeliefConfig) -> Belief:
-    """Cluster the weighted particles into modes (heaviest first, ``modes_examined`` of them)."""
-    labels = cluster_labels(particles, config.bin_xy, config.bin_theta)
+def read_belief(
+    particles: np.ndarray, weights: np.ndarray, config: BeliefConfig, labels: np.ndarray | None = None
+) -> Belief:
+    """Cluster the weighted particles into modes (heaviest first, ``modes_examined`` of them); ``labels``: the
+    particles' clusters if they are known already (``cluster_labels`` with the config's bins)."""
+    if labels is None:
+        labels = cluster_labels(particles, config.bin_xy, config.bin_theta)
     total = np.bincount(labels, weights)
     order = np.argsort(-total, kind="stable")[: config.modes_examined]
     rank = np.full(len(total), -1)

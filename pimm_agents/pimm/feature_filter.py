@@ -27,6 +27,7 @@ from pimm_agents.particles.kld import bin_keys, kld_sample_count
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
+from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -80,6 +81,13 @@ class FeatureFilterConfig:
     #: tell it from the heaviest; it is dropped once the evidence has made it light. 0 particles: the thesis's.
     mode_min_particles: int = 100
     mode_keep_ratio: float = 0.01
+    #: ours: how a measurement weighs a compact mode (a place, belief.py). "mean": by the measurement's
+    #: likelihood at the mode's mean pose, as a multi-hypothesis tracker weighs each hypothesis (its particles
+    #: keep their shares within it), so two places that fit alike keep their weights. "sum", the particle
+    #: filter's own: by the sum of its particles' likelihoods; of two exact twins, the one whose particles
+    #: happen to lie better takes the whole belief within a few metres. Modes that are not compact, and
+    #: single particles, are weighed as the particle filter weighs them either way.
+    mode_evidence: str = "mean"
 
     def __post_init__(self) -> None:
         if self.num_particles < 1:
@@ -93,6 +101,8 @@ class FeatureFilterConfig:
                 f"estimate_bin_xy must be at least 0 and estimate_bin_theta above 0, got {self.estimate_bin_xy}"
                 f" and {self.estimate_bin_theta}"
             )
+        if self.mode_evidence not in ("mean", "sum"):
+            raise LocalizerError(f"mode_evidence must be 'mean' or 'sum', got {self.mode_evidence!r}")
         if self.mode_min_particles < 0:
             raise LocalizerError(f"mode_min_particles must be at least 0, got {self.mode_min_particles}")
         names = (
@@ -117,6 +127,42 @@ class BeliefReading:
     hypotheses: tuple[Hypothesis, ...]
 
 
+def compact_modes(
+    particles: np.ndarray, weights: np.ndarray, labels: np.ndarray, config: BeliefConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """The clusters that are compact modes (more than one particle, weighed, spreads within ``config``'s
+    limits; position by the trace of its covariance) and their weighted mean poses (K, 3)."""
+    count = int(labels.max()) + 1
+    members = np.bincount(labels, minlength=count)
+    total = np.bincount(labels, weights, minlength=count)
+    share = weights / np.where(total[labels] > 0, total[labels], 1.0)
+    x, y, theta = particles.T
+    mx, my, mxx, myy, mc, ms = (
+        np.bincount(labels, share * v, minlength=count) for v in (x, y, x * x, y * y, np.cos(theta), np.sin(theta))
+    )
+    trace = (mxx - mx**2) + (myy - my**2)
+    theta_var = -2.0 * np.log(np.clip(np.hypot(mc, ms), 1e-12, 1.0))
+    compact = (members > 1) & (total > 0) & (trace <= config.compact_std_m**2)
+    compact &= theta_var <= np.radians(config.compact_std_deg) ** 2
+    ids = np.flatnonzero(compact)
+    return ids, np.column_stack([mx[ids], my[ids], np.arctan2(ms[ids], mc[ids])])
+
+
+def weigh_modes(
+    prior: np.ndarray, posterior: np.ndarray, labels: np.ndarray, modes: np.ndarray, mode_factors: np.ndarray
+) -> np.ndarray:
+    """``posterior`` (unnormalized weights) with each mode in ``modes`` (cluster ids) given its prior total times
+    ``mode_factors`` (the measurement at its mean); its particles keep their shares of it."""
+    count = int(labels.max()) + 1
+    prior_total = np.bincount(labels, prior, minlength=count)
+    posterior_total = np.bincount(labels, posterior, minlength=count)
+    target = posterior_total.copy()
+    target[modes] = prior_total[modes] * mode_factors
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(posterior_total > 0, target / posterior_total, 0.0)
+    return posterior * scale[labels]
+
+
 #: Columns of the feature array the filter takes: x, y, theta (robot frame), sigma_pos (m), sigma_theta (rad).
 FEATURE_COLUMNS = ("x", "y", "theta", "sigma_pos", "sigma_theta")
 
@@ -130,6 +176,7 @@ class FeatureFilter:
         wall_field: LikelihoodField | None = None,
         wall_temperature: float | None = None,
         belief: BeliefConfig = BeliefConfig(),
+        rivals: RivalConfig = RivalConfig(),
     ) -> None:
         self.config = config
         self.belief_config = belief
@@ -147,6 +194,11 @@ class FeatureFilter:
         self.ess = float(config.num_particles)
         self.informed = False  # whether the last measurement update had anything to weigh with
         self.belief: Belief | None = None  # the modes after the last measurement update
+        #: look-alike places the recent scans cannot tell from the estimate (rivals.py): with a tempered wall field
+        self.rivals = None
+        if rivals.enabled and wall_field is not None and wall_temperature is not None:
+            self.rivals = RivalTracker(wall_field, occupancy.free, wall_temperature, rivals)
+        self._rivals_odom: np.ndarray | None = None
         self.reading = BeliefReading("lost", np.eye(3), ())
         self._odom_ref: np.ndarray | None = None
 
@@ -168,6 +220,9 @@ class FeatureFilter:
         self._odom_ref = None
         self.belief = None
         self.confirmation.reset()
+        if self.rivals is not None:
+            self.rivals.reset()
+        self._rivals_odom = None
         self.reading = BeliefReading("lost", self.covariance(self.best_mean()), ())
 
     # ------------------------------------------------------------------ motion
@@ -193,15 +248,15 @@ class FeatureFilter:
         return True
 
     # ------------------------------------------------------------------ measurement
-    def likelihoods(self, features: np.ndarray) -> np.ndarray:
-        """Eq. 3.15 summed as cubes over the features, for every particle: L_total (N,).
+    def likelihoods(self, features: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
+        """Eq. 3.15 summed as cubes over the features, for every particle (or each of ``poses``): L_total (N,).
 
         The filter's hot loop (10 000 particles x 5 features per update): float32, arrays laid out
         (features, particles) so every operation runs along the long axis, and the nearest corner read
         straight from the lookup grid's cells.
         """
         f = np.asarray(features, dtype=np.float32).reshape(-1, len(FEATURE_COLUMNS))
-        x, y, theta = self.particles.T.astype(np.float32)
+        x, y, theta = (self.particles if poses is None else poses).T.astype(np.float32)
         cos, sin = np.cos(theta), np.sin(theta)
         fx, fy = f[:, 0:1], f[:, 1:2]
         mx = fx * cos
@@ -229,44 +284,63 @@ class FeatureFilter:
         np.exp(mx, out=mx)
         return mx.sum(axis=0, dtype=np.float64)
 
-    def in_free_space(self) -> np.ndarray:
+    def in_free_space(self, poses: np.ndarray | None = None) -> np.ndarray:
+        """Per particle (or pose): whether it lies in a free cell of the map."""
         grid = self._grid
         inv = 1.0 / grid.resolution
-        col = ((self.particles[:, 0] - grid.origin[0]) * inv).astype(np.int64)
-        row = ((self.particles[:, 1] - grid.origin[1]) * inv).astype(np.int64)
+        p = self.particles if poses is None else poses
+        col = ((p[:, 0] - grid.origin[0]) * inv).astype(np.int64)
+        row = ((p[:, 1] - grid.origin[1]) * inv).astype(np.int64)
         inside = (col >= 0) & (col < grid.shape[1]) & (row >= 0) & (row < grid.shape[0])
         flat = np.where(inside, row * grid.shape[1] + col, 0)
         return inside & self._allowed_flat[flat]
 
-    def measurement_update(self, features: np.ndarray, wall_points: np.ndarray | None = None) -> None:
+    def measurement_update(
+        self, features: np.ndarray, wall_points: np.ndarray | None = None, labels: np.ndarray | None = None
+    ) -> None:
         """Weights by eq. 3.16, then, given ``wall_points`` (M, 2; robot frame now) and a wall field, by the
         likelihood field: exp(temperature x sum of log pz), or nav2's 1 + sum of pz^3 without a temperature;
-        with neither only the occupied-cell penalty applies. Normalized; the ESS."""
+        with neither only the occupied-cell penalty applies. Given the particles' cluster ``labels`` and
+        ``mode_evidence`` "mean", each compact mode is then weighed by the measurement at its mean pose
+        (``weigh_modes``). Normalized; the ESS."""
         features = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_COLUMNS))
         if not np.isfinite(features).all() or np.any(features[:, 3:] <= 0):
             raise LocalizerError("features must be finite with positive sigma_pos and sigma_theta")
-        w = self.weights
-        if len(features):
-            alpha = self.config.alpha
-            w = alpha * (w * self.likelihoods(features)) + (1 - alpha) * w
         use_walls = self.wall_field is not None and wall_points is not None and len(wall_points) > 0
-        if use_walls:
-            points = np.asarray(wall_points, dtype=float).reshape(-1, 2)
-            ranges, bearings = np.hypot(points[:, 0], points[:, 1]), np.arctan2(points[:, 1], points[:, 0])
-            field = self.wall_field
-            assert field is not None
-            if self.wall_temperature is None:
-                w = w * field.weight_factors(self.particles, ranges, bearings)
-            else:
-                log_l = field.log_likelihoods(self.particles, ranges, bearings)
-                w = w * np.exp(self.wall_temperature * (log_l - log_l.max()))
         self.informed = bool(len(features)) or use_walls
-        w = np.where(self.in_free_space(), w, w * self.config.occupied_penalty)
+        n = len(self.particles)
+        modes = None
+        if labels is not None and self.config.mode_evidence == "mean" and self.informed:
+            modes = compact_modes(self.particles, self.weights, labels, self.belief_config)
+        poses = self.particles if modes is None else np.vstack([self.particles, modes[1]])
+        factors = self.measurement_factors(poses, features, wall_points if use_walls else None)
+        w = self.weights * factors[:n]
+        if modes is not None and labels is not None:
+            w = weigh_modes(self.weights, w, labels, modes[0], factors[n:])
         total = w.sum()
         if not np.isfinite(total) or total <= 0:
             w, total = np.ones_like(w), float(len(w))  # every particle penalized to nothing: start level again
         self.weights = w / total
         self.ess = float(1.0 / np.sum(self.weights**2))
+
+    def measurement_factors(
+        self, poses: np.ndarray, features: np.ndarray, wall_points: np.ndarray | None
+    ) -> np.ndarray:
+        """What one measurement multiplies the weight of a particle at each of ``poses`` by (see
+        ``measurement_update``); the wall field's factors are relative to the best of ``poses``."""
+        factors = np.ones(len(poses))
+        if len(features):
+            alpha = self.config.alpha
+            factors = alpha * self.likelihoods(features, poses) + (1 - alpha)
+        if wall_points is not None and self.wall_field is not None:
+            points = np.asarray(wall_points, dtype=float).reshape(-1, 2)
+            ranges, bearings = np.hypot(points[:, 0], points[:, 1]), np.arctan2(points[:, 1], points[:, 0])
+            if self.wall_temperature is None:
+                factors = factors * self.wall_field.weight_factors(poses, ranges, bearings)
+            else:
+                log_l = self.wall_field.log_likelihoods(poses, ranges, bearings)
+                factors = factors * np.exp(self.wall_temperature * (log_l - log_l.max()))
+        return np.where(self.in_free_space(poses), factors, factors * self.config.occupied_penalty)
 
     # ------------------------------------------------------------------ resampling and injection
     def resample_if_degenerate(self) -> bool:
@@ -303,13 +377,18 @@ class FeatureFilter:
         modes, of = self.belief.modes, self.belief.particle_mode
         kept = [k for k, m in enumerate(modes) if m.weight >= c.mode_keep_ratio * modes[0].weight and m.weight > 0]
         mode_weights = np.array([modes[k].weight for k in kept])
-        counts = np.maximum(c.mode_min_particles, np.rint(n * mode_weights)).astype(int)
-        if counts.sum() > n:  # more kept modes than the set can give their floor: share n by weight
-            counts = np.maximum(1, np.floor(n * mode_weights / mode_weights.sum())).astype(int)
-        groups = [(np.flatnonzero(of == k), counts[i]) for i, k in enumerate(kept)]
         rest = np.flatnonzero(~np.isin(of, kept))
-        rest_count = n - int(counts.sum())
-        if len(rest) and rest_count > 0 and self.weights[rest].sum() > 0:
+        rest_weight = float(self.weights[rest].sum()) if len(rest) else 0.0
+        counts = np.maximum(c.mode_min_particles, np.rint(n * mode_weights)).astype(int)
+        rest_count = int(np.rint(n * rest_weight)) if rest_weight > 0 else 0
+        heaviest = int(np.argmax(mode_weights))
+        counts[heaviest] -= counts.sum() + rest_count - n  # the heaviest mode gives the floors their particles
+        if counts[heaviest] < c.mode_min_particles:  # more kept modes than n can give their floor: share by weight
+            shares = np.append(mode_weights, rest_weight)
+            all_counts = np.maximum(1, np.floor(n * shares / shares.sum())).astype(int)
+            counts, rest_count = all_counts[:-1], int(all_counts[-1]) if rest_weight > 0 else 0
+        groups = [(np.flatnonzero(of == k), counts[i]) for i, k in enumerate(kept)]
+        if rest_count > 0:
             groups.append((rest, rest_count))
         index, weights = [], []
         for members, count in groups:
@@ -366,8 +445,9 @@ class FeatureFilter:
         Injection follows only an update that weighed something: with nothing measured the weights say
         nothing about which particles are worst, and replacing an arbitrary 5 % per step would wear the
         tracked cluster away while the robot drives through a stretch with no corners."""
-        self.measurement_update(features, wall_points)
-        self.belief = read_belief(self.particles, self.weights, self.belief_config)
+        labels = cluster_labels(self.particles, self.belief_config.bin_xy, self.belief_config.bin_theta)
+        self.measurement_update(features, wall_points, labels)
+        self.belief = read_belief(self.particles, self.weights, self.belief_config, labels)
         estimate = self.best_mean() if self.converged() else None
         r = self.config.switch_radius_m
         if estimate is not None and previous is not None and r > 0 and np.hypot(*(estimate[:2] - previous[:2])) > r:
@@ -375,6 +455,8 @@ class FeatureFilter:
                 estimate = None
         pose = estimate if estimate is not None else previous
         reading = self.read(pose)
+        if self.rivals is not None and self._odom_ref is not None:
+            reading = self.check_rivals(pose, reading, wall_points)
         jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
         self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
         self.resample_if_degenerate()
@@ -395,6 +477,35 @@ class FeatureFilter:
         status = belief_status(self.belief, chosen, self.belief_config)
         cov = covariance_about(self.belief.modes[chosen], pose) if chosen >= 0 else self.covariance(pose)
         return BeliefReading(status, cov, hypotheses)
+
+    def check_rivals(
+        self, pose: np.ndarray | None, reading: BeliefReading, wall_points: np.ndarray | None
+    ) -> BeliefReading:
+        """Keep this update's wall points, carry and re-score the rivals, look at new candidates (the other
+        compact modes and the heaviest particles away from the estimate); a localized reading with a rival
+        standing becomes ambiguous, and the rivals join the hypotheses."""
+        assert self.rivals is not None and self._odom_ref is not None
+        odom = self._odom_ref
+        if self._rivals_odom is not None:
+            self.rivals.move(self._rivals_odom, odom)
+        self._rivals_odom = odom.copy()
+        if wall_points is not None:
+            self.rivals.add_scan(odom, np.asarray(wall_points, dtype=float).reshape(-1, 2))
+        if pose is None or self.belief is None:
+            return reading
+        chosen = self.belief.mode_of(pose, self.particles)
+        modes = [m.mean for k, m in enumerate(self.belief.modes) if k != chosen and m.weight > 0]
+        outside = np.flatnonzero(self.belief.particle_mode != chosen)
+        heaviest = outside[np.argsort(-self.weights[outside])[: self.rivals.config.candidates]]
+        candidates = np.vstack([np.array(modes).reshape(-1, 3), self.particles[heaviest]])
+        if self.rivals.update(pose, odom, candidates) == 0:
+            return reading
+        rivals = tuple(
+            Hypothesis(float(r[0]), float(r[1]), float(r[2]), 0.0, np.diag([0.25, 0.25, np.radians(10.0) ** 2]))
+            for r in self.rivals.rivals
+        )
+        status = "ambiguous" if reading.status == "localized" else reading.status
+        return BeliefReading(status, reading.covariance, reading.hypotheses + rivals)
 
     def weight_near(self, pose: np.ndarray, radius: float, max_angle: float = np.radians(30.0)) -> float:
         """Total weight of the particles within ``radius`` and ``max_angle`` of ``pose``."""

@@ -1,0 +1,194 @@
+"""Look-alike places the recent scans cannot tell from the estimate: the check behind PIMM's ``ambiguous``.
+
+A particle filter's weights say how well each place fitted the scans *while particles were there*; a twin place
+that lost its particles early (sampling luck at a global start, or a resampling step) can no longer win weight,
+however well it fits. So the weights alone cannot say whether the estimate is the only place that explains what
+the robot saw. This module asks the scans directly: it keeps the wall points of the last ``history_scans``
+measurement updates with the odometry at each, and for a candidate place carries the candidate back along the
+odometry to every kept scan and sums the scans' tempered log-likelihoods there (the filter's wall field).
+Candidates are the filter's own: its other compact modes and its best particles away from the estimate (the
+injection puts some near every place the fingerprints suggest). A candidate is a *rival* while its summed
+evidence is within ``log_ratio`` of the estimate's; rivals are kept, carried by the odometry and re-scored at
+every update, until the scans rule them out. While any rival stands the status is ``ambiguous``.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from pimm_agents.particles.likelihood_field import LikelihoodField
+from pimm_env.errors import LocalizerError
+from pimm_env.geometry import relative_motion, wrap_angle
+
+
+@dataclass(frozen=True)
+class RivalConfig:
+    """Ours."""
+
+    enabled: bool = True
+    history_scans: int = 150  # measurement updates whose wall points are kept (0.1 m or 0.01 rad apart)
+    #: a candidate whose summed tempered log-likelihood over the kept scans is within this of the estimate's is a
+    #: rival (ln 10: the scans favour the estimate by less than 10 to 1)
+    log_ratio: float = float(np.log(10.0))
+    candidates: int = 5  # new candidates looked at per update
+    max_rivals: int = 5
+    distinct_m: float = 1.0  # a candidate closer than this (and distinct_deg) to the estimate or a rival is that place
+    distinct_deg: float = 10.0
+    refine_scans: int = 10  # a candidate is first fitted to the newest scans (coordinate steps of 0.1 m and 2 deg)
+
+    def __post_init__(self) -> None:
+        if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:
+            raise LocalizerError("rivals: history_scans and refine_scans must be at least 1, the counts at least 0")
+        if self.log_ratio <= 0 or self.distinct_m <= 0 or self.distinct_deg <= 0:
+            raise LocalizerError("rivals: log_ratio, distinct_m and distinct_deg must be positive")
+
+
+@dataclass(frozen=True)
+class _Stack:
+    points: np.ndarray  # (P, 2) wall points, robot frame at their scan
+    scan_of: np.ndarray  # (P,) their scan
+    motions: np.ndarray  # (S, 3) each scan's robot pose in the robot's frame now
+
+
+class RivalTracker:
+    def __init__(self, field: LikelihoodField, free: np.ndarray, temperature: float, config: RivalConfig) -> None:
+        self.field = field
+        self.free = free  # (rows, cols) of the map: a pose outside them is penalized
+        self.temperature = temperature
+        self.config = config
+        self._scans: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.history_scans)
+        self.rivals = np.zeros((0, 3))
+        self.margins = np.zeros(0)  # each rival's evidence minus the estimate's (log)
+
+    def reset(self) -> None:
+        self._scans.clear()
+        self.rivals, self.margins = np.zeros((0, 3)), np.zeros(0)
+
+    def add_scan(self, odom: np.ndarray, wall_points: np.ndarray) -> None:
+        """Keep a scan's wall points (M, 2; robot frame) with the odometry at which they were seen."""
+        if len(wall_points):
+            self._scans.append((np.asarray(odom, dtype=float).copy(), np.asarray(wall_points, dtype=float)))
+
+    def move(self, odom_then: np.ndarray, odom_now: np.ndarray) -> None:
+        """Carry the rivals by the odometry since ``odom_then``."""
+        if len(self.rivals):
+            self.rivals = carried(self.rivals, relative_motion(odom_then, odom_now))
+
+    def stack(self, odom_now: np.ndarray, last: int | None = None) -> _Stack:
+        """The kept scans (the ``last`` newest) as one array of points, each with its scan's motion from now."""
+        scans = list(self._scans)[-last:] if last else list(self._scans)
+        if not scans:
+            return _Stack(np.zeros((0, 2)), np.zeros(0, dtype=int), np.zeros((0, 3)))
+        points = np.vstack([points for _, points in scans])
+        scan_of = np.repeat(np.arange(len(scans)), [len(points) for _, points in scans])
+        motions = np.array([relative_motion(odom_now, odom) for odom, _ in scans])
+        return _Stack(points, scan_of, motions)
+
+    def evidence(self, poses: np.ndarray, stack: _Stack) -> np.ndarray:
+        """Summed tempered log-likelihood of the stacked scans for a robot now at each of ``poses`` (K, 3),
+        carried back along the odometry to each scan (a pose off the free space costs ln 0.1 a scan)."""
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        if len(stack.motions) == 0 or len(poses) == 0:
+            return np.zeros(len(poses))
+        k, m = len(poses), stack.motions
+        c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+        then = np.stack(
+            [
+                poses[:, 0:1] + c * m[:, 0] - s * m[:, 1],
+                poses[:, 1:2] + s * m[:, 0] + c * m[:, 1],
+                poses[:, 2:3] + m[:, 2],
+            ],
+            axis=2,
+        )  # (K, S, 3): the robot at each scan
+        at = then[:, stack.scan_of]  # (K, P, 3)
+        ca, sa = np.cos(at[..., 2]), np.sin(at[..., 2])
+        px, py = stack.points[:, 0], stack.points[:, 1]
+        xy = np.stack([at[..., 0] + ca * px - sa * py, at[..., 1] + sa * px + ca * py], axis=2).reshape(-1, 2)
+        d = self.field.distance_at(xy).reshape(k, -1)
+        p = self.field.params
+        floor = p.z_rand / p.range_max
+        log_pz = np.log(p.z_hit * np.exp(-(d**2) / (2 * p.sigma_hit**2)) + floor) - np.log(p.z_hit + floor)
+        outside = ~self._free_at(then[..., :2].reshape(-1, 2)).reshape(k, -1)
+        return self.temperature * log_pz.sum(axis=1) + np.log(0.1) * outside.sum(axis=1)
+
+    def _free_at(self, xy: np.ndarray) -> np.ndarray:
+        rows, cols, valid = self.field.grid.cells_of(xy)
+        out = np.zeros(len(xy), dtype=bool)
+        out[valid] = self.free[rows[valid], cols[valid]]
+        return out
+
+    def refine(self, poses: np.ndarray, stack: _Stack, rounds: int = 4) -> np.ndarray:
+        """Each of ``poses`` (K, 3) moved by coordinate steps (0.1 m, 0.1 m, 2 deg; then half of them) while the
+        stacked scans fit it better; all poses and their six neighbours scored at once."""
+        best = np.asarray(poses, dtype=float).reshape(-1, 3).copy()
+        score = self.evidence(best, stack)
+        offsets = np.vstack([np.diag([1.0, 1.0, 1.0]), -np.diag([1.0, 1.0, 1.0])])
+        for step in (np.array([0.1, 0.1, np.radians(2.0)]), np.array([0.05, 0.05, np.radians(1.0)])):
+            for _ in range(rounds):
+                trials = (best[:, None, :] + offsets[None, :, :] * step).reshape(-1, 3)
+                scores = self.evidence(trials, stack).reshape(len(best), 6)
+                better = scores.max(axis=1) > score
+                if not better.any():
+                    break
+                pick = np.argmax(scores, axis=1)
+                best[better] = trials.reshape(len(best), 6, 3)[better, pick[better]]
+                score[better] = scores[better, pick[better]]
+        best[:, 2] = wrap_angle(best[:, 2])
+        return best
+
+    def update(self, estimate: np.ndarray, odom_now: np.ndarray, candidates: np.ndarray) -> int:
+        """Re-score the kept rivals and the new ``candidates`` (M, 3) against ``estimate``; keep those within
+        ``log_ratio``. Returns how many rivals stand."""
+        c = self.config
+        pool = [p for p in self.rivals]
+        for candidate in candidates:
+            if len(pool) >= len(self.rivals) + c.candidates:
+                break
+            if not self._known(candidate, [estimate, *pool]):
+                pool.append(candidate)
+        if not pool or len(self._scans) < c.refine_scans:
+            self.rivals, self.margins = np.zeros((0, 3)), np.zeros(0)
+            return 0
+        recent = self.stack(odom_now, c.refine_scans)
+        kept = len(self.rivals)
+        refined = np.array(pool, dtype=float).reshape(-1, 3)
+        refined[:kept] = self.refine(refined[:kept], recent, rounds=1)  # tracked already: a touch
+        if len(refined) > kept:
+            refined[kept:] = self.refine(refined[kept:], recent)
+        scores = self.evidence(np.vstack([estimate[None, :], refined]), self.stack(odom_now))
+        margins = scores[1:] - scores[0]
+        unique: list[int] = []
+        for i in np.argsort(-margins):
+            if margins[i] <= -c.log_ratio or self._known(refined[i], [estimate]):
+                continue
+            if not self._known(refined[i], [refined[j] for j in unique]):
+                unique.append(int(i))
+        unique = unique[: c.max_rivals]
+        self.rivals, self.margins = refined[unique].reshape(-1, 3), margins[unique]
+        return len(unique)
+
+    def _known(self, pose: np.ndarray, places: list[np.ndarray]) -> bool:
+        c = self.config
+        return any(
+            np.hypot(pose[0] - q[0], pose[1] - q[1]) < c.distinct_m
+            and abs(wrap_angle(pose[2] - q[2])) < np.radians(c.distinct_deg)
+            for q in places
+        )
+
+
+def carried(poses: np.ndarray, motion: np.ndarray, paired: bool = False) -> np.ndarray:
+    """Each pose (K, 3) moved by ``motion`` (3,) in its own frame, or by ``motion[k]`` (K, 3) with ``paired``."""
+    m = np.asarray(motion, dtype=float)
+    if not paired:
+        m = np.broadcast_to(m, poses.shape)
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    return np.column_stack(
+        [
+            poses[:, 0] + c * m[:, 0] - s * m[:, 1],
+            poses[:, 1] + s * m[:, 0] + c * m[:, 1],
+            wrap_angle(poses[:, 2] + m[:, 2]),
+        ]
+    )
