@@ -340,7 +340,7 @@ def track(
 def test_twin_rooms_are_ambiguous_until_the_block_that_tells_them_apart_is_seen():
     occupancy = twin_rooms()
     corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
-    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=4000), wall_field_for(occupancy), 0.2)
+    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=10_000), wall_field_for(occupancy), 0.2)
     filt.reset(np.random.default_rng(0))
     # in the second room's west half, round and about, then east through the door
     turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])

@@ -455,9 +455,9 @@ class FeatureFilter:
                 estimate = None
         pose = estimate if estimate is not None else previous
         reading = self.read(pose)
-        if self.rivals is not None and self._odom_ref is not None:
-            reading = self.check_rivals(pose, reading, wall_points)
         jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
+        if self.rivals is not None and self._odom_ref is not None:
+            reading = self.check_rivals(pose, reading, wall_points, jumped)
         self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
         self.resample_if_degenerate()
         if self.informed:
@@ -479,24 +479,28 @@ class FeatureFilter:
         return BeliefReading(status, cov, hypotheses)
 
     def check_rivals(
-        self, pose: np.ndarray | None, reading: BeliefReading, wall_points: np.ndarray | None
+        self, pose: np.ndarray | None, reading: BeliefReading, wall_points: np.ndarray | None, jumped: bool
     ) -> BeliefReading:
         """Keep this update's wall points, carry and re-score the rivals, look at new candidates (the other
         compact modes and the heaviest particles away from the estimate); a localized reading with a rival
-        standing becomes ambiguous, and the rivals join the hypotheses."""
+        standing becomes ambiguous, and the rivals join the hypotheses. The kept scans are dropped when no
+        place is held (lost) and when the estimate ``jumped`` to another place: the scans before may be from
+        before a kidnap, which no odometry links to where the robot is now."""
         assert self.rivals is not None and self._odom_ref is not None
         odom = self._odom_ref
         if self._rivals_odom is not None:
             self.rivals.move(self._rivals_odom, odom)
         self._rivals_odom = odom.copy()
+        if jumped or reading.status == "lost":
+            self.rivals.reset()
+        if pose is None or self.belief is None or reading.status == "lost":
+            return reading
         if wall_points is not None:
             self.rivals.add_scan(odom, np.asarray(wall_points, dtype=float).reshape(-1, 2))
-        if pose is None or self.belief is None:
-            return reading
         chosen = self.belief.mode_of(pose, self.particles)
         modes = [m.mean for k, m in enumerate(self.belief.modes) if k != chosen and m.weight > 0]
         outside = np.flatnonzero(self.belief.particle_mode != chosen)
-        heaviest = outside[np.argsort(-self.weights[outside])[: self.rivals.config.candidates]]
+        heaviest = outside[np.argsort(-self.weights[outside])[: 5 * self.rivals.config.candidates]]
         candidates = np.vstack([np.array(modes).reshape(-1, 3), self.particles[heaviest]])
         if self.rivals.update(pose, odom, candidates) == 0:
             return reading

@@ -33,7 +33,7 @@ class RivalConfig:
     #: a candidate whose summed tempered log-likelihood over the kept scans is within this of the estimate's is a
     #: rival (ln 10: the scans favour the estimate by less than 10 to 1)
     log_ratio: float = float(np.log(10.0))
-    candidates: int = 5  # new candidates looked at per update
+    candidates: int = 2  # new candidates refined per update (the best fits of the newest scans among those offered)
     max_rivals: int = 5
     distinct_m: float = 1.0  # a candidate closer than this (and distinct_deg) to the estimate or a rival is that place
     distinct_deg: float = 10.0
@@ -60,11 +60,24 @@ class RivalTracker:
         self.temperature = temperature
         self.config = config
         self._scans: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.history_scans)
+        p = field.params
+        floor = p.z_rand / p.range_max
+        #: per map cell: log pz of a point there, relative to a point on a wall (so 0 at best)
+        self._log_pz = np.log(p.z_hit * np.exp(-(field.distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(
+            p.z_hit + floor
+        )
+        self._log_pz_off = float(
+            np.log(p.z_hit * np.exp(-(p.max_distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(p.z_hit + floor)
+        )
         self.rivals = np.zeros((0, 3))
         self.margins = np.zeros(0)  # each rival's evidence minus the estimate's (log)
 
     def reset(self) -> None:
         self._scans.clear()
+        self.forget()
+
+    def forget(self) -> None:
+        """Drop the rivals (the kept scans stay)."""
         self.rivals, self.margins = np.zeros((0, 3)), np.zeros(0)
 
     def add_scan(self, odom: np.ndarray, wall_points: np.ndarray) -> None:
@@ -107,10 +120,10 @@ class RivalTracker:
         ca, sa = np.cos(at[..., 2]), np.sin(at[..., 2])
         px, py = stack.points[:, 0], stack.points[:, 1]
         xy = np.stack([at[..., 0] + ca * px - sa * py, at[..., 1] + sa * px + ca * py], axis=2).reshape(-1, 2)
-        d = self.field.distance_at(xy).reshape(k, -1)
-        p = self.field.params
-        floor = p.z_rand / p.range_max
-        log_pz = np.log(p.z_hit * np.exp(-(d**2) / (2 * p.sigma_hit**2)) + floor) - np.log(p.z_hit + floor)
+        rows, cols, valid = self.field.grid.cells_of(xy)
+        log_pz = np.full(len(xy), self._log_pz_off)
+        log_pz[valid] = self._log_pz[rows[valid], cols[valid]]
+        log_pz = log_pz.reshape(k, -1)
         outside = ~self._free_at(then[..., :2].reshape(-1, 2)).reshape(k, -1)
         return self.temperature * log_pz.sum(axis=1) + np.log(0.1) * outside.sum(axis=1)
 
@@ -143,21 +156,27 @@ class RivalTracker:
         """Re-score the kept rivals and the new ``candidates`` (M, 3) against ``estimate``; keep those within
         ``log_ratio``. Returns how many rivals stand."""
         c = self.config
-        pool = [p for p in self.rivals]
-        for candidate in candidates:
-            if len(pool) >= len(self.rivals) + c.candidates:
-                break
-            if not self._known(candidate, [estimate, *pool]):
-                pool.append(candidate)
-        if not pool or len(self._scans) < c.refine_scans:
-            self.rivals, self.margins = np.zeros((0, 3)), np.zeros(0)
+        if len(self._scans) < c.refine_scans:
+            self.forget()
             return 0
         recent = self.stack(odom_now, c.refine_scans)
+        pool = [p for p in self.rivals]
+        fresh = [q for q in np.asarray(candidates, dtype=float).reshape(-1, 3) if not self._known(q, [estimate, *pool])]
+        if fresh:  # the ones the newest scans like best
+            order = np.argsort(-self.evidence(np.array(fresh), recent), kind="stable")
+            for i in order:
+                if len(pool) >= len(self.rivals) + c.candidates:
+                    break
+                if not self._known(fresh[i], pool):
+                    pool.append(fresh[i])
+        if not pool:
+            self.forget()
+            return 0
         kept = len(self.rivals)
         refined = np.array(pool, dtype=float).reshape(-1, 3)
         refined[:kept] = self.refine(refined[:kept], recent, rounds=1)  # tracked already: a touch
         if len(refined) > kept:
-            refined[kept:] = self.refine(refined[kept:], recent)
+            refined[kept:] = self.refine(refined[kept:], recent, rounds=3)
         scores = self.evidence(np.vstack([estimate[None, :], refined]), self.stack(odom_now))
         margins = scores[1:] - scores[0]
         unique: list[int] = []
