@@ -209,7 +209,7 @@ def heldout(
     localizers: list[str] = typer.Option(["pimm", "amcl"], "--localizers", help="localizers to run"),
     trials: int = typer.Option(3, min=1, help="trials per route"),
     scans: int = typer.Option(30, min=1, help="fresh scans for the perception figures"),
-    seeds: str = typer.Option("910-919", help="held-out building seeds"),
+    seeds: str = typer.Option("910-919", help="held-out building seeds (the look-alike set: 960-967)"),
     workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
     worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
     out: Path = typer.Option(Path("results/heldout"), help="where results and the table go"),
@@ -223,15 +223,26 @@ def heldout(
 
     from pimm_agents.preparation.prepare import prepare_world
     from pimm_agents.results.markdown import provenance_here
-    from training.buildings import DEVELOPMENT_SEEDS, HELD_OUT_SEEDS, write_building
+    from training.buildings import (
+        DEVELOPMENT_SEEDS,
+        HELD_OUT_SEEDS,
+        LOOKALIKE_DEVELOPMENT_SEEDS,
+        LOOKALIKE_HELD_OUT_SEEDS,
+        write_building,
+    )
     from training.heldout import building_row, format_table, measure_building, needs_preparing, summarize
 
     chosen = _seed_list(seeds)
-    outside = sorted(set(chosen) - set(HELD_OUT_SEEDS))
+    held_out = HELD_OUT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS
+    outside = sorted(set(chosen) - set(held_out))
     if outside:
-        typer.echo(f"note: seeds {outside} are not among the held-out buildings {HELD_OUT_SEEDS}", err=True)
-    if set(chosen) & set(DEVELOPMENT_SEEDS):
-        typer.echo(f"note: seeds {DEVELOPMENT_SEEDS} were looked at while tuning: not a held-out result", err=True)
+        typer.echo(f"note: seeds {outside} are not among the held-out buildings {held_out}", err=True)
+    looked_at = DEVELOPMENT_SEEDS + LOOKALIKE_DEVELOPMENT_SEEDS
+    if set(chosen) & set(looked_at):
+        typer.echo(
+            f"note: seeds {sorted(set(chosen) & set(looked_at))} were looked at while tuning: not a held-out result",
+            err=True,
+        )
     out.mkdir(parents=True, exist_ok=True)
     for seed in chosen:
         world_file = worlds / f"gen-{seed}" / "world.yaml"
