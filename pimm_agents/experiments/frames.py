@@ -44,7 +44,9 @@ def collect_frames(spec: TrialSpec, every: int = EVERY_SCANS, max_particles: int
         scan = np.column_stack([true[0] + ranges[hit] * np.cos(bearing), true[1] + ranges[hit] * np.sin(bearing)])
         localizer = localizers[0]
         inner = localizer.snapshot(max_particles) if hasattr(localizer, "snapshot") else {}
-        frames.append(Frame(float(obs["time"][0]), true, info["estimate"].pose, scan, inner, kidnapped))
+        estimate = info["estimate"]
+        modes = np.array([[h.x, h.y, h.theta] for h in estimate.hypotheses]).reshape(-1, 3)
+        frames.append(Frame(float(obs["time"][0]), true, estimate.pose, scan, inner, kidnapped, estimate.status, modes))
 
     run_shared([spec], watch=watch)
     return frames

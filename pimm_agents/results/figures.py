@@ -11,6 +11,7 @@ from pimm_agents.perception.fingerprint_map import Retrieval
 from pimm_agents.scoring.metrics import angle_errors_deg, position_errors
 from pimm_agents.scoring.thesis import THESIS_RESULTS
 from pimm_agents.scoring.trial import TrialResult
+from pimm_agents.scoring.trial_log import TrialLog
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.semantics import CLASS_NAMES
 
@@ -73,6 +74,7 @@ def plot_trial(
         ANGLE_THRESHOLD_DEG, color="tab:orange", ls=":", lw=0.8, label=f"{ANGLE_THRESHOLD_DEG:g} deg threshold"
     )
     ax_ang.set_ylabel("angle error (deg)", color="tab:orange")
+    shade_statuses(ax_err, log)
     for k, row in enumerate(log.kidnap_rows):
         ax_err.axvline(t[row], color="k", ls="--", lw=1, label="kidnap" if k == 0 else None)
     if m.converged:
@@ -85,6 +87,39 @@ def plot_trial(
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return Path(path)
+
+
+def spells(flags: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) row of each run of consecutive ``flags``."""
+    padded = np.concatenate([[False], np.asarray(flags, dtype=bool), [False]])
+    edges = np.flatnonzero(padded[1:] != padded[:-1])
+    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def shade_statuses(ax: Any, log: TrialLog) -> None:
+    """Behind the error curves: the rows the localizer called lost (grey) or ambiguous (yellow), the rows it
+    called localized while wrong (red: false-localized, 1 m / 10 deg), and its reported 3-sigma position bound."""
+    from pimm_agents.localizer import STATUSES
+    from pimm_agents.scoring.honesty import RIGHT_ANGLE_DEG, RIGHT_POSITION_M
+
+    if not len(log):
+        return
+    t = log.time - log.time[0]
+    end = np.append(t[1:], t[-1])
+    wrong = (position_errors(log) >= RIGHT_POSITION_M) | (angle_errors_deg(log) >= RIGHT_ANGLE_DEG)
+    status = np.asarray(log.status)
+    shades = (
+        (status == STATUSES.index("lost"), "0.85", "lost"),
+        (status == STATUSES.index("ambiguous"), "khaki", "ambiguous"),
+        (log.localized & wrong, "tab:red", "localized while wrong"),
+    )
+    for flags, color, label in shades:
+        for k, (a, b) in enumerate(spells(flags)):
+            ax.axvspan(t[a], end[b], color=color, alpha=0.35, lw=0, label=label if k == 0 else None)
+    sigma = 3.0 * np.sqrt(np.maximum(log.cov[:, 0] + log.cov[:, 1], 0.0))
+    top = max(float(np.nanmax(position_errors(log))), 1.5) * 1.1
+    ax.plot(t, np.minimum(sigma, top), color="0.4", ls="--", lw=0.8, label="reported 3 sigma (position)")
+    ax.set_ylim(0, top)
 
 
 def plot_summary(summary: dict[str, Any], path: Path) -> Path:

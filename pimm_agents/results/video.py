@@ -7,7 +7,7 @@ Written as MP4 where ffmpeg is installed, else as a GIF (Pillow).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +29,8 @@ class Frame:
     scan: np.ndarray  # (B, 2) the 2D scan's returns in the map frame, placed at the true pose
     inner: dict[str, np.ndarray]  # the localizer's snapshot: particles, corners, suggestions (what it offers)
     kidnapped: bool  # after the kidnap
+    status: str = "localized"  # the localizer's status with this estimate
+    hypotheses: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (K, 3) its modes (and rivals)
 
 
 def write_video(
@@ -64,12 +66,14 @@ def write_video(
     (truth,) = ax.plot([], [], "o", color="tab:green", ms=7)
     (estimate,) = ax.plot([], [], "o", color="tab:red", ms=6, label="estimate")
     (heading,) = ax.plot([], [], "-", color="tab:red", lw=2)
+    hypotheses = ax.scatter([], [], s=90, marker="o", facecolors="none", edgecolors="tab:blue", linewidths=1.2,
+                            label="hypotheses")  # fmt: skip
     corners = ax.scatter([], [], s=30, marker="x", c="tab:orange", label=label("detected corners", "corners"))
     suggestions = ax.scatter([], [], s=40, marker="*", c="gold", edgecolors="k", linewidths=0.4,
                              label=label("fingerprint suggestions", "suggestions"))  # fmt: skip
     caption = ax.text(0.01, 0.99, "", transform=ax.transAxes, va="top", fontsize=9,
                       bbox={"facecolor": "white", "alpha": 0.8, "lw": 0})  # fmt: skip
-    moving = [particles, scan, trail, corners, suggestions, truth, estimate, heading, caption]
+    moving = [particles, scan, trail, corners, suggestions, hypotheses, truth, estimate, heading, caption]
     for artist in moving:
         artist.set_animated(True)
     ax.set_title(title, fontsize=10)
@@ -91,6 +95,7 @@ def write_video(
         corners.set_offsets(offsets(f.inner.get("corners")))
         suggestions.set_offsets(offsets(f.inner.get("suggestions")))
         scan.set_offsets(offsets(f.scan))
+        hypotheses.set_offsets(offsets(f.hypotheses))
         since = [g.true for g in frames[: i + 1] if g.kidnapped == f.kidnapped]
         trail.set_data([p[0] for p in since], [p[1] for p in since])
         truth.set_data([f.true[0]], [f.true[1]])
@@ -100,7 +105,9 @@ def write_video(
             [f.estimate[1], f.estimate[1] + 0.8 * np.sin(f.estimate[2])],
         )
         error = np.hypot(*(f.estimate[:2] - f.true[:2]))
-        caption.set_text(f"t = {f.time - t0:5.1f} s   error {error:5.2f} m" + ("   (after the kidnap)" * f.kidnapped))
+        caption.set_text(
+            f"t = {f.time - t0:5.1f} s   {f.status}   error {error:5.2f} m" + ("   (after the kidnap)" * f.kidnapped)
+        )
         canvas.restore_region(background)  # type: ignore[attr-defined]
         for artist in moving:
             ax.draw_artist(artist)
