@@ -118,15 +118,22 @@ def test_tracks_area_b_from_a_known_pose():
     obs, _ = env.reset(seed=0, options={"pose": scenario.start})
     amcl.reset(seed=0, initial_pose=scenario.start, initial_cov=np.diag([0.01, 0.01, 0.001]))
     amcl.update(obs)
-    errors = []
+    errors, statuses, traces = [], [], []
 
     def check(obs, info):
         estimate = amcl.update(obs)
         if info["fresh_scan"]:
             errors.append(np.hypot(*(estimate.pose[:2] - info["true_pose"][:2])))
+            statuses.append(estimate.status)
+            traces.append(np.trace(estimate.covariance[:2, :2]))
 
     assert drive(env, scenario.waypoints, scenario.speed, check)[0]
     env.close()
+    # the status comes from the clusters: not localized before 10 updates have confirmed it, then localized with
+    # the cluster's covariance (nav2's), not a whole-map spread
+    assert statuses[0] != "localized" and statuses[-1] == "localized"
+    assert np.mean([s == "localized" for s in statuses[len(statuses) // 4 :]]) > 0.9
+    assert max(traces[len(traces) // 4 :]) < 1.0
     # Measured over seeds 0-3: mean 0.09 m, 95th percentile 0.14-0.23 m; nav2's alpha = 0.2 motion noise spreads
     # the cloud by about 0.1 m per 0.25 m update, which is where the peaks come from. Seed 0 read 0.16 m until
     # the switched-off 3D LiDAR stopped drawing from the env's noise stream; it reads 0.225 m since.

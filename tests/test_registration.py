@@ -145,3 +145,19 @@ def test_bad_input_is_named_and_an_empty_scan_keeps_a_finite_estimate():
     assert np.all(np.isfinite(estimate.pose)) and np.allclose(estimate.pose, [2.0, 2.0, 0.0])
     with pytest.raises(ValueError, match="min_fitness"):
         RegistrationConfig(min_fitness=0.0)
+
+
+def test_a_found_pose_is_confirmed_by_tracking_and_its_covariance_is_icps():
+    rng = np.random.default_rng(3)
+    surfaces = room_surfaces(0.12)[0]
+    loc = RegistrationLocalizer(room_map(), RegistrationConfig(global_period_s=0.0))
+    loc.reset(seed=0)
+    start = np.array([2.0, 2.0, 0.3])
+    statuses = []
+    for step in range(12):  # standing still, a scan every 0.1 s
+        estimate = loc.update(observation(scan_at(start, rng, surfaces), (0.0, 0.0, 0.0), 0.1 * step))
+        statuses.append(estimate.status)
+    assert statuses[0] != "localized" and statuses[-1] == "localized"  # 10 tracked scans confirm the find
+    sigma = np.sqrt(np.diag(estimate.covariance))
+    assert np.all(sigma[:2] < 0.15) and sigma[2] < np.radians(3)  # ICP's fit and the voxel, not a constant
+    assert np.all(sigma[:2] >= 0.25 / np.sqrt(12) - 1e-9)  # never below the voxel's quantization
