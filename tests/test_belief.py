@@ -65,7 +65,7 @@ def test_covariance_about_an_offset_estimate_grows_by_the_offset():
     rng = np.random.default_rng(3)
     poses = blob(rng, [2, 2, 0], 400)
     belief = read_belief(poses, np.full(400, 1 / 400), BeliefConfig())
-    cov = covariance_about(belief.modes[0], belief.modes[0].mean + [0.3, 0, 0])
+    cov = covariance_about(belief.modes[0], belief.modes[0].mean + np.array([0.3, 0, 0]))
     assert cov[0, 0] == pytest.approx(belief.modes[0].covariance[0, 0] + 0.09)
 
 

@@ -358,7 +358,10 @@ def test_per_mode_budgets_keep_a_light_twin_alive_with_its_weight():
     filt = make_filter(2000, adaptive=False)
     rng = np.random.default_rng(4)
     filt.particles = np.vstack(
-        [[2.0, 1.5, 0.0] + rng.normal(0, 0.05, (1900, 3)), [2.0, 4.5, 0] + rng.normal(0, 0.05, (100, 3))]
+        [
+            np.array([2.0, 1.5, 0.0]) + rng.normal(0, 0.05, (1900, 3)),
+            np.array([2.0, 4.5, 0]) + rng.normal(0, 0.05, (100, 3)),
+        ]
     )
     filt.weights = np.concatenate([np.full(1900, 0.98 / 1900), np.full(100, 0.02 / 100)])
     filt.ess = 1.0  # degenerate: resample now

@@ -123,9 +123,8 @@ class RivalTracker:
         rows, cols, valid = self.field.grid.cells_of(xy)
         log_pz = np.full(len(xy), self._log_pz_off)
         log_pz[valid] = self._log_pz[rows[valid], cols[valid]]
-        log_pz = log_pz.reshape(k, -1)
         outside = ~self._free_at(then[..., :2].reshape(-1, 2)).reshape(k, -1)
-        return self.temperature * log_pz.sum(axis=1) + np.log(0.1) * outside.sum(axis=1)
+        return self.temperature * log_pz.reshape(k, -1).sum(axis=1) + np.log(0.1) * outside.sum(axis=1)
 
     def _free_at(self, xy: np.ndarray) -> np.ndarray:
         rows, cols, valid = self.field.grid.cells_of(xy)
