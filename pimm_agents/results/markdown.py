@@ -66,7 +66,15 @@ def results_table(scenarios: dict[str, dict[str, Any]], thesis: bool = True) -> 
 
 def honesty_table(scenarios: dict[str, dict[str, Any]]) -> list[str]:
     """Whether each localizer knew when it was right (docs/evaluation.md): one Markdown table."""
-    columns = ("time to localized s", "false localized s", "false %", "longest s", "trials without %", "3-sigma %")
+    columns = (
+        "time to localized s",
+        "false localized s",
+        "false %",
+        "longest s",
+        "trials without %",
+        "3-sigma %",
+        "kidnap noticed s",
+    )
     lines = ["| scenario | localizer | " + " | ".join(columns) + " |", "|---|---|" + "---:|" * len(columns)]
     for scenario, rows in scenarios.items():
         for k, (name, row) in enumerate(rows.items()):
@@ -77,6 +85,7 @@ def honesty_table(scenarios: dict[str, dict[str, Any]]) -> list[str]:
                 cell(row.get("max_false_localized_s"), ".2f"),
                 cell(row.get("false_free_share"), ".0f", 100),
                 cell(row.get("within_3sigma"), ".0f", 100),
+                cell(row.get("kidnap_noticed_s"), ".2f"),
             )
             lines.append(f"|{f' {scenario} ' if k == 0 else ' '}| {name} | " + " | ".join(cells) + " |")
     return lines
