@@ -457,7 +457,7 @@ class FeatureFilter:
         reading = self.read(pose)
         jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
         if self.rivals is not None and self._odom_ref is not None:
-            reading = self.check_rivals(pose, reading, wall_points, jumped)
+            reading = self.check_rivals(pose, reading, wall_points, previous if jumped else None, suggestions)
         self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
         self.resample_if_degenerate()
         if self.informed:
@@ -479,20 +479,30 @@ class FeatureFilter:
         return BeliefReading(status, cov, hypotheses)
 
     def check_rivals(
-        self, pose: np.ndarray | None, reading: BeliefReading, wall_points: np.ndarray | None, jumped: bool
+        self,
+        pose: np.ndarray | None,
+        reading: BeliefReading,
+        wall_points: np.ndarray | None,
+        left: np.ndarray | None,
+        suggestions: np.ndarray,
     ) -> BeliefReading:
         """Keep this update's wall points, carry and re-score the rivals, look at new candidates (the other
-        compact modes and the heaviest particles away from the estimate); a localized reading with a rival
-        standing becomes ambiguous, and the rivals join the hypotheses. The kept scans are dropped when no
-        place is held (lost) and when the estimate ``jumped`` to another place: the scans before may be from
-        before a kidnap, which no odometry links to where the robot is now."""
+        compact modes, the heaviest particles away from the estimate, and each fingerprint suggestion at the
+        heading the newest scans fit best); a localized reading with a rival standing becomes ambiguous, and the
+        rivals join the hypotheses. When the estimate jumped to another place, away from ``left`` (the last
+        estimate, carried to now), the kept scans are dropped, since those before a kidnap link to nothing, and
+        ``left`` is held as a rival until the scans since the jump rule it out (it is where the robot still is
+        if the jump was wrong). When no place is held (lost), scans and rivals are dropped."""
         assert self.rivals is not None and self._odom_ref is not None
         odom = self._odom_ref
         if self._rivals_odom is not None:
             self.rivals.move(self._rivals_odom, odom)
         self._rivals_odom = odom.copy()
-        if jumped or reading.status == "lost":
+        if reading.status == "lost":
             self.rivals.reset()
+        elif left is not None and pose is not None:
+            self.rivals.reset()
+            self.rivals.keep(left)
         if pose is None or self.belief is None or reading.status == "lost":
             return reading
         if wall_points is not None:
@@ -501,7 +511,8 @@ class FeatureFilter:
         modes = [m.mean for k, m in enumerate(self.belief.modes) if k != chosen and m.weight > 0]
         outside = np.flatnonzero(self.belief.particle_mode != chosen)
         heaviest = outside[np.argsort(-self.weights[outside])[: 5 * self.rivals.config.candidates]]
-        candidates = np.vstack([np.array(modes).reshape(-1, 3), self.particles[heaviest]])
+        suggested = self.rivals.headings(np.asarray(suggestions, dtype=float).reshape(-1, 2), odom)
+        candidates = np.vstack([np.array(modes).reshape(-1, 3), suggested, self.particles[heaviest]])
         if self.rivals.update(pose, odom, candidates) == 0:
             return reading
         rivals = tuple(

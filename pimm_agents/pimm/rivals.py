@@ -151,13 +151,28 @@ class RivalTracker:
         best[:, 2] = wrap_angle(best[:, 2])
         return best
 
+    def keep(self, place: np.ndarray) -> None:
+        """Hold ``place`` (3,) as a rival until the scans rule it out (the place an estimate jumped away from)."""
+        self.rivals = np.vstack([self.rivals, np.asarray(place, dtype=float).reshape(1, 3)])
+        self.margins = np.append(self.margins, 0.0)
+
+    def headings(self, positions: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
+        """For each position (M, 2), the pose whose heading (every 10 deg) the newest scans fit best."""
+        positions = np.asarray(positions, dtype=float).reshape(-1, 2)
+        if not len(positions) or len(self._scans) < self.config.refine_scans:
+            return np.zeros((0, 3))
+        angles = np.radians(np.arange(-180.0, 180.0, 10.0))
+        poses = np.column_stack([np.repeat(positions, len(angles), axis=0), np.tile(angles, len(positions))])
+        scores = self.evidence(poses, self.stack(odom_now, self.config.refine_scans)).reshape(len(positions), -1)
+        return poses.reshape(len(positions), len(angles), 3)[np.arange(len(positions)), np.argmax(scores, axis=1)]
+
     def update(self, estimate: np.ndarray, odom_now: np.ndarray, candidates: np.ndarray) -> int:
         """Re-score the kept rivals and the new ``candidates`` (M, 3) against ``estimate``; keep those within
-        ``log_ratio``. Returns how many rivals stand."""
+        ``log_ratio``. Returns how many rivals stand; with fewer than ``refine_scans`` scans kept (just after a
+        jump) the kept rivals stand unscored."""
         c = self.config
         if len(self._scans) < c.refine_scans:
-            self.forget()
-            return 0
+            return len(self.rivals)
         recent = self.stack(odom_now, c.refine_scans)
         pool = [p for p in self.rivals]
         fresh = [q for q in np.asarray(candidates, dtype=float).reshape(-1, 3) if not self._known(q, [estimate, *pool])]
