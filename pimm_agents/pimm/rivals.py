@@ -212,16 +212,10 @@ class RivalTracker:
         )
 
 
-def carried(poses: np.ndarray, motion: np.ndarray, paired: bool = False) -> np.ndarray:
-    """Each pose (K, 3) moved by ``motion`` (3,) in its own frame, or by ``motion[k]`` (K, 3) with ``paired``."""
+def carried(poses: np.ndarray, motion: np.ndarray) -> np.ndarray:
+    """Each pose (K, 3) moved by ``motion`` (3,), given in the pose's own frame."""
     m = np.asarray(motion, dtype=float)
-    if not paired:
-        m = np.broadcast_to(m, poses.shape)
     c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
     return np.column_stack(
-        [
-            poses[:, 0] + c * m[:, 0] - s * m[:, 1],
-            poses[:, 1] + s * m[:, 0] + c * m[:, 1],
-            wrap_angle(poses[:, 2] + m[:, 2]),
-        ]
+        [poses[:, 0] + c * m[0] - s * m[1], poses[:, 1] + s * m[0] + c * m[1], wrap_angle(poses[:, 2] + m[2])]
     )

@@ -1,0 +1,63 @@
+import numpy as np
+
+from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
+from tests.test_feature_filter import rays_from, twin_rooms, wall_field_for
+
+
+def tracker_along(truths: np.ndarray) -> RivalTracker:
+    """A tracker that has kept the scans of a drive along ``truths`` (odometry = the true path)."""
+    occupancy = twin_rooms()
+    tracker = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, RivalConfig())
+    for pose in truths:
+        tracker.add_scan(pose, rays_from(occupancy, pose, 10.0))
+    return tracker
+
+
+def west_half_drive() -> np.ndarray:
+    """In the second room's west half: a turn on the spot, then east to x = 15 (the block not yet in sight)."""
+    turn = [[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 20, endpoint=False)]
+    return np.array(turn + [[x, 1.0, 0.0] for x in np.arange(14.0, 15.0, 0.1)])
+
+
+def test_the_twin_place_is_a_rival_and_a_wrong_one_is_not():
+    truths = west_half_drive()
+    tracker = tracker_along(truths)
+    now = truths[-1]
+    twin = now - np.array([12.0, 0.0, 0.0])  # the same spot in the first room
+    elsewhere = np.array([18.0, 3.0, np.pi])  # the second room's east half
+    stack = tracker.stack(now)
+    scores = tracker.evidence(np.array([now, twin, elsewhere]), stack)
+    assert abs(scores[0] - scores[1]) < 1e-6 and scores[2] < scores[0] - 10
+    # offered slightly off (0.15 m, 3 deg), the twin is fitted to the newest scans and stands as a rival
+    assert tracker.update(now, now, np.array([twin + [0.15, -0.1, np.radians(3)], elsewhere])) == 1
+    assert np.hypot(*(tracker.rivals[0, :2] - twin[:2])) < 0.1
+
+
+def test_the_block_rules_the_twin_out():
+    truths = np.vstack([west_half_drive(), [[x, 1.0, 0.0] for x in np.arange(15.0, 19.0, 0.1)]])
+    tracker = tracker_along(truths)
+    now = truths[-1]
+    assert tracker.update(now, now, (now - [12.0, 0.0, 0.0])[None, :]) == 0
+
+
+def test_a_held_place_stands_until_enough_scans_rule_it_out():
+    occupancy = twin_rooms()
+    tracker = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, RivalConfig(refine_scans=5))
+    left = np.array([8.0, 3.0, np.pi])  # where an estimate jumped away from (wrongly placed)
+    tracker.keep(left)
+    truths = np.array([[x, 1.0, 0.0] for x in np.arange(14.0, 15.0, 0.1)])
+    counts = []
+    for k, pose in enumerate(truths):
+        tracker.add_scan(pose, rays_from(occupancy, pose, 10.0))
+        if k:
+            tracker.move(truths[k - 1], pose)
+        counts.append(tracker.update(pose, pose, np.zeros((0, 3))))
+    assert counts[:4] == [1, 1, 1, 1]  # fewer scans than refine_scans: it stands unscored
+    assert counts[-1] == 0  # then the scans rule it out
+
+
+def test_headings_find_the_heading_that_fits():
+    truths = west_half_drive()
+    tracker = tracker_along(truths)
+    found = tracker.headings(np.array([[2.8, 1.0]]), truths[-1])  # the twin spot, heading unknown
+    assert abs(np.degrees(found[0, 2])) <= 10
