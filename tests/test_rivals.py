@@ -29,7 +29,7 @@ def test_the_twin_place_is_a_rival_and_a_wrong_one_is_not():
     scores = tracker.evidence(np.array([now, twin, elsewhere]), stack)
     assert abs(scores[0] - scores[1]) < 1e-6 and scores[2] < scores[0] - 10
     # offered slightly off (0.15 m, 3 deg), the twin is fitted to the newest scans and stands as a rival
-    assert tracker.update(now, now, np.array([twin + [0.15, -0.1, np.radians(3)], elsewhere])) == 1
+    assert tracker.update(now, now, np.array([twin + np.array([0.15, -0.1, np.radians(3)]), elsewhere])) == 1
     assert np.hypot(*(tracker.rivals[0, :2] - twin[:2])) < 0.1
 
 
