@@ -10,6 +10,9 @@ status of an estimate that lies in mode ``chosen``:
 - ``localized``: otherwise, once that has held for ``confirm_updates`` measurement updates in a row with the
   estimate in one place (``Confirmation``): a mode the first scans favour is often a wrong one whose rival has
   no particles yet, and the next scans rule it out.
+
+``compact_modes`` and ``weigh_modes`` let a filter weigh each compact mode as one hypothesis (PIMM's
+``filter.mode_evidence: mean``).
 """
 
 from __future__ import annotations
@@ -141,3 +144,39 @@ class Confirmation:
             return status
         self.streak = 1 if moved_place else self.streak + 1
         return "localized" if self.streak >= self.updates else "ambiguous"
+
+
+def compact_modes(
+    particles: np.ndarray, weights: np.ndarray, labels: np.ndarray, config: BeliefConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """The clusters that are compact modes (more than one particle, weighed, spreads within ``config``'s
+    limits; position by the trace of its covariance) and their weighted mean poses (K, 3)."""
+    count = int(labels.max()) + 1
+    members = np.bincount(labels, minlength=count)
+    total = np.bincount(labels, weights, minlength=count)
+    share = weights / np.where(total[labels] > 0, total[labels], 1.0)
+    x, y, theta = particles.T
+    mx, my, mxx, myy, mc, ms = (
+        np.bincount(labels, share * v, minlength=count) for v in (x, y, x * x, y * y, np.cos(theta), np.sin(theta))
+    )
+    trace = (mxx - mx**2) + (myy - my**2)
+    theta_var = -2.0 * np.log(np.clip(np.hypot(mc, ms), 1e-12, 1.0))
+    compact = (members > 1) & (total > 0) & (trace <= config.compact_std_m**2)
+    compact &= theta_var <= np.radians(config.compact_std_deg) ** 2
+    ids = np.flatnonzero(compact)
+    return ids, np.column_stack([mx[ids], my[ids], np.arctan2(ms[ids], mc[ids])])
+
+
+def weigh_modes(
+    prior: np.ndarray, posterior: np.ndarray, labels: np.ndarray, modes: np.ndarray, mode_factors: np.ndarray
+) -> np.ndarray:
+    """``posterior`` (unnormalized weights) with each mode in ``modes`` (cluster ids) given its prior total times
+    ``mode_factors`` (the measurement at its mean); its particles keep their shares of it."""
+    count = int(labels.max()) + 1
+    prior_total = np.bincount(labels, prior, minlength=count)
+    posterior_total = np.bincount(labels, posterior, minlength=count)
+    target = posterior_total.copy()
+    target[modes] = prior_total[modes] * mode_factors
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(posterior_total > 0, target / posterior_total, 0.0)
+    return posterior * scale[labels]

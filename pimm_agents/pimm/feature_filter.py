@@ -17,9 +17,11 @@ from pimm_agents.particles.belief import (
     BeliefConfig,
     Confirmation,
     belief_status,
+    compact_modes,
     covariance_about,
     hypotheses_of,
     read_belief,
+    weigh_modes,
 )
 from pimm_agents.particles.free_space import FreeSpace
 from pimm_agents.particles.initial_pose import gaussian_poses
@@ -125,42 +127,6 @@ class BeliefReading:
     status: str
     covariance: np.ndarray
     hypotheses: tuple[Hypothesis, ...]
-
-
-def compact_modes(
-    particles: np.ndarray, weights: np.ndarray, labels: np.ndarray, config: BeliefConfig
-) -> tuple[np.ndarray, np.ndarray]:
-    """The clusters that are compact modes (more than one particle, weighed, spreads within ``config``'s
-    limits; position by the trace of its covariance) and their weighted mean poses (K, 3)."""
-    count = int(labels.max()) + 1
-    members = np.bincount(labels, minlength=count)
-    total = np.bincount(labels, weights, minlength=count)
-    share = weights / np.where(total[labels] > 0, total[labels], 1.0)
-    x, y, theta = particles.T
-    mx, my, mxx, myy, mc, ms = (
-        np.bincount(labels, share * v, minlength=count) for v in (x, y, x * x, y * y, np.cos(theta), np.sin(theta))
-    )
-    trace = (mxx - mx**2) + (myy - my**2)
-    theta_var = -2.0 * np.log(np.clip(np.hypot(mc, ms), 1e-12, 1.0))
-    compact = (members > 1) & (total > 0) & (trace <= config.compact_std_m**2)
-    compact &= theta_var <= np.radians(config.compact_std_deg) ** 2
-    ids = np.flatnonzero(compact)
-    return ids, np.column_stack([mx[ids], my[ids], np.arctan2(ms[ids], mc[ids])])
-
-
-def weigh_modes(
-    prior: np.ndarray, posterior: np.ndarray, labels: np.ndarray, modes: np.ndarray, mode_factors: np.ndarray
-) -> np.ndarray:
-    """``posterior`` (unnormalized weights) with each mode in ``modes`` (cluster ids) given its prior total times
-    ``mode_factors`` (the measurement at its mean); its particles keep their shares of it."""
-    count = int(labels.max()) + 1
-    prior_total = np.bincount(labels, prior, minlength=count)
-    posterior_total = np.bincount(labels, posterior, minlength=count)
-    target = posterior_total.copy()
-    target[modes] = prior_total[modes] * mode_factors
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = np.where(posterior_total > 0, target / posterior_total, 0.0)
-    return posterior * scale[labels]
 
 
 #: Columns of the feature array the filter takes: x, y, theta (robot frame), sigma_pos (m), sigma_theta (rad).
