@@ -46,6 +46,10 @@ class RivalConfig:
             raise LocalizerError("rivals: log_ratio, distinct_m and distinct_deg must be positive")
 
 
+#: Coordinate steps (x m, y m, heading rad) a candidate is refined by, coarse then fine.
+REFINE_STEPS = (np.array([0.1, 0.1, np.radians(2.0)]), np.array([0.05, 0.05, np.radians(1.0)]))
+
+
 @dataclass(frozen=True)
 class _Stack:
     points: np.ndarray  # (P, 2) wall points, robot frame at their scan
@@ -132,13 +136,16 @@ class RivalTracker:
         out[valid] = self.free[rows[valid], cols[valid]]
         return out
 
-    def refine(self, poses: np.ndarray, stack: _Stack, rounds: int = 4) -> np.ndarray:
-        """Each of ``poses`` (K, 3) moved by coordinate steps (0.1 m, 0.1 m, 2 deg; then half of them) while the
-        stacked scans fit it better; all poses and their six neighbours scored at once."""
+    def refine(
+        self, poses: np.ndarray, stack: _Stack, rounds: int = 4, steps: tuple[np.ndarray, ...] = REFINE_STEPS
+    ) -> np.ndarray:
+        """Each of ``poses`` (K, 3) moved by coordinate ``steps`` (x, y, heading; by default 0.1 m and 2 deg,
+        then half of them), up to ``rounds`` a step size, while the stacked scans fit it better; all poses and
+        their six neighbours scored at once."""
         best = np.asarray(poses, dtype=float).reshape(-1, 3).copy()
         score = self.evidence(best, stack)
         offsets = np.vstack([np.diag([1.0, 1.0, 1.0]), -np.diag([1.0, 1.0, 1.0])])
-        for step in (np.array([0.1, 0.1, np.radians(2.0)]), np.array([0.05, 0.05, np.radians(1.0)])):
+        for step in steps:
             for _ in range(rounds):
                 trials = (best[:, None, :] + offsets[None, :, :] * step).reshape(-1, 3)
                 scores = self.evidence(trials, stack).reshape(len(best), 6)
@@ -188,10 +195,13 @@ class RivalTracker:
             return 0
         kept = len(self.rivals)
         refined = np.array(pool, dtype=float).reshape(-1, 3)
-        refined[:kept] = self.refine(refined[:kept], recent, rounds=1)  # tracked already: a touch
-        if len(refined) > kept:
+        if len(refined) > kept:  # new: fitted to the newest scans first, from wherever it was offered
             refined[kept:] = self.refine(refined[kept:], recent, rounds=3)
-        scores = self.evidence(np.vstack([estimate[None, :], refined]), self.stack(odom_now))
+        # then every one by a touch against all the kept scans it is scored on: fitted to the newest alone, a
+        # place a degree off in heading would carry back metres off along 15 m of history and lose a rival
+        history = self.stack(odom_now)
+        refined = self.refine(refined, history, rounds=1, steps=(np.array([0.05, 0.05, np.radians(1.0)]),))
+        scores = self.evidence(np.vstack([estimate[None, :], refined]), history)
         margins = scores[1:] - scores[0]
         unique: list[int] = []
         for i in np.argsort(-margins):
