@@ -61,3 +61,20 @@ def test_headings_find_the_heading_that_fits():
     tracker = tracker_along(truths)
     found = tracker.headings(np.array([[2.8, 1.0]]), truths[-1])  # the twin spot, heading unknown
     assert abs(np.degrees(found[0, 2])) <= 10
+
+
+def test_a_twin_rival_stands_through_a_long_drive_that_cannot_tell_them_apart():
+    occupancy = twin_rooms()
+    tracker = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, RivalConfig())
+    back_and_forth = [[x, 1.0, 0.0] for x in np.arange(13.5, 15.0, 0.1)] + [
+        [x, 1.0, np.pi] for x in np.arange(15.0, 13.5, -0.1)
+    ]
+    truths = np.array(back_and_forth * 4)  # 120 updates, none in sight of the block
+    counts = []
+    for k, pose in enumerate(truths):
+        tracker.add_scan(pose, rays_from(occupancy, pose, 10.0))
+        if k:
+            tracker.move(truths[k - 1], pose)
+        offered = (pose - np.array([12.0, 0.0, 0.0]))[None, :] if k == 20 else np.zeros((0, 3))
+        counts.append(tracker.update(pose, pose, offered))
+    assert counts[20:] == [1] * (len(truths) - 20)  # found once, kept to the end
