@@ -85,10 +85,10 @@ class FeatureFilterConfig:
     mode_keep_ratio: float = 0.01
     #: ours: how a measurement weighs a compact mode (a place, belief.py). "mean": by the measurement's
     #: likelihood at the mode's mean pose, as a multi-hypothesis tracker weighs each hypothesis (its particles
-    #: keep their shares within it), so two places that fit alike keep their weights. "sum", the particle
-    #: filter's own: by the sum of its particles' likelihoods; of two exact twins, the one whose particles
-    #: happen to lie better takes the whole belief within a few metres. Modes that are not compact, and
-    #: single particles, are weighed as the particle filter weighs them either way.
+    #: keep their shares within it), so two places that fit alike keep their weights better. "sum", the particle
+    #: filter's own: by the sum of its particles' likelihoods; of two exact twin rooms, the one that happened
+    #: to hold fewer particles lost the whole belief within one turn on the spot (docs/design.md). Modes that
+    #: are not compact, and single particles, are weighed as the particle filter weighs them either way.
     mode_evidence: str = "mean"
 
     def __post_init__(self) -> None:
