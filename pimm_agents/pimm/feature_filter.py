@@ -127,6 +127,7 @@ class BeliefReading:
     status: str
     covariance: np.ndarray
     hypotheses: tuple[Hypothesis, ...]
+    chosen: int = -1  # the estimate's mode in the belief (-1: none)
 
 
 #: Columns of the feature array the filter takes: x, y, theta (robot frame), sigma_pos (m), sigma_theta (rad).
@@ -442,7 +443,7 @@ class FeatureFilter:
         chosen = self.belief.mode_of(pose, self.particles)
         status = belief_status(self.belief, chosen, self.belief_config)
         cov = covariance_about(self.belief.modes[chosen], pose) if chosen >= 0 else self.covariance(pose)
-        return BeliefReading(status, cov, hypotheses)
+        return BeliefReading(status, cov, hypotheses, chosen)
 
     def check_rivals(
         self,
@@ -473,7 +474,7 @@ class FeatureFilter:
             return reading
         if wall_points is not None:
             self.rivals.add_scan(odom, np.asarray(wall_points, dtype=float).reshape(-1, 2))
-        chosen = self.belief.mode_of(pose, self.particles)
+        chosen = reading.chosen
         modes = [m.mean for k, m in enumerate(self.belief.modes) if k != chosen and m.weight > 0]
         outside = np.flatnonzero(self.belief.particle_mode != chosen)
         heaviest = outside[np.argsort(-self.weights[outside])[: 5 * self.rivals.config.candidates]]
@@ -486,7 +487,7 @@ class FeatureFilter:
             for r in self.rivals.rivals
         )
         status = "ambiguous" if reading.status == "localized" else reading.status
-        return BeliefReading(status, reading.covariance, reading.hypotheses + rivals)
+        return BeliefReading(status, reading.covariance, reading.hypotheses + rivals, chosen)
 
     def weight_near(self, pose: np.ndarray, radius: float, max_angle: float = np.radians(30.0)) -> float:
         """Total weight of the particles within ``radius`` and ``max_angle`` of ``pose``."""

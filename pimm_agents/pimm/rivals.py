@@ -74,7 +74,6 @@ class RivalTracker:
             np.log(p.z_hit * np.exp(-(p.max_distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(p.z_hit + floor)
         )
         self.rivals = np.zeros((0, 3))
-        self.margins = np.zeros(0)  # each rival's evidence minus the estimate's (log)
 
     def reset(self) -> None:
         self._scans.clear()
@@ -82,7 +81,7 @@ class RivalTracker:
 
     def forget(self) -> None:
         """Drop the rivals (the kept scans stay)."""
-        self.rivals, self.margins = np.zeros((0, 3)), np.zeros(0)
+        self.rivals = np.zeros((0, 3))
 
     def add_scan(self, odom: np.ndarray, wall_points: np.ndarray) -> None:
         """Keep a scan's wall points (M, 2; robot frame) with the odometry at which they were seen."""
@@ -161,7 +160,6 @@ class RivalTracker:
     def keep(self, place: np.ndarray) -> None:
         """Hold ``place`` (3,) as a rival until the scans rule it out (the place an estimate jumped away from)."""
         self.rivals = np.vstack([self.rivals, np.asarray(place, dtype=float).reshape(1, 3)])
-        self.margins = np.append(self.margins, 0.0)
 
     def headings(self, positions: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
         """For each position (M, 2), the pose whose heading (every 10 deg) the newest scans fit best."""
@@ -210,7 +208,7 @@ class RivalTracker:
             if not self._known(refined[i], [refined[j] for j in unique]):
                 unique.append(int(i))
         unique = unique[: c.max_rivals]
-        self.rivals, self.margins = refined[unique].reshape(-1, 3), margins[unique]
+        self.rivals = refined[unique].reshape(-1, 3)
         return len(unique)
 
     def _known(self, pose: np.ndarray, places: list[np.ndarray]) -> bool:
