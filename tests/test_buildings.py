@@ -4,6 +4,9 @@ from training.buildings import (
     DEVELOPMENT_SEEDS,
     FAMILIES,
     HELD_OUT_SEEDS,
+    LOCALIZER_HELD_OUT_SEEDS,
+    LOOKALIKE_DEVELOPMENT_SEEDS,
+    LOOKALIKE_HELD_OUT_SEEDS,
     TRAINING_SEEDS,
     building_spec,
     draw_plan,
@@ -15,6 +18,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     assert building_spec(101) != building_spec(102)
     assert not set(TRAINING_SEEDS) & set(HELD_OUT_SEEDS) and not set(TRAINING_SEEDS) & set(DEVELOPMENT_SEEDS)
     assert not set(HELD_OUT_SEEDS) & set(DEVELOPMENT_SEEDS)
+    looked_at = set(TRAINING_SEEDS) | set(DEVELOPMENT_SEEDS) | set(HELD_OUT_SEEDS) | set(LOOKALIKE_DEVELOPMENT_SEEDS)
+    assert not looked_at & (set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS))
+    assert {draw_plan(seed)[0] for seed in LOOKALIKE_HELD_OUT_SEEDS} <= {"periodic", "mirror"}
 
 
 def test_generated_buildings_cover_the_families_low_ceilings_and_look_alike_rooms():

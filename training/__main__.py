@@ -184,7 +184,7 @@ def _check_backend(backend: str, address: str | None) -> None:
 @command_line.command(app)
 def buildings(
     seeds: str = typer.Option(
-        "100-129", help="building seeds: 'A-B' or 'A,B,C' (held out: 910-919, never train on them)"
+        "100-129", help="building seeds: 'A-B' or 'A,B,C' (held out: 910-929 and 970-977, never train on them)"
     ),
     out: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
 ) -> None:
@@ -193,10 +193,10 @@ def buildings(
 
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
-    from training.buildings import HELD_OUT_SEEDS, write_building
+    from training.buildings import HELD_OUT_SEEDS, LOCALIZER_HELD_OUT_SEEDS, LOOKALIKE_HELD_OUT_SEEDS, write_building
 
     chosen = _seed_list(seeds)
-    held = sorted(set(chosen) & set(HELD_OUT_SEEDS))
+    held = sorted(set(chosen) & set(HELD_OUT_SEEDS + LOCALIZER_HELD_OUT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS))
     if held:
         typer.echo(f"note: seeds {held} are the held-out buildings: evaluate on them, never train on them", err=True)
     for seed in tqdm(chosen, desc="buildings", unit="building"):
@@ -209,7 +209,7 @@ def heldout(
     localizers: list[str] = typer.Option(["pimm", "amcl"], "--localizers", help="localizers to run"),
     trials: int = typer.Option(3, min=1, help="trials per route"),
     scans: int = typer.Option(30, min=1, help="fresh scans for the perception figures"),
-    seeds: str = typer.Option("910-919", help="held-out building seeds (the look-alike set: 960-967)"),
+    seeds: str = typer.Option("920-929", help="held-out building seeds (the look-alike set: 970-977)"),
     workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
     worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
     out: Path = typer.Option(Path("results/heldout"), help="where results and the table go"),
@@ -226,6 +226,7 @@ def heldout(
     from training.buildings import (
         DEVELOPMENT_SEEDS,
         HELD_OUT_SEEDS,
+        LOCALIZER_HELD_OUT_SEEDS,
         LOOKALIKE_DEVELOPMENT_SEEDS,
         LOOKALIKE_HELD_OUT_SEEDS,
         write_building,
@@ -233,11 +234,11 @@ def heldout(
     from training.heldout import building_row, format_table, measure_building, needs_preparing, summarize
 
     chosen = _seed_list(seeds)
-    held_out = HELD_OUT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS
+    held_out = LOCALIZER_HELD_OUT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS
     outside = sorted(set(chosen) - set(held_out))
     if outside:
         typer.echo(f"note: seeds {outside} are not among the held-out buildings {held_out}", err=True)
-    looked_at = DEVELOPMENT_SEEDS + LOOKALIKE_DEVELOPMENT_SEEDS
+    looked_at = DEVELOPMENT_SEEDS + HELD_OUT_SEEDS + LOOKALIKE_DEVELOPMENT_SEEDS
     if set(chosen) & set(looked_at):
         typer.echo(
             f"note: seeds {sorted(set(chosen) & set(looked_at))} were looked at while tuning: not a held-out result",
