@@ -45,7 +45,7 @@ def test_a_held_place_stands_until_enough_scans_rule_it_out():
     tracker = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, RivalConfig(refine_scans=5))
     left = np.array([8.0, 3.0, np.pi])  # where an estimate jumped away from (wrongly placed)
     tracker.keep(left)
-    truths = np.array([[x, 1.0, 0.0] for x in np.arange(14.0, 15.0, 0.1)])
+    truths = np.array([[x, 1.0, 0.0] for x in np.arange(14.0, 16.0, 0.1)])
     counts = []
     for k, pose in enumerate(truths):
         tracker.add_scan(pose, rays_from(occupancy, pose, 10.0))
@@ -54,6 +54,19 @@ def test_a_held_place_stands_until_enough_scans_rule_it_out():
         counts.append(tracker.update(pose, pose, np.zeros((0, 3))))
     assert counts[:4] == [1, 1, 1, 1]  # fewer scans than refine_scans: it stands unscored
     assert counts[-1] == 0  # then the scans rule it out
+    # a kept rival stands until the scans favour the estimate by drop_log_ratio, not log_ratio: with the two
+    # equal it is dropped sooner
+    loose = RivalTracker(
+        wall_field_for(occupancy), occupancy.free, 0.2, RivalConfig(refine_scans=5, drop_log_ratio=np.log(10.0))
+    )
+    loose.keep(left)
+    loose_counts = []
+    for k, pose in enumerate(truths):
+        loose.add_scan(pose, rays_from(occupancy, pose, 10.0))
+        if k:
+            loose.move(truths[k - 1], pose)
+        loose_counts.append(loose.update(pose, pose, np.zeros((0, 3))))
+    assert sum(loose_counts) < sum(counts)
 
 
 def test_headings_find_the_heading_that_fits():

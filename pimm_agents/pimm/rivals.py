@@ -9,7 +9,10 @@ odometry to every kept scan and sums the scans' tempered log-likelihoods there (
 Candidates are the filter's own: its other compact modes and its best particles away from the estimate (the
 injection puts some near every place the fingerprints suggest). A candidate is a *rival* while its summed
 evidence is within ``log_ratio`` of the estimate's; rivals are kept, carried by the odometry and re-scored at
-every update, until the scans rule them out. While any rival stands the status is ``ambiguous``.
+every update, until the scans favour the estimate over them by ``drop_log_ratio`` (a wider margin, so that a twin
+does not flicker in and out). While any rival stands, and until ``settle_scans`` scans are kept, the status is
+``ambiguous``. The filter injects particles at every standing rival (``FeatureFilterConfig.rival_particles``), so
+a rival that the scans favour wins the filter's weight and the estimate moves there.
 """
 
 from __future__ import annotations
@@ -33,6 +36,12 @@ class RivalConfig:
     #: a candidate whose summed tempered log-likelihood over the kept scans is within this of the estimate's is a
     #: rival (ln 10: the scans favour the estimate by less than 10 to 1)
     log_ratio: float = float(np.log(10.0))
+    #: a rival stands until the kept scans favour the estimate over it by this much (ln 1000): a hysteresis, so a
+    #: twin whose margin wavers about ``log_ratio`` as scans come and go stays a rival instead of flickering
+    drop_log_ratio: float = float(np.log(1000.0))
+    #: no place is called localized before this many scans are kept since the estimate was last lost or jumped:
+    #: the candidates get that long to be found and fitted
+    settle_scans: int = 20  # twice refine_scans
     candidates: int = 2  # new candidates refined per update (the best fits of the newest scans among those offered)
     max_rivals: int = 5
     distinct_m: float = 1.0  # a candidate closer than this (and distinct_deg) to the estimate or a rival is that place
@@ -44,6 +53,11 @@ class RivalConfig:
             raise LocalizerError("rivals: history_scans and refine_scans must be at least 1, the counts at least 0")
         if self.log_ratio <= 0 or self.distinct_m <= 0 or self.distinct_deg <= 0:
             raise LocalizerError("rivals: log_ratio, distinct_m and distinct_deg must be positive")
+        if self.drop_log_ratio < self.log_ratio or self.settle_scans < 0:
+            raise LocalizerError(
+                f"rivals: drop_log_ratio ({self.drop_log_ratio}) must be at least log_ratio ({self.log_ratio}),"
+                f" settle_scans ({self.settle_scans}) at least 0"
+            )
 
 
 #: Coordinate steps (x m, y m, heading rad) a candidate is refined by, coarse then fine.
@@ -82,6 +96,11 @@ class RivalTracker:
     def forget(self) -> None:
         """Drop the rivals (the kept scans stay)."""
         self.rivals = np.zeros((0, 3))
+
+    @property
+    def settled(self) -> bool:
+        """Whether enough scans are kept (``settle_scans``) for the check to call a place unrivalled."""
+        return len(self._scans) >= self.config.settle_scans
 
     def add_scan(self, odom: np.ndarray, wall_points: np.ndarray) -> None:
         """Keep a scan's wall points (M, 2; robot frame) with the odometry at which they were seen."""
@@ -172,9 +191,9 @@ class RivalTracker:
         return poses.reshape(len(positions), len(angles), 3)[np.arange(len(positions)), np.argmax(scores, axis=1)]
 
     def update(self, estimate: np.ndarray, odom_now: np.ndarray, candidates: np.ndarray) -> int:
-        """Re-score the kept rivals and the new ``candidates`` (M, 3) against ``estimate``; keep those within
-        ``log_ratio``. Returns how many rivals stand; with fewer than ``refine_scans`` scans kept (just after a
-        jump) the kept rivals stand unscored."""
+        """Re-score the kept rivals and the new ``candidates`` (M, 3) against ``estimate``; keep the new ones within
+        ``log_ratio`` and the kept ones within ``drop_log_ratio``. Returns how many rivals stand; with fewer than
+        ``refine_scans`` scans kept (just after a jump) the kept rivals stand unscored."""
         c = self.config
         if len(self._scans) < c.refine_scans:
             return len(self.rivals)
@@ -202,8 +221,9 @@ class RivalTracker:
         scores = self.evidence(np.vstack([estimate[None, :], refined]), history)
         margins = scores[1:] - scores[0]
         unique: list[int] = []
+        limits = np.where(np.arange(len(refined)) < kept, c.drop_log_ratio, c.log_ratio)
         for i in np.argsort(-margins):
-            if margins[i] <= -c.log_ratio or self._known(refined[i], [estimate]):
+            if margins[i] <= -limits[i] or self._known(refined[i], [estimate]):
                 continue
             if not self._known(refined[i], [refined[j] for j in unique]):
                 unique.append(int(i))
