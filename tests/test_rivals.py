@@ -91,3 +91,18 @@ def test_a_twin_rival_stands_through_a_long_drive_that_cannot_tell_them_apart():
         offered = (pose - np.array([12.0, 0.0, 0.0]))[None, :] if k == 20 else np.zeros((0, 3))
         counts.append(tracker.update(pose, pose, offered))
     assert counts[20:] == [1] * (len(truths) - 20)  # found once, kept to the end
+
+
+def test_only_a_rival_the_scans_favour_is_fed_to_the_filter():
+    truths = np.vstack([west_half_drive(), [[x, 1.0, 0.0] for x in np.arange(15.0, 19.0, 0.1)]])
+    tracker = tracker_along(truths)
+    now = truths[-1]
+    twin = now - np.array([12.0, 0.0, 0.0])
+    # an estimate in the twin room, which the block in sight rules out: the true place is a favoured rival
+    assert tracker.update(twin, now, now[None, :]) == 1
+    assert len(tracker.favoured()) == 1 and np.hypot(*(tracker.favoured()[0, :2] - now[:2])) < 0.1
+    # before the block is in sight the twin fits exactly as well: a rival, but not a favoured one
+    early = tracker_along(west_half_drive())
+    here = west_half_drive()[-1]
+    assert early.update(here, here, (here - np.array([12.0, 0.0, 0.0]))[None, :]) == 1
+    assert len(early.favoured()) == 0

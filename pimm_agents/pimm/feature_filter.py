@@ -90,10 +90,12 @@ class FeatureFilterConfig:
     #: to hold fewer particles lost the whole belief within one turn on the spot (docs/design.md). Modes that
     #: are not compact, and single particles, are weighed as the particle filter weighs them either way.
     mode_evidence: str = "mean"
-    #: ours: particles injected at each update around every rival place the rival check holds (rivals.py), at its
-    #: heading (sigma ``rival_sigma_m`` and ``rival_sigma_deg``), taken from the injection's uniform share: a
-    #: place the scans fit as well as the estimate, or better, is then weighed by the filter itself, so the
-    #: estimate moves there when the evidence favours it rather than waiting for a random draw to land there.
+    #: ours: particles injected at each update around every rival place that the rival check's kept scans favour
+    #: over the estimate (by more than its log_ratio; rivals.py), at its heading (sigma ``rival_sigma_m`` and
+    #: ``rival_sigma_deg``), taken from the injection's uniform share: the filter then weighs that place itself,
+    #: and the estimate moves there, rather than waiting for a random draw to land there. Rivals that only fit
+    #: as well get none: fed particles at every update, twins gained weight in turn and the estimate wandered
+    #: between them (docs/design.md).
     rival_particles: int = 50
     rival_sigma_m: float = 0.1
     rival_sigma_deg: float = 2.0
@@ -448,7 +450,7 @@ class FeatureFilter:
         self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
         self.resample_if_degenerate()
         if self.informed:
-            self.inject(suggestions, None if self.rivals is None else self.rivals.rivals)
+            self.inject(suggestions, None if self.rivals is None else self.rivals.favoured())
         return estimate
 
     # ------------------------------------------------------------------ estimate

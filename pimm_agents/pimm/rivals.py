@@ -11,8 +11,9 @@ injection puts some near every place the fingerprints suggest). A candidate is a
 evidence is within ``log_ratio`` of the estimate's; rivals are kept, carried by the odometry and re-scored at
 every update, until the scans favour the estimate over them by ``drop_log_ratio`` (a wider margin, so that a twin
 does not flicker in and out). While any rival stands, and until ``settle_scans`` scans are kept, the status is
-``ambiguous``. The filter injects particles at every standing rival (``FeatureFilterConfig.rival_particles``), so
-a rival that the scans favour wins the filter's weight and the estimate moves there.
+``ambiguous``. The filter injects particles at every rival the scans favour over the estimate by more than
+``log_ratio`` (``FeatureFilterConfig.rival_particles``), so such a place wins the filter's weight and the estimate
+moves there; rivals that merely fit as well get none, so the estimate does not wander between twins.
 """
 
 from __future__ import annotations
@@ -88,6 +89,8 @@ class RivalTracker:
             np.log(p.z_hit * np.exp(-(p.max_distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(p.z_hit + floor)
         )
         self.rivals = np.zeros((0, 3))
+        #: each rival's summed evidence minus the estimate's at the last scoring (0 for one not yet scored)
+        self.margins = np.zeros(0)
 
     def reset(self) -> None:
         self._scans.clear()
@@ -96,6 +99,11 @@ class RivalTracker:
     def forget(self) -> None:
         """Drop the rivals (the kept scans stay)."""
         self.rivals = np.zeros((0, 3))
+        self.margins = np.zeros(0)
+
+    def favoured(self) -> np.ndarray:
+        """The rivals (K, 3) the kept scans favour over the estimate by more than ``log_ratio``."""
+        return self.rivals[self.margins > self.config.log_ratio]
 
     @property
     def settled(self) -> bool:
@@ -179,6 +187,7 @@ class RivalTracker:
     def keep(self, place: np.ndarray) -> None:
         """Hold ``place`` (3,) as a rival until the scans rule it out (the place an estimate jumped away from)."""
         self.rivals = np.vstack([self.rivals, np.asarray(place, dtype=float).reshape(1, 3)])
+        self.margins = np.append(self.margins, 0.0)
 
     def headings(self, positions: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
         """For each position (M, 2), the pose whose heading (every 10 deg) the newest scans fit best."""
@@ -229,6 +238,7 @@ class RivalTracker:
                 unique.append(int(i))
         unique = unique[: c.max_rivals]
         self.rivals = refined[unique].reshape(-1, 3)
+        self.margins = margins[unique]
         return len(unique)
 
     def _known(self, pose: np.ndarray, places: list[np.ndarray]) -> bool:
