@@ -45,7 +45,7 @@ def test_a_held_place_stands_until_enough_scans_rule_it_out():
     tracker = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, RivalConfig(refine_scans=5))
     left = np.array([8.0, 3.0, np.pi])  # where an estimate jumped away from (wrongly placed)
     tracker.keep(left)
-    truths = np.array([[x, 1.0, 0.0] for x in np.arange(14.0, 16.0, 0.1)])
+    truths = np.array([[x, 1.0, 0.0] for x in np.arange(14.0, 17.0, 0.1)])
     counts = []
     for k, pose in enumerate(truths):
         tracker.add_scan(pose, rays_from(occupancy, pose, 10.0))
@@ -56,9 +56,8 @@ def test_a_held_place_stands_until_enough_scans_rule_it_out():
     assert counts[-1] == 0  # then the scans rule it out
     # a kept rival stands until the scans favour the estimate by drop_log_ratio, not log_ratio: with the two
     # equal it is dropped sooner
-    loose = RivalTracker(
-        wall_field_for(occupancy), occupancy.free, 0.2, RivalConfig(refine_scans=5, drop_log_ratio=np.log(10.0))
-    )
+    equal = RivalConfig(refine_scans=5, drop_log_ratio=RivalConfig().log_ratio)
+    loose = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, equal)
     loose.keep(left)
     loose_counts = []
     for k, pose in enumerate(truths):
@@ -91,18 +90,3 @@ def test_a_twin_rival_stands_through_a_long_drive_that_cannot_tell_them_apart():
         offered = (pose - np.array([12.0, 0.0, 0.0]))[None, :] if k == 20 else np.zeros((0, 3))
         counts.append(tracker.update(pose, pose, offered))
     assert counts[20:] == [1] * (len(truths) - 20)  # found once, kept to the end
-
-
-def test_only_a_rival_the_scans_favour_is_fed_to_the_filter():
-    truths = np.vstack([west_half_drive(), [[x, 1.0, 0.0] for x in np.arange(15.0, 19.0, 0.1)]])
-    tracker = tracker_along(truths)
-    now = truths[-1]
-    twin = now - np.array([12.0, 0.0, 0.0])
-    # an estimate in the twin room, which the block in sight rules out: the true place is a favoured rival
-    assert tracker.update(twin, now, now[None, :]) == 1
-    assert len(tracker.favoured()) == 1 and np.hypot(*(tracker.favoured()[0, :2] - now[:2])) < 0.1
-    # before the block is in sight the twin fits exactly as well: a rival, but not a favoured one
-    early = tracker_along(west_half_drive())
-    here = west_half_drive()[-1]
-    assert early.update(here, here, (here - np.array([12.0, 0.0, 0.0]))[None, :]) == 1
-    assert len(early.favoured()) == 0

@@ -90,15 +90,6 @@ class FeatureFilterConfig:
     #: to hold fewer particles lost the whole belief within one turn on the spot (docs/design.md). Modes that
     #: are not compact, and single particles, are weighed as the particle filter weighs them either way.
     mode_evidence: str = "mean"
-    #: ours: particles injected at each update around every rival place that the rival check's kept scans favour
-    #: over the estimate (by more than its log_ratio; rivals.py), at its heading (sigma ``rival_sigma_m`` and
-    #: ``rival_sigma_deg``), taken from the injection's uniform share: the filter then weighs that place itself,
-    #: and the estimate moves there, rather than waiting for a random draw to land there. Rivals that only fit
-    #: as well get none: fed particles at every update, twins gained weight in turn and the estimate wandered
-    #: between them (docs/design.md).
-    rival_particles: int = 50
-    rival_sigma_m: float = 0.1
-    rival_sigma_deg: float = 2.0
 
     def __post_init__(self) -> None:
         if self.num_particles < 1:
@@ -114,13 +105,8 @@ class FeatureFilterConfig:
             )
         if self.mode_evidence not in ("mean", "sum"):
             raise LocalizerError(f"mode_evidence must be 'mean' or 'sum', got {self.mode_evidence!r}")
-        if self.mode_min_particles < 0 or self.rival_particles < 0:
-            raise LocalizerError(
-                f"mode_min_particles and rival_particles must be at least 0, got {self.mode_min_particles}"
-                f" and {self.rival_particles}"
-            )
-        if self.rival_sigma_m < 0 or self.rival_sigma_deg < 0:
-            raise LocalizerError("rival_sigma_m and rival_sigma_deg must be at least 0")
+        if self.mode_min_particles < 0:
+            raise LocalizerError(f"mode_min_particles must be at least 0, got {self.mode_min_particles}")
         names = (
             "resample_ess_threshold",
             "replace_worst_fraction",
@@ -379,10 +365,9 @@ class FeatureFilter:
         all_weights = np.concatenate(weights)
         return np.concatenate(index), all_weights / all_weights.sum()
 
-    def inject(self, suggestions: np.ndarray, rivals: np.ndarray | None = None) -> np.ndarray:
+    def inject(self, suggestions: np.ndarray) -> np.ndarray:
         """Replace the worst ``replace_worst_fraction`` of the particles: ``smart_share`` of them around the
-        suggested positions (Gaussian, ``smart_sigma_m``, random heading), ``rival_particles`` around each of
-        ``rivals`` (K, 3; poses, so at their headings) while the rest allows, the rest uniform over free space.
+        suggested positions (Gaussian, ``smart_sigma_m``, random heading), the rest uniform over free space.
         They take the mean weight. Returns the indices replaced (with ``adaptive`` and a set smaller than
         num_particles, the indices of the particles added instead)."""
         c = self.config
@@ -406,14 +391,7 @@ class FeatureFilter:
             centres = suggestions[self.rng.integers(0, len(suggestions), smart)]
             new[:smart, :2] = centres + self.rng.normal(0, c.smart_sigma_m, (smart, 2))
             new[:smart, 2] = self.rng.uniform(-np.pi, np.pi, smart)
-        rivals = np.zeros((0, 3)) if rivals is None else np.asarray(rivals, dtype=float).reshape(-1, 3)
-        placed = min(c.rival_particles * len(rivals), count - smart)
-        if placed:
-            at = rivals[np.arange(placed) % len(rivals)]
-            sigma = np.array([c.rival_sigma_m, c.rival_sigma_m, np.radians(c.rival_sigma_deg)])
-            new[smart : smart + placed] = at + self.rng.normal(0.0, 1.0, (placed, 3)) * sigma
-            new[smart : smart + placed, 2] = wrap_angle(new[smart : smart + placed, 2])
-        new[smart + placed :] = self.free_space.sample(count - smart - placed, self.rng)
+        new[smart:] = self.free_space.sample(count - smart, self.rng)
         self.particles[worst] = new
         self.weights[worst] = 1.0 / n
         self.weights /= self.weights.sum()
@@ -450,7 +428,7 @@ class FeatureFilter:
         self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
         self.resample_if_degenerate()
         if self.informed:
-            self.inject(suggestions, None if self.rivals is None else self.rivals.favoured())
+            self.inject(suggestions)
         return estimate
 
     # ------------------------------------------------------------------ estimate
@@ -497,12 +475,14 @@ class FeatureFilter:
         if wall_points is not None:
             self.rivals.add_scan(odom, np.asarray(wall_points, dtype=float).reshape(-1, 2))
         chosen = reading.chosen
-        modes = [m.mean for k, m in enumerate(self.belief.modes) if k != chosen and m.weight > 0]
+        modes = np.array([m.mean for k, m in enumerate(self.belief.modes) if k != chosen and m.weight > 0])
+        modes = modes.reshape(-1, 3)
+        tried = self.rivals.config.candidates  # the heaviest other modes are tried first, whatever their fit
         outside = np.flatnonzero(self.belief.particle_mode != chosen)
         heaviest = outside[np.argsort(-self.weights[outside])[: 5 * self.rivals.config.candidates]]
         suggested = self.rivals.headings(np.asarray(suggestions, dtype=float).reshape(-1, 2), odom)
-        candidates = np.vstack([np.array(modes).reshape(-1, 3), suggested, self.particles[heaviest]])
-        if self.rivals.update(pose, odom, candidates) == 0:
+        candidates = np.vstack([modes[tried:], suggested, self.particles[heaviest]])
+        if self.rivals.update(pose, odom, candidates, modes[:tried]) == 0:
             if reading.status == "localized" and not self.rivals.settled:
                 return BeliefReading("ambiguous", reading.covariance, reading.hypotheses, chosen)
             return reading

@@ -11,9 +11,8 @@ injection puts some near every place the fingerprints suggest). A candidate is a
 evidence is within ``log_ratio`` of the estimate's; rivals are kept, carried by the odometry and re-scored at
 every update, until the scans favour the estimate over them by ``drop_log_ratio`` (a wider margin, so that a twin
 does not flicker in and out). While any rival stands, and until ``settle_scans`` scans are kept, the status is
-``ambiguous``. The filter injects particles at every rival the scans favour over the estimate by more than
-``log_ratio`` (``FeatureFilterConfig.rival_particles``), so such a place wins the filter's weight and the estimate
-moves there; rivals that merely fit as well get none, so the estimate does not wander between twins.
+``ambiguous``. The check only reports: the filter is not fed from it (particles injected at rivals made the
+estimate wander between twins, docs/design.md).
 """
 
 from __future__ import annotations
@@ -35,11 +34,13 @@ class RivalConfig:
     enabled: bool = True
     history_scans: int = 150  # measurement updates whose wall points are kept (0.1 m or 0.01 rad apart)
     #: a candidate whose summed tempered log-likelihood over the kept scans is within this of the estimate's is a
-    #: rival (ln 10: the scans favour the estimate by less than 10 to 1)
-    log_ratio: float = float(np.log(10.0))
-    #: a rival stands until the kept scans favour the estimate over it by this much (ln 1000): a hysteresis, so a
-    #: twin whose margin wavers about ``log_ratio`` as scans come and go stays a rival instead of flickering
-    drop_log_ratio: float = float(np.log(1000.0))
+    #: rival (ln 1000: the scans favour the estimate by less than 1000 to 1)
+    log_ratio: float = float(np.log(1000.0))
+    #: a rival stands until the kept scans favour the estimate over it by this much (ln 10^6): a hysteresis, so a
+    #: twin whose margin wavers as scans come and go stays a rival instead of flickering. Between exact twins
+    #: the margin wanders by several units (the true place scored 5-6 below a twin 20 m off over 115 scans of
+    #: a periodic corridor), while scans that tell places apart move it by tens to hundreds.
+    drop_log_ratio: float = float(np.log(1e6))
     #: no place is called localized before this many scans are kept since the estimate was last lost or jumped:
     #: the candidates get that long to be found and fitted
     settle_scans: int = 20  # twice refine_scans
@@ -89,8 +90,6 @@ class RivalTracker:
             np.log(p.z_hit * np.exp(-(p.max_distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(p.z_hit + floor)
         )
         self.rivals = np.zeros((0, 3))
-        #: each rival's summed evidence minus the estimate's at the last scoring (0 for one not yet scored)
-        self.margins = np.zeros(0)
 
     def reset(self) -> None:
         self._scans.clear()
@@ -99,11 +98,6 @@ class RivalTracker:
     def forget(self) -> None:
         """Drop the rivals (the kept scans stay)."""
         self.rivals = np.zeros((0, 3))
-        self.margins = np.zeros(0)
-
-    def favoured(self) -> np.ndarray:
-        """The rivals (K, 3) the kept scans favour over the estimate by more than ``log_ratio``."""
-        return self.rivals[self.margins > self.config.log_ratio]
 
     @property
     def settled(self) -> bool:
@@ -187,7 +181,6 @@ class RivalTracker:
     def keep(self, place: np.ndarray) -> None:
         """Hold ``place`` (3,) as a rival until the scans rule it out (the place an estimate jumped away from)."""
         self.rivals = np.vstack([self.rivals, np.asarray(place, dtype=float).reshape(1, 3)])
-        self.margins = np.append(self.margins, 0.0)
 
     def headings(self, positions: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
         """For each position (M, 2), the pose whose heading (every 10 deg) the newest scans fit best."""
@@ -199,20 +192,28 @@ class RivalTracker:
         scores = self.evidence(poses, self.stack(odom_now, self.config.refine_scans)).reshape(len(positions), -1)
         return poses.reshape(len(positions), len(angles), 3)[np.arange(len(positions)), np.argmax(scores, axis=1)]
 
-    def update(self, estimate: np.ndarray, odom_now: np.ndarray, candidates: np.ndarray) -> int:
+    def update(
+        self, estimate: np.ndarray, odom_now: np.ndarray, candidates: np.ndarray, first: np.ndarray | None = None
+    ) -> int:
         """Re-score the kept rivals and the new ``candidates`` (M, 3) against ``estimate``; keep the new ones within
-        ``log_ratio`` and the kept ones within ``drop_log_ratio``. Returns how many rivals stand; with fewer than
-        ``refine_scans`` scans kept (just after a jump) the kept rivals stand unscored."""
+        ``log_ratio`` and the kept ones within ``drop_log_ratio``. ``first`` (the filter's heaviest other modes)
+        are tried whatever the newest scans say of them unrefined; of the other candidates, the ``candidates``
+        the newest scans fit best. Returns how many rivals stand; with fewer than ``refine_scans`` scans kept
+        (just after a jump) the kept rivals stand unscored."""
         c = self.config
         if len(self._scans) < c.refine_scans:
             return len(self.rivals)
         recent = self.stack(odom_now, c.refine_scans)
         pool = [p for p in self.rivals]
+        for q in np.zeros((0, 3)) if first is None else np.asarray(first, dtype=float).reshape(-1, 3):
+            if not self._known(q, [estimate, *pool]):
+                pool.append(q)
+        tried = len(pool)
         fresh = [q for q in np.asarray(candidates, dtype=float).reshape(-1, 3) if not self._known(q, [estimate, *pool])]
         if fresh:  # the ones the newest scans like best
             order = np.argsort(-self.evidence(np.array(fresh), recent), kind="stable")
             for i in order:
-                if len(pool) >= len(self.rivals) + c.candidates:
+                if len(pool) >= tried + c.candidates:
                     break
                 if not self._known(fresh[i], pool):
                     pool.append(fresh[i])
@@ -238,7 +239,6 @@ class RivalTracker:
                 unique.append(int(i))
         unique = unique[: c.max_rivals]
         self.rivals = refined[unique].reshape(-1, 3)
-        self.margins = margins[unique]
         return len(unique)
 
     def _known(self, pose: np.ndarray, places: list[np.ndarray]) -> bool:
