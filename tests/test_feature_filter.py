@@ -6,6 +6,7 @@ from pimm_agents.particles.belief import BeliefConfig, read_belief
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.pimm.localizer import OdometryHistory, WallFieldConfig, compensate, wall_points
+from pimm_agents.pimm.rivals import RivalConfig
 from pimm_env.geometry import carry, compose, relative_motion, wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -405,3 +406,23 @@ def test_the_reported_covariance_is_consistent_with_the_error_on_a_tracked_run()
             traces.append(np.trace(cov))
     assert len(inside) > 20 and np.mean(inside) >= 0.9
     assert max(traces) < 0.5  # the estimate's mode, not the whole particle set (the L room: ~8 m^2)
+
+
+def test_no_place_is_localized_before_the_rival_check_has_kept_settle_scans():
+    occupancy, corners = l_room()
+    poses = path()
+    first = {}
+    for settle in (0, 25):
+        filt = FeatureFilter(
+            occupancy,
+            corners,
+            FeatureFilterConfig(num_particles=3000),
+            wall_field_for(occupancy),
+            0.2,
+            rivals=RivalConfig(settle_scans=settle),
+        )
+        filt.reset(np.random.default_rng(0))
+        statuses = [s for s, _, _ in track(filt, poses, poses, lambda p: (features_from(p), walls_seen_from(p)))]
+        first[settle] = statuses.index("localized")
+    # without it the first claim comes once 10 updates confirm it; with it, not before 25 scans are kept
+    assert first[0] < 25 <= first[25]

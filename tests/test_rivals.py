@@ -90,3 +90,17 @@ def test_a_twin_rival_stands_through_a_long_drive_that_cannot_tell_them_apart():
         offered = (pose - np.array([12.0, 0.0, 0.0]))[None, :] if k == 20 else np.zeros((0, 3))
         counts.append(tracker.update(pose, pose, offered))
     assert counts[20:] == [1] * (len(truths) - 20)  # found once, kept to the end
+
+
+def test_the_first_candidates_are_tried_whatever_the_count():
+    truths = west_half_drive()
+    now = truths[-1]
+    twin = now - np.array([12.0, 0.0, 0.0])
+    offered = (twin + np.array([0.15, -0.1, np.radians(3)]))[None, :]
+    none_taken = RivalConfig(candidates=0)
+    ranked = tracker_along(truths)
+    ranked.config = none_taken
+    assert ranked.update(now, now, offered) == 0  # no ranked candidate is taken
+    first = tracker_along(truths)
+    first.config = none_taken
+    assert first.update(now, now, np.zeros((0, 3)), first=offered) == 1  # a filter's mode is tried all the same
