@@ -10,7 +10,7 @@ import evaluate
 from pimm_agents.experiments.replay import replay_bag
 from pimm_agents.experiments.runner import run_shared
 from pimm_agents.scoring.trial import TrialSpec
-from pimm_env.bags.messages import odometry, typestore
+from pimm_env.bags.messages import laser_scan, odometry, typestore
 from pimm_env.bags.read import BagTopics, read_steps
 from pimm_env.bags.record import record_scenario
 from pimm_env.envs.base_env import SimConfig
@@ -123,3 +123,29 @@ def test_a_cloud_with_ring_and_intensity_fields_reads_its_xyz():
     )  # fmt: skip
     read = cloud_points(msg, "/points message 0")
     assert np.array_equal(read[[0, 2]], points[[0, 2]]) and np.isnan(read[1]).all()
+
+
+def test_messages_received_together_are_read_truth_and_scans_before_the_odometry_they_arrive_with(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    store = typestore()
+    bag = tmp_path / "same_times"
+    config = SimConfig()
+    lidar = config.lidar2d
+    angles = np.linspace(-np.pi, np.pi, lidar.beams, endpoint=False)
+    with Writer(bag, version=9) as writer:  # odometry's connection first: with equal times it came out first
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        truth = writer.add_connection("/ground_truth", "nav_msgs/msg/Odometry", typestore=store)
+        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        for i in range(3):
+            at, t = int(1e8) * i, 0.1 * i
+            pose = np.array([t, 0.0, 0.0])
+            writer.write(odom, at, store.serialize_cdr(odometry(store, t, pose, "odom"), "nav_msgs/msg/Odometry"))
+            writer.write(truth, at, store.serialize_cdr(odometry(store, t, pose + 1.0, "map"), "nav_msgs/msg/Odometry"))
+            ranges = np.full(lidar.beams, 2.0 + i)
+            msg = laser_scan(store, t, ranges, angles, lidar)
+            writer.write(scan, at, store.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
+    steps = list(read_steps(bag, BagTopics(), config.lidar2d, config.lidar3d))
+    assert [s.true_pose is not None for s in steps] == [True, True, True]
+    assert np.allclose([s.true_pose[0] for s in steps], [1.0, 1.1, 1.2])
+    assert [float(s.obs["scan"][0]) for s in steps] == [2.0, 3.0, 4.0] and all(s.fresh_scan for s in steps)

@@ -1,6 +1,9 @@
 """Read a bag (rosbag2 or ROS 1: whatever ``rosbags`` reads) back as the env's observations.
 
-Messages are taken in the bag's order (receive time). Each cloud is placed into the 3D LiDAR layout's grid
+Messages are taken in the bag's order (receive time); messages received at the same time are taken events,
+truth, scan, cloud, then odometry, so that the step an odometry message closes holds what arrived with it
+(the reader's own order among them is not fixed: it followed the order of a set, which changes with Python's
+hash seed). Each cloud is placed into the 3D LiDAR layout's grid
 by its points' angles (``layout.organize``), so a driver's ring order or azimuth origin does not matter.
 Every odometry message closes a step: it yields one observation holding that odometry and the latest scan
 and cloud (with their stamps, so that a localizer tells a fresh scan from a repeated one, as with the live
@@ -10,7 +13,7 @@ env), the latest true pose if the bag has one, and whether a scan or cloud arriv
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -74,7 +77,8 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
             raise BagError(f"{path}: no odometry topic {topics.odom!r}; the bag has {sorted(have)}")
         if not any(t in have for t in (topics.scan, topics.points) if t):
             raise BagError(f"{path}: neither {topics.scan!r} nor {topics.points!r}; the bag has {sorted(have)}")
-        connections = [have[t] for t in wanted if t in have]
+        connections = [have[t] for t in sorted(wanted) if t in have]
+        priority = {topics.events: 0, topics.truth: 1, topics.scan: 2, topics.points: 3, topics.odom: 4}
         n3 = lidar3d.layers * lidar3d.points_per_layer
         cloud, mask = np.zeros((n3, 3), np.float32), np.zeros(n3, np.int8)
         scan = np.full(lidar2d.beams, lidar2d.max_range, np.float32)
@@ -83,7 +87,7 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
         fresh_scan = fresh_cloud = kidnapped = False
         last_odom_time = -np.inf
         counts: dict[str, int] = {}
-        for connection, _, raw in reader.messages(connections=connections):
+        for connection, _, raw in in_step_order(reader.messages(connections=connections), priority):
             topic = connection.topic
             index = counts[topic] = counts.get(topic, -1) + 1
             where = f"{path}: {topic} message {index}"
@@ -114,3 +118,15 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
                 }
                 yield Step(obs, None if truth is None else truth.copy(), fresh_scan, fresh_cloud, kidnapped)
                 fresh_scan = fresh_cloud = kidnapped = False
+
+
+def in_step_order(messages: Iterable[tuple[Any, int, Any]], priority: dict[str | None, int]) -> Iterator[tuple]:
+    """``messages`` (connection, receive time, data) with each run of equal receive times sorted by its topic's
+    ``priority`` (the order within a topic kept)."""
+    group: list[tuple[Any, int, Any]] = []
+    for message in messages:
+        if group and message[1] != group[0][1]:
+            yield from sorted(group, key=lambda m: priority.get(m[0].topic, len(priority)))
+            group = []
+        group.append(message)
+    yield from sorted(group, key=lambda m: priority.get(m[0].topic, len(priority)))
