@@ -23,7 +23,7 @@ from pimm_agents.particles.kld import bin_keys, kld_sample_count
 from pimm_agents.particles.likelihood_field import BeamSkip, LikelihoodField, LikelihoodFieldParams
 from pimm_agents.particles.motion_model import odometry_delta, sample_differential
 from pimm_agents.particles.resampling import multinomial_resample
-from pimm_env.errors import LocalizerError
+from pimm_env.errors import LocalizerError, ObservationError
 from pimm_env.geometry import carry, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.sim.lidar import Lidar2DConfig, beam_bearings_2d
@@ -194,6 +194,13 @@ class Amcl:
 
     def update(self, obs: Observation) -> PoseEstimate:
         self.guard.check(obs, ("odom", "time", "scan_time"))
+        if "scan" in obs and np.shape(obs["scan"]) != (self.lidar.beams,):
+            raise ObservationError(
+                f"observation 'scan' has shape {np.shape(obs['scan'])}, expected ({self.lidar.beams},): this"
+                f" localizer was built for a 2D LiDAR of {self.lidar.beams} beams from {self.lidar.angle_min_deg:g}"
+                f" to {self.lidar.angle_max_deg:g} deg; give the scan's layout with sensors= (make_localizer) or"
+                " --sensors (a sensors file or preset)"
+            )
         scan = require(obs, "scan", (self.lidar.beams,))  # NaN or out-of-range beams are skipped (REP 117)
         taken = self.guard.take(obs)
         if taken is None and self._estimate is not None:  # a glitch: keep the estimate
