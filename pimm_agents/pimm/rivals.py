@@ -140,13 +140,18 @@ class RivalTracker:
             ],
             axis=2,
         )  # (K, S, 3): the robot at each scan
-        at = then[:, stack.scan_of]  # (K, P, 3)
-        ca, sa = np.cos(at[..., 2]), np.sin(at[..., 2])
+        # the turn of each (pose, scan), worked out once and spread to that scan's points (P >> S)
+        of = stack.scan_of
+        ca, sa = np.cos(then[..., 2])[:, of], np.sin(then[..., 2])[:, of]  # (K, P)
         px, py = stack.points[:, 0], stack.points[:, 1]
-        xy = np.stack([at[..., 0] + ca * px - sa * py, at[..., 1] + sa * px + ca * py], axis=2).reshape(-1, 2)
-        rows, cols, valid = self.field.grid.cells_of(xy)
-        log_pz = np.full(len(xy), self._log_pz_off)
-        log_pz[valid] = self._log_pz[rows[valid], cols[valid]]
+        x = then[..., 0][:, of] + ca * px - sa * py
+        y = then[..., 1][:, of] + sa * px + ca * py
+        grid = self.field.grid
+        cols = np.floor((x.ravel() - grid.origin[0]) / grid.resolution).astype(np.intp)
+        rows = np.floor((y.ravel() - grid.origin[1]) / grid.resolution).astype(np.intp)
+        valid = (rows >= 0) & (rows < grid.shape[0]) & (cols >= 0) & (cols < grid.shape[1])
+        cell = np.where(valid, rows * grid.shape[1] + cols, 0)
+        log_pz = np.where(valid, self._log_pz.ravel()[cell], self._log_pz_off)
         outside = ~self._free_at(then[..., :2].reshape(-1, 2)).reshape(k, -1)
         return self.temperature * log_pz.reshape(k, -1).sum(axis=1) + np.log(0.1) * outside.sum(axis=1)
 
