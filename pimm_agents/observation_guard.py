@@ -24,13 +24,21 @@ from pimm_env.geometry import compose, relative_motion
 
 @dataclass(frozen=True)
 class GuardConfig:
-    """Ours; the speed limits are three times the simulated robot's (1 m/s, 2 rad/s)."""
+    """Ours; the speed limits are three times the simulated robot's (1 m/s, 2 rad/s). Every localizer takes
+    them from its params' ``guard`` section (``pimm.guard.max_speed``, ``amcl.guard.max_speed``, ...)."""
 
     max_gap_s: float = 30.0
     max_speed: float = 3.0  # m/s
     max_turn_rate: float = 6.0  # rad/s
     stamp_slack_s: float = 0.5
     confirm: int = 5
+
+    def __post_init__(self) -> None:
+        for name in ("max_gap_s", "max_speed", "max_turn_rate", "stamp_slack_s"):
+            if not getattr(self, name) > 0:
+                raise ObservationError(f"guard.{name} must be positive, got {getattr(self, name)}")
+        if self.confirm < 1:
+            raise ObservationError(f"guard.confirm must be at least 1, got {self.confirm}")
 
 
 class ObservationGuard:

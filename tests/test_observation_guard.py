@@ -49,3 +49,18 @@ def test_bad_values_name_the_key_and_shape():
     transposed = {"cloud": np.zeros((3, 14400), np.float32), "cloud_mask": np.ones(14400, np.int8)}
     with pytest.raises(ValueError, match=r"observation 'cloud' has shape \(3, 14400\), expected \(N, 3\) points"):
         guard.cloud(transposed)
+
+
+def test_the_limits_come_from_each_localizers_params():
+    from pimm_agents.factory import make_localizer
+    from pimm_agents.observation_guard import GuardConfig
+
+    amcl = make_localizer("amcl", map="maps/iilab/occupancy.yaml", params={"guard": {"max_speed": 10.0}})
+    assert amcl.guard.config == GuardConfig(max_speed=10.0)
+    with pytest.raises(ObservationError, match="guard.max_turn_rate must be positive, got 0"):
+        GuardConfig(max_turn_rate=0)
+    # a faster robot than the limits: each step set aside at the defaults, taken with them raised
+    fast = [_obs(0.1 * k, [0.5 * k, 0.0, 0.0]) for k in range(4)]  # 5 m/s
+    strict, loose = ObservationGuard(), ObservationGuard(GuardConfig(max_speed=6.0))
+    assert [strict.take(o) is None for o in fast] == [False, True, True, True]
+    assert [loose.take(o) is None for o in fast] == [False, False, False, False]

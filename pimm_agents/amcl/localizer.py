@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from pimm_agents.localizer import Hypothesis, Observation, PoseEstimate, particle_sample, require
-from pimm_agents.observation_guard import ObservationGuard
+from pimm_agents.observation_guard import GuardConfig, ObservationGuard
 from pimm_agents.particles.beam_model import BeamModel, BeamModelParams
 from pimm_agents.particles.belief import BeliefConfig, Confirmation, belief_status, hypotheses_of, read_belief
 from pimm_agents.particles.free_space import FreeSpace
@@ -76,6 +76,8 @@ class AmclConfig:
     bin_theta: float = np.radians(10.0)
     #: ours: how the clusters are read as hypotheses and a status (particles/belief.py); nav2 has no status
     belief: BeliefConfig = field(default_factory=BeliefConfig)
+    #: ours: which observations are set aside as glitches (observation_guard.py); nav2 has no such check
+    guard: GuardConfig = field(default_factory=GuardConfig)
 
     def __post_init__(self) -> None:
         if self.laser_model_type not in LASER_MODELS:
@@ -84,7 +86,7 @@ class AmclConfig:
             )
         for f in fields(self):
             value = getattr(self, f.name)
-            if isinstance(value, str | BeliefConfig):
+            if isinstance(value, str | BeliefConfig | GuardConfig):
                 continue
             if not np.isfinite(value) or value < 0:
                 raise LocalizerError(f"AmclConfig.{f.name} must be finite and non-negative, got {value!r}")
@@ -162,7 +164,7 @@ class Amcl:
             else None
         )
         self._beams = subsample_beams(self.lidar.beams, c.max_beams)
-        self.guard = ObservationGuard()
+        self.guard = ObservationGuard(c.guard)
         self._bearings = beam_bearings_2d(self.lidar)[self._beams]  # in the robot's frame
         self._mount = (self.lidar.mount_x, self.lidar.mount_y)
         self.reset()

@@ -17,7 +17,7 @@ import numpy as np
 from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, detect_corners
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.localizer import Observation, PoseEstimate, particle_sample, require
-from pimm_agents.observation_guard import ObservationGuard
+from pimm_agents.observation_guard import GuardConfig, ObservationGuard
 from pimm_agents.particles.belief import BeliefConfig
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.perception.fingerprint_map import FingerprintMap
@@ -90,6 +90,7 @@ class PimmConfig:
     corners: CornerDetectorConfig = field(default_factory=CornerDetectorConfig)
     wall_field: WallFieldConfig = field(default_factory=WallFieldConfig)
     belief: BeliefConfig = field(default_factory=BeliefConfig)  # modes, status (particles/belief.py)
+    guard: GuardConfig = field(default_factory=GuardConfig)  # glitches set aside (observation_guard.py)
     use_suggestions: bool = True  # seed injected particles around the fingerprint map's suggestions
     # Ours: weigh (and resample and inject) once per scan, at the first motion update after it, as nav2 uses
     # each laser scan once. The thesis weighed the latest features after every motion update (0.1 m or
@@ -214,7 +215,7 @@ class PimmLocalizer:
             belief=config.belief,
         )
         self.history = OdometryHistory(config.odometry_history_s)
-        self.guard = ObservationGuard()
+        self.guard = ObservationGuard(config.guard)
         self._warm_up()
         self.reset()
 

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from pimm_agents.localizer import Hypothesis, Observation, PoseEstimate, require
-from pimm_agents.observation_guard import ObservationGuard
+from pimm_agents.observation_guard import GuardConfig, ObservationGuard
 from pimm_agents.particles.belief import Confirmation
 from pimm_agents.perception.point_features import valid_returns
 from pimm_agents.registration.global_search import SearchConfig, match_features, ransac_poses
@@ -51,6 +51,7 @@ class RegistrationConfig:
     #: best's is a rival: the status is ambiguous until a search finds none
     rival_fitness_ratio: float = 0.95
     confirm_updates: int = 10  # tracked scans in a row before the status is localized (as the filters')
+    guard: GuardConfig = field(default_factory=GuardConfig)  # glitches set aside (observation_guard.py)
 
     def __post_init__(self) -> None:
         for name in ("voxel_m", "icp_max_distance_m", "fitness_distance_m"):
@@ -85,7 +86,7 @@ class RegistrationLocalizer:
         self.index = faiss.IndexFlatL2(map_cloud.features.shape[1])
         self.index.add(np.ascontiguousarray(map_cloud.features, dtype=np.float32))
         self.icp = PlanarIcp(map_cloud.points, map_cloud.normals)
-        self.guard = ObservationGuard()
+        self.guard = ObservationGuard(config.guard)
         self.reset()
 
     def reset(
