@@ -4,8 +4,8 @@
   any state changes, so the localizer goes on as if the observation had never come.
 - A glitch is set aside and the last estimate kept: a stamp that goes back, or jumps further ahead than
   ``max_gap_s``; odometry that moved faster than the robot can (``max_speed``, ``max_turn_rate``) since the last
-  observation taken. A sensor stamp ahead of the observation's own time (``stamp_slack_s``) marks that sensor's
-  data as not fresh.
+  observation taken, allowing ``stamp_jitter_s`` for stamps that lag the motion (bursty logs). A sensor stamp
+  ahead of the observation's own time (``stamp_slack_s``) marks that sensor's data as not fresh.
 - A change that lasts is a new base, not a glitch: after ``confirm`` observations in a row agree with each other
   (the odometry frame was reset, a bag paused), they are taken, the odometry re-anchored so that the jump counts
   as no motion.
@@ -32,11 +32,16 @@ class GuardConfig:
     max_turn_rate: float = 6.0  # rad/s
     stamp_slack_s: float = 0.5
     confirm: int = 5
+    #: odometry may be stamped this far from when it was measured (robots that log it in bursts a few ms apart):
+    #: the speed limits allow for that much more time between two observations
+    stamp_jitter_s: float = 0.2
 
     def __post_init__(self) -> None:
         for name in ("max_gap_s", "max_speed", "max_turn_rate", "stamp_slack_s"):
             if not getattr(self, name) > 0:
                 raise ObservationError(f"guard.{name} must be positive, got {getattr(self, name)}")
+        if self.stamp_jitter_s < 0:
+            raise ObservationError(f"guard.stamp_jitter_s must be at least 0, got {self.stamp_jitter_s}")
         if self.confirm < 1:
             raise ObservationError(f"guard.confirm must be at least 1, got {self.confirm}")
 
@@ -108,8 +113,10 @@ class ObservationGuard:
             return False
         step = relative_motion(odom0, odom1)
         slack = 0.05  # m and rad: what a single control step may show at standstill
+        allowed = dt + c.stamp_jitter_s
         return bool(
-            np.hypot(step[0], step[1]) <= c.max_speed * dt + slack and abs(step[2]) <= c.max_turn_rate * dt + slack
+            np.hypot(step[0], step[1]) <= c.max_speed * allowed + slack
+            and abs(step[2]) <= c.max_turn_rate * allowed + slack
         )
 
     def _accept(self, obs: Observation, t: float, odom: np.ndarray) -> Observation:

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.observation_guard import ObservationGuard
+from pimm_agents.observation_guard import GuardConfig, ObservationGuard
 from pimm_env.errors import ObservationError
 
 
@@ -53,14 +53,23 @@ def test_bad_values_name_the_key_and_shape():
 
 def test_the_limits_come_from_each_localizers_params():
     from pimm_agents.factory import make_localizer
-    from pimm_agents.observation_guard import GuardConfig
 
     amcl = make_localizer("amcl", map="maps/iilab/occupancy.yaml", params={"guard": {"max_speed": 10.0}})
     assert amcl.guard.config == GuardConfig(max_speed=10.0)
     with pytest.raises(ObservationError, match="guard.max_turn_rate must be positive, got 0"):
         GuardConfig(max_turn_rate=0)
     # a faster robot than the limits: each step set aside at the defaults, taken with them raised
-    fast = [_obs(0.1 * k, [0.5 * k, 0.0, 0.0]) for k in range(4)]  # 5 m/s
+    fast = [_obs(1.0 * k, [5.0 * k, 0.0, 0.0]) for k in range(4)]  # 5 m/s
     strict, loose = ObservationGuard(), ObservationGuard(GuardConfig(max_speed=6.0))
     assert [strict.take(o) is None for o in fast] == [False, True, True, True]
     assert [loose.take(o) is None for o in fast] == [False, False, False, False]
+
+
+def test_odometry_logged_in_bursts_is_taken():
+    # 1 m/s, measured every 0.1 s but stamped in bursts of five 2 ms apart, 0.5 s between bursts
+    stamps = [0.5 * (k // 5) + 0.002 * (k % 5) for k in range(40)]
+    guard = ObservationGuard()
+    taken = [guard.take(_obs(t, [0.1 * k, 0.0, 0.0])) for k, t in enumerate(stamps)]
+    assert all(o is not None for o in taken) and guard.glitches == 0
+    tight = ObservationGuard(GuardConfig(stamp_jitter_s=0.0))
+    assert sum(tight.take(_obs(t, [0.1 * k, 0.0, 0.0])) is None for k, t in enumerate(stamps)) > 0
