@@ -154,7 +154,11 @@ def replay(
     topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic)
     chosen = resolve_localizers(localizers, params, settings)
     done = run_replay(bag, chosen, out, seed, world, map_path, sensors, topics)
-    typer.echo(_json(done.summary, done.folder) if json_out and done.has_truth else format_replay(done, truth_topic))
+    if json_out:  # without ground truth there are no metrics: the record says so, and where the estimates are
+        record = done.summary if done.has_truth else {"ground_truth": False, "estimates": f"{done.folder}/tum"}
+        typer.echo(_json(record, done.folder))
+    else:
+        typer.echo(format_replay(done, truth_topic))
 
 
 @command(app)

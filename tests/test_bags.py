@@ -64,6 +64,10 @@ def test_record_and_replay_commands_write_a_results_folder(room, kidnap_bag, tmp
         evaluate.app, ["record", "--scenario", "there", "--world", room, "--out", str(kidnap_bag)]
     )
     assert again.exit_code == 1 and "already exists" in again.output
+    blind = CliRunner().invoke(evaluate.app, evaluate.expand_list_options([*args, "--truth-topic", "/nope"]))
+    assert blind.exit_code == 0, blind.output
+    record = json.loads(blind.output.strip().splitlines()[-1])  # --json gives JSON without truth too
+    assert record["ground_truth"] is False and Path(record["estimates"]).is_dir()
 
 
 def test_bad_bags_name_the_topic_and_the_message(room, kidnap_bag, tmp_path):
