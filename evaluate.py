@@ -134,7 +134,11 @@ def replay(
     localizers: list[str] = typer.Option(["amcl"], "--localizers", help="names or module:factory"),
     world: str = typer.Option("iilab", help="the prepared world the bag was recorded in"),
     map_path: Path | None = typer.Option(None, "--map", help="a map_server .yaml: map-only localizers, no world"),
-    seed: int = typer.Option(0, help="the localizers' seed (a recorded bag: the seed it was recorded with)"),
+    seed: int | None = typer.Option(
+        None, help="the first trial's seed (trial i: seed + i); default: the seed the bag was recorded with, else 0"
+    ),
+    trials: int = typer.Option(1, min=1, help="replays of the bag, each with its own seed"),
+    start: str = typer.Option("global", help="global (pose unknown) or known (the bag's first true pose)"),
     odom_topic: str = typer.Option("/odom", "--odom-topic"),
     scan_topic: str = typer.Option("/scan", "--scan-topic"),
     points_topic: str = typer.Option("/points", "--points-topic"),
@@ -153,7 +157,7 @@ def replay(
 
     topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic)
     chosen = resolve_localizers(localizers, params, settings)
-    done = run_replay(bag, chosen, out, seed, world, map_path, sensors, topics)
+    done = run_replay(bag, chosen, out, seed, world, map_path, sensors, topics, start, trials)
     if json_out:  # without ground truth there are no metrics: the record says so, and where the estimates are
         record = done.summary if done.has_truth else {"ground_truth": False, "estimates": f"{done.folder}/tum"}
         typer.echo(_json(record, done.folder))

@@ -153,3 +153,18 @@ def test_messages_received_together_are_read_truth_and_scans_before_the_odometry
     assert [s.true_pose is not None for s in steps] == [True, True, True]
     assert np.allclose([s.true_pose[0] for s in steps], [1.0, 1.1, 1.2])
     assert [float(s.obs["scan"][0]) for s in steps] == [2.0, 3.0, 4.0] and all(s.fresh_scan for s in steps)
+
+
+def test_replay_runs_trials_from_a_known_start_with_the_recorded_seed(room, kidnap_bag, tmp_path):
+    from pimm_agents.experiments.replay import run_replay
+
+    small = {"amcl": dict(AMCL)}
+    done = run_replay(kidnap_bag, small, tmp_path / "r", world=room, start="known", trials=2)
+    assert [r.spec.seed for r in done.results] == [2, 3]  # the bag was recorded with seed 2
+    assert [r.spec.start for r in done.results] == ["known", "known"]
+    assert done.summary["scenarios"]["there_kidnap"]["amcl"]["trials"] == 2
+    live = run_shared([TrialSpec("there_kidnap", "amcl", 0, 2, room, AMCL, start="known")])[0]
+    assert np.array_equal(done.results[0].log.estimate, live.log.estimate)
+    args = ["replay", str(kidnap_bag), "--world", room, "--truth-topic", "/nope", "--start", "known"]
+    refused = CliRunner().invoke(evaluate.app, evaluate.expand_list_options([*args, "--out", str(tmp_path / "k")]))
+    assert refused.exit_code == 1 and "known start needs the true pose" in refused.output

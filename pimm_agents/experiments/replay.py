@@ -46,6 +46,8 @@ def replay_bag(
     for spec, localizer in zip(specs, localizers, strict=True):
         env = LocalizationRecorder(env, localizer, spec.start)
         recorders.append(env)
+    if any(spec.start == "known" for spec in specs) and bag_env.first_truth_missing():
+        raise ExperimentError(f"{bag}: a known start needs the true pose at the first odometry message; it has none")
     env.reset(seed=specs[0].seed)
     idle = np.zeros(2, dtype=np.float32)
     while not bag_env.done:
@@ -70,6 +72,8 @@ def replay_specs(
     sensors: str | None = None,
     topics: Any = None,
     folder: Path | None = None,
+    start: str = "global",
+    trial: int = 0,
 ) -> list[TrialSpec]:
     """One spec per localizer, named after the scenario the bag's record file gives (else the bag's name). The
     LiDAR layouts: ``sensors`` if given, else the sensors file recorded with the bag (else its record file's
@@ -88,9 +92,22 @@ def replay_specs(
             recorded = str(Path(bag) / SENSORS_FILE)
     chosen = sensors or recorded or layouts_file(Path(bag), topics, folder)
     return [
-        replace(TrialSpec(scenario, name, 0, seed, world), params=params.get(name, {}), sensors=chosen)
+        replace(TrialSpec(scenario, name, trial, seed, world), params=params.get(name, {}), sensors=chosen, start=start)
         for name in localizers
     ]
+
+
+def recorded_seed(bag: Path) -> int:
+    """The seed a bag was recorded with (its record file), else 0: replayed with it, a recorded trial gives the
+    live trial's results."""
+    from pimm_env.bags.record import RECORD_FILE
+
+    record_file = Path(bag) / RECORD_FILE
+    if not record_file.is_file():
+        return 0
+    import yaml
+
+    return int((yaml.safe_load(record_file.read_text()) or {}).get("seed", 0))
 
 
 def layouts_file(bag: Path, topics: Any, folder: Path | None) -> str:
@@ -122,14 +139,17 @@ def run_replay(
     bag: Path,
     localizers: dict[str, dict[str, Any]],
     out: Path,
-    seed: int = 0,
+    seed: int | None = None,
     world: str = "iilab",
     map_path: Path | None = None,
     sensors: str | None = None,
     topics: Any = None,
+    start: str = "global",
+    trials: int = 1,
 ) -> Replay:
-    """Feed ``bag`` to every localizer (``{name: resolved params}``) and write the results folder under ``out``
-    (no folder is left behind when the bag or map is unusable)."""
+    """Feed ``bag`` to every localizer (``{name: resolved params}``) ``trials`` times, trial i with seed ``seed`` +
+    i (``seed`` None: the seed the bag was recorded with, else 0), from a ``start`` of ``global`` or ``known``,
+    and write the results folder under ``out`` (no folder is left behind when the bag or map is unusable)."""
     import shutil
 
     from pimm_agents.experiments.experiment import new_folder
@@ -146,25 +166,36 @@ def run_replay(
     topics = topics or BagTopics()
     if sensors is not None:
         sensor_layouts(sensors)
+    if trials < 1:
+        raise ExperimentError(f"trials must be at least 1, got {trials}")
+    seed = recorded_seed(bag) if seed is None else seed
     folder = new_folder(out, "replay")
     try:
-        specs = replay_specs(bag, list(localizers), localizers, seed, world, sensors, topics, folder)
         if map_path is not None:
             occupancy, corners = load_map_server(map_path), None
         else:
             maps = ensure_derived_maps(load_world(world))
             occupancy, corners = maps.occupancy, maps.corners.xy
-        results, has_truth = replay_bag(bag, specs, map_path, topics)
+        results, has_truth, specs = [], True, []
+        for trial in range(trials):
+            specs = replay_specs(
+                bag, list(localizers), localizers, seed + trial, world, sensors, topics, folder, start, trial
+            )
+            done, truth = replay_bag(bag, specs, map_path, topics)
+            results += done
+            has_truth = has_truth and truth
     except PimmError:
         shutil.rmtree(folder, ignore_errors=True)  # made before the layouts were read into it: no empty results
         raise
     write_params_file(folder / "config.yaml", localizers)
     record = {"bag": str(bag), "world": None if map_path else world, "map": str(map_path) if map_path else None,
-              "localizers": list(localizers), "seed": seed, "ground_truth": has_truth,
+              "localizers": list(localizers), "seed": seed, "trials": trials, "start": start,
+              "ground_truth": has_truth,
               "sensors": specs[0].sensors if specs else sensors}  # fmt: skip
     if not has_truth:
         write_run_record(folder, record)
         for result in results:
-            write_tum(folder / "tum" / result.spec.localizer / "est.tum", result.log.time, result.log.estimate)
+            name = result.spec.localizer if trials == 1 else f"{result.spec.localizer}/trial{result.spec.trial:02d}"
+            write_tum(folder / "tum" / name / "est.tum", result.log.time, result.log.estimate)
         return Replay(folder, results, False, {})
     return Replay(folder, results, True, write_results(folder, results, record, occupancy, corners))

@@ -36,6 +36,12 @@ class BagEnv(gym.Env):
         self._next = next(self._steps, None)
         return step
 
+    def first_truth_missing(self) -> bool:
+        """Whether the first step (served by the next ``reset``) has no true pose; reads it ahead if need be."""
+        if self._next is None:
+            self._next = next(self._steps, None)
+        return self._next is None or self._next.true_pose is None
+
     @property
     def done(self) -> bool:
         return self._next is None
