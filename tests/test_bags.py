@@ -168,3 +168,37 @@ def test_replay_runs_trials_from_a_known_start_with_the_recorded_seed(room, kidn
     args = ["replay", str(kidnap_bag), "--world", room, "--truth-topic", "/nope", "--start", "known"]
     refused = CliRunner().invoke(evaluate.app, evaluate.expand_list_options([*args, "--out", str(tmp_path / "k")]))
     assert refused.exit_code == 1 and "known start needs the true pose" in refused.output
+
+
+def test_truth_as_pose_stamped_is_read_and_a_type_without_a_pose_is_named(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    from pimm_env.bags.messages import planar_pose
+
+    store = typestore()
+    t = store.types
+    config = SimConfig()
+    lidar = config.lidar2d
+    angles = np.linspace(-np.pi, np.pi, lidar.beams, endpoint=False)
+    header = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="map")
+    half = np.radians(30.0) / 2
+    pose = t["geometry_msgs/msg/Pose"](
+        position=t["geometry_msgs/msg/Point"](x=1.5, y=-2.0, z=0.0),
+        orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=np.sin(half), w=np.cos(half)),
+    )
+    stamped = t["geometry_msgs/msg/PoseStamped"](header=header, pose=pose)
+    bag = tmp_path / "pose_stamped"
+    with Writer(bag, version=9) as writer:
+        truth = writer.add_connection("/ground_truth", "geometry_msgs/msg/PoseStamped", typestore=store)
+        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        writer.write(truth, 0, store.serialize_cdr(stamped, "geometry_msgs/msg/PoseStamped"))
+        msg = laser_scan(store, 0.0, np.full(lidar.beams, 2.0), angles, lidar)
+        writer.write(scan, 1, store.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
+        writer.write(odom, 2, store.serialize_cdr(odometry(store, 0.0, np.zeros(3), "odom"), "nav_msgs/msg/Odometry"))
+    (step,) = list(read_steps(bag, BagTopics(), config.lidar2d, config.lidar3d))
+    assert np.allclose(step.true_pose, [1.5, -2.0, np.radians(30.0)])
+    with pytest.raises(
+        BagError, match="/scan message 0: a .*LaserScan holds no pose; give a topic of nav_msgs/Odometry"
+    ):
+        planar_pose(msg, "/scan message 0")

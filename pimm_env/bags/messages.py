@@ -66,9 +66,23 @@ def odometry(store, seconds: float, pose: np.ndarray, frame: str, child: str = "
                                       twist=twist)  # fmt: skip
 
 
-def planar_pose(msg: Any) -> np.ndarray:
-    """(x, y, yaw) of an Odometry message."""
-    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+def planar_pose(msg: Any, where: str = "message") -> np.ndarray:
+    """(x, y, yaw) of a pose message: ``nav_msgs/Odometry``, ``geometry_msgs/PoseWithCovarianceStamped``,
+    ``PoseStamped``, ``Pose`` or ``TransformStamped``; any other type is a ``BagError`` naming ``where``."""
+    pose = getattr(msg, "pose", None)
+    pose = getattr(pose, "pose", pose)  # Odometry and PoseWithCovarianceStamped wrap the Pose once more
+    if pose is not None and hasattr(pose, "position") and hasattr(pose, "orientation"):
+        p, q = pose.position, pose.orientation
+    elif hasattr(msg, "position") and hasattr(msg, "orientation"):  # a bare Pose
+        p, q = msg.position, msg.orientation
+    elif hasattr(getattr(msg, "transform", None), "translation"):  # TransformStamped
+        p, q = msg.transform.translation, msg.transform.rotation
+    else:
+        kind = type(msg).__name__
+        raise BagError(
+            f"{where}: a {kind} holds no pose; give a topic of nav_msgs/Odometry, geometry_msgs/PoseStamped,"
+            " PoseWithCovarianceStamped or TransformStamped"
+        )
     yaw = np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y**2 + q.z**2))
     return np.array([p.x, p.y, yaw])
 

@@ -95,7 +95,7 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
             if topic == topics.events:
                 kidnapped = kidnapped or msg.data == KIDNAP
             elif topic == topics.truth:
-                truth = planar_pose(msg)
+                truth = planar_pose(msg, where)
             elif topic == topics.scan:
                 scan = scan_ranges(msg, lidar2d.beams, lidar2d.max_range, where)
                 scan_time, fresh_scan = stamp_seconds(msg), True
@@ -108,7 +108,7 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
                     raise BagError(f"{where}: stamp {t:.6f} s goes back from {last_odom_time:.6f} s")
                 last_odom_time = t
                 obs = {
-                    "odom": planar_pose(msg).astype(np.float32),
+                    "odom": planar_pose(msg, where).astype(np.float32),
                     "cloud": cloud.copy(),
                     "cloud_mask": mask.copy(),
                     "scan": scan.copy(),
