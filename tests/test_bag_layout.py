@@ -133,3 +133,19 @@ def test_sensors_files_name_the_file_and_the_field(tmp_path):
             sensor_layouts(str(path))
     with pytest.raises(ValueError, match="cannot read the sensors file"):
         sensor_layouts(str(tmp_path / "missing.yaml"))
+
+
+def test_a_clockwise_scan_reads_as_the_same_beams_counter_clockwise():
+    from pimm_env.bags.layout import scan_layout
+    from pimm_env.bags.messages import laser_scan, scan_ranges
+    from pimm_env.sim.lidar import Lidar2DConfig, beam_bearings_2d
+
+    lidar = Lidar2DConfig(beams=181, angle_min_deg=-90.0, angle_max_deg=90.0)
+    bearings = beam_bearings_2d(lidar)
+    ranges = 1.0 + np.arange(lidar.beams) / 100.0  # each beam's range tells it apart
+    store = typestore()
+    clockwise = laser_scan(store, 0.0, ranges[::-1], bearings[::-1], lidar)  # from +90 down to -90 deg
+    assert clockwise.angle_increment < 0
+    read = scan_layout(clockwise, "/scan message 0")
+    assert (read.beams, read.angle_min_deg, read.angle_max_deg) == (181, -90.0, 90.0)
+    assert np.allclose(scan_ranges(clockwise, 181, lidar.max_range, "/scan message 0"), ranges)

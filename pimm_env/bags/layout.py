@@ -31,17 +31,20 @@ def returns(points: np.ndarray) -> np.ndarray:
 
 
 def scan_layout(msg: Any, where: str) -> Lidar2DConfig:
-    """The 2D LiDAR a LaserScan describes."""
+    """The 2D LiDAR a LaserScan describes. A negative ``angle_increment`` (beams clockwise, as from a LiDAR
+    mounted upside down) is read as the same beams counter-clockwise; ``scan_ranges`` reverses them to match."""
     beams = len(msg.ranges)
     increment = float(msg.angle_increment)
-    if beams < 1 or (beams > 1 and increment <= 0):
+    if beams < 1 or (beams > 1 and increment == 0):
         raise BagError(f"{where}: {beams} ranges with angle_increment {increment}: no layout to read")
+    first, last = (msg.angle_min, msg.angle_max) if increment >= 0 else (msg.angle_max, msg.angle_min)
+    increment = abs(increment)
     # the message's float32 fields, rounded back to the decimals they were written with (-180 deg, not
     # -180.000005): a layout read from a bag then gives the same bearings as the one it was recorded with
-    low = round(float(np.degrees(msg.angle_min)), 4)
+    low = round(float(np.degrees(first)), 4)
     span = float(np.degrees(increment)) * beams
     full_circle = abs(span - 360.0) < 0.5 * float(np.degrees(increment))
-    high = low + 360.0 if full_circle else round(float(np.degrees(msg.angle_max)), 4)
+    high = low + 360.0 if full_circle else round(float(np.degrees(last)), 4)
     rate = round(1.0 / msg.scan_time, 3) if msg.scan_time > 0 else Lidar2DConfig().rate_hz
     try:
         return Lidar2DConfig(

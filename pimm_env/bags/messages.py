@@ -107,9 +107,12 @@ def laser_scan(store, seconds: float, ranges: np.ndarray, angles: np.ndarray, li
 
 
 def scan_ranges(msg: Any, beams: int, max_range: float, where: str) -> np.ndarray:
-    """The ranges of a LaserScan as the env gives them (no return = ``max_range``); checks the beam count
-    against the message's own angles and against the layout expected."""
+    """The ranges of a LaserScan as the env gives them (no return = ``max_range``, beams counter-clockwise: a
+    scan with a negative ``angle_increment`` is reversed); checks the beam count against the message's own
+    angles and against the layout expected."""
     ranges = np.asarray(msg.ranges, dtype=np.float32)
+    if msg.angle_increment < 0:
+        ranges = ranges[::-1]
     if msg.angle_increment != 0:
         implied = round((msg.angle_max - msg.angle_min) / msg.angle_increment) + 1
         if implied != len(ranges):
