@@ -149,3 +149,18 @@ def test_a_clockwise_scan_reads_as_the_same_beams_counter_clockwise():
     read = scan_layout(clockwise, "/scan message 0")
     assert (read.beams, read.angle_min_deg, read.angle_max_deg) == (181, -90.0, 90.0)
     assert np.allclose(scan_ranges(clockwise, 181, lidar.max_range, "/scan message 0"), ranges)
+
+
+def test_a_bag_without_the_lidar_topics_lists_the_topics_it_has(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    from pimm_env.bags.messages import odometry
+
+    store = typestore()
+    bag = tmp_path / "other_names"
+    with Writer(bag, version=9) as writer:
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        writer.add_connection("/front_laser", "sensor_msgs/msg/LaserScan", typestore=store)
+        writer.write(odom, 0, store.serialize_cdr(odometry(store, 0.0, np.zeros(3), "odom"), "nav_msgs/msg/Odometry"))
+    with pytest.raises(BagError, match=r"no LiDAR to read.*the bag has /front_laser \(sensor_msgs/msg/LaserScan\)"):
+        layouts_from_bag(bag, "/scan", "/points")

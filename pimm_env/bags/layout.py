@@ -124,6 +124,13 @@ def layouts_from_bag(path: Path, scan_topic: str | None, points_topic: str | Non
                     break
             if lidar3d is not None and len(stamps) == 2 and stamps[1] > stamps[0]:
                 lidar3d = replace(lidar3d, rate_hz=round(1.0 / (stamps[1] - stamps[0]), 3))
+        if lidar2d is None and lidar3d is None:
+            listed = ", ".join(f"{t} ({c.msgtype})" for t, c in sorted(have.items()))
+            raise BagError(
+                f"{path}: no LiDAR to read: the scan topic {scan_topic!r} and the cloud topic {points_topic!r} have"
+                f" no messages here; the bag has {listed or 'no topics'} (name them with --scan-topic,"
+                " --points-topic)"
+            )
     return lidar3d, lidar2d
 
 
