@@ -58,7 +58,8 @@ class ObservationGuard:
         self.last_odom: np.ndarray | None = None  # raw, as the last taken observation had it
         self.offset = np.zeros(3)  # corrected odometry = compose(offset, raw odometry)
         self._pending: list[tuple[float, np.ndarray]] = []  # set-aside observations that agree with each other
-        self.glitches = 0
+        self.glitches = 0  # observations set aside
+        self.rebases = 0  # lasting jumps taken as a new base (the jump counted as no motion)
 
     def check(self, obs: Observation, keys: tuple[str, ...]) -> None:
         """Raise ``ValueError`` naming the key unless every one of ``keys`` is present, shaped and finite."""
@@ -104,6 +105,7 @@ class ObservationGuard:
         before = compose(self.offset, self.last_odom)[0]  # where the corrected odometry stood
         self.offset = compose(before, relative_motion(first_odom, np.zeros(3)))[0]
         self._pending.clear()
+        self.rebases += 1
         return self._accept(obs, t, odom)
 
     def _plausible(self, t0: float, odom0: np.ndarray, t1: float, odom1: np.ndarray) -> bool:

@@ -202,3 +202,33 @@ def test_truth_as_pose_stamped_is_read_and_a_type_without_a_pose_is_named(tmp_pa
         BagError, match="/scan message 0: a .*LaserScan holds no pose; give a topic of nav_msgs/Odometry"
     ):
         planar_pose(msg, "/scan message 0")
+
+
+def test_what_the_guard_sets_aside_is_counted_in_the_log_the_summary_and_the_printout(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    from pimm_agents.results.tables import format_set_aside
+    from pimm_agents.scoring.summaries import summary_of
+
+    store = typestore()
+    config = SimConfig()
+    lidar = config.lidar2d
+    angles = np.linspace(-np.pi, np.pi, lidar.beams, endpoint=False)
+    bag = tmp_path / "glitch"
+    with Writer(bag, version=9) as writer:
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        truth = writer.add_connection("/ground_truth", "nav_msgs/msg/Odometry", typestore=store)
+        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        for i in range(30):
+            at, t = int(1e8) * i, 0.1 * i
+            pose = np.array([2.0 + 0.05 * i, 2.0, 0.0])
+            raw = np.array([0.05 * i + (100.0 if i == 15 else 0.0), 0.0, 0.0])  # one 100 m glitch
+            msg = laser_scan(store, t, np.full(lidar.beams, 3.0), angles, lidar)
+            writer.write(scan, at, store.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
+            writer.write(truth, at, store.serialize_cdr(odometry(store, t, pose, "map"), "nav_msgs/msg/Odometry"))
+            writer.write(odom, at, store.serialize_cdr(odometry(store, t, raw, "odom"), "nav_msgs/msg/Odometry"))
+    spec = TrialSpec("glitch", "amcl", 0, 0, "iilab", AMCL)
+    (result,), has_truth = replay_bag(bag, [spec], map_path=Path("maps/iilab/occupancy.yaml"))
+    assert has_truth and (result.log.set_aside, result.log.rebased) == (1, 0)
+    assert summary_of([result])["scenarios"]["glitch"]["amcl"]["per_trial"][0]["set_aside"] == 1
+    assert "amcl trial 0: 1 observation(s) set aside, 0 odometry re-base(s)" in format_set_aside([result])

@@ -94,4 +94,12 @@ class LocalizationRecorder(gym.Wrapper):
             tuple(self._kidnap_rows),
             np.array(status, dtype=np.int8),
             np.array(cov_xy),
+            *guard_counts(self.localizer),
         )
+
+
+def guard_counts(localizer: Localizer) -> tuple[int, int]:
+    """(observations set aside, odometry re-bases) by the localizer's observation guard since its last reset;
+    (0, 0) for a localizer without one (a plugin)."""
+    guard = getattr(localizer, "guard", None)
+    return int(getattr(guard, "glitches", 0)), int(getattr(guard, "rebases", 0))

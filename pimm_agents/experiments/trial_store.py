@@ -78,6 +78,8 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
         "kidnap_index": log.kidnap_index,
         "kidnap_rows": list(log.kidnap_rows),
         "stages": stages,
+        "set_aside": log.set_aside,
+        "rebased": log.rebased,
     }
     partial = target.with_name(target.name + ".part")
     with partial.open("wb") as handle:
@@ -119,6 +121,8 @@ def load_trial(path: Path) -> TrialResult:
                 tuple(meta.get("kidnap_rows", ())),  # older files: TrialLog derives it from kidnap_index
                 data["status"] if "status" in data.files else None,  # older files: always localized
                 data["cov_xy"] if "cov_xy" in data.files else None,
+                int(meta.get("set_aside", 0)),
+                int(meta.get("rebased", 0)),
             )
         spec = TrialSpec(**meta["spec"])
     except (OSError, KeyError, ValueError, TypeError) as error:

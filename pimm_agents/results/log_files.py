@@ -94,7 +94,8 @@ def read_sidecar(csv_path: Path) -> dict[str, Any]:
 
 def write_sidecar(path: Path, result: TrialResult) -> Path:
     """What a trial's CSV holds, beside it: scenario, localizer, trial, seed, world, the first row after the
-    kidnap, and the localizer's status as ``[first row, status]`` wherever it changed (the thesis's 11 columns
+    kidnap, the localizer's status as ``[first row, status]`` wherever it changed, and the observations its
+    guard set aside and the odometry re-bases it took (the thesis's 11 columns
     stay as they are, so the thesis's tools still read the CSV)."""
     s = result.spec
     record = {
@@ -108,6 +109,8 @@ def write_sidecar(path: Path, result: TrialResult) -> Path:
         "kidnap_rows": list(result.log.kidnap_rows),
         "rows": len(result.log),
         "status": status_changes(np.asarray(result.log.status)),
+        "set_aside": result.log.set_aside,
+        "rebased": result.log.rebased,
     }
     Path(path).write_text(json.dumps(record, indent=1))
     return Path(path)

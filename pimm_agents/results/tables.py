@@ -169,9 +169,24 @@ def format_bench(figures: dict[str, float], machine: dict[str, Any]) -> str:
 
 def format_replay(replay: Any, truth_topic: str) -> str:
     """``evaluate.py replay``: the thesis's tables, or where the estimates went when the bag had no truth."""
+    guard = format_set_aside(replay.results)
     if not replay.has_truth:
-        return f"no {truth_topic} in the bag: estimates only, in {replay.folder}/tum/<localizer>/est.tum"
-    return f"{format_tables(replay.summary)}\n\nresults: {replay.folder}/"
+        return f"no {truth_topic} in the bag: estimates only, in {replay.folder}/tum/<localizer>/est.tum{guard}"
+    return f"{format_tables(replay.summary)}{guard}\n\nresults: {replay.folder}/"
+
+
+def format_set_aside(results: Any) -> str:
+    """A line per trial whose localizer's guard set observations aside or re-based the odometry (none: '')."""
+    lines = [
+        f"  {r.spec.name} trial {r.spec.trial}: {r.log.set_aside} observation(s) set aside, {r.log.rebased}"
+        " odometry re-base(s)"
+        for r in results
+        if r.log.set_aside or r.log.rebased
+    ]
+    if not lines:
+        return ""
+    head = "\n\nset aside by the observation guard (its limits: the guard.* settings, docs/localizers.md):"
+    return head + "\n" + "\n".join(lines)
 
 
 def format_honesty(summary: dict[str, Any]) -> str:

@@ -59,6 +59,8 @@ def _trial_row(result: TrialResult, honesty: HonestyMetrics, errors: dict[str, A
         "angle_error_deg": m.angle_error_deg,
         "completed": result.completed,
         "wall_s": round(result.wall_s, 2),
+        "set_aside": result.log.set_aside,  # observations the localizer's guard set aside
+        "rebased": result.log.rebased,
         **asdict(honesty),
     }
     if len(result.log.kidnap_rows) > 1:  # a fault run's kidnaps: how long each took to recover from
