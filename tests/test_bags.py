@@ -88,8 +88,9 @@ def test_bad_bags_name_the_topic_and_the_message(room, kidnap_bag, tmp_path):
             raw = store.serialize_cdr(odometry(store, t, np.zeros(3), "odom"), "nav_msgs/msg/Odometry")
             writer.write(odom, i, raw)
         del scan
-    with pytest.raises(BagError, match=r"/odom message 2: stamp 0.050000 s goes back from 0.100000 s"):
-        list(read_steps(backwards, BagTopics(), config.lidar2d, config.lidar3d))
+    # header stamps that step back (the receive order does not): served as they are, for the guard to set aside
+    steps = list(read_steps(backwards, BagTopics(), config.lidar2d, config.lidar3d))
+    assert [float(s.obs["time"][0]) for s in steps] == [0.0, 0.1, 0.05]
     with pytest.raises(FileNotFoundError, match="nope: no such bag"):
         next(read_steps(tmp_path / "nope", BagTopics(), config.lidar2d, config.lidar3d))
 
