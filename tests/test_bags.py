@@ -233,3 +233,13 @@ def test_what_the_guard_sets_aside_is_counted_in_the_log_the_summary_and_the_pri
     assert has_truth and (result.log.set_aside, result.log.rebased) == (1, 0)
     assert summary_of([result])["scenarios"]["glitch"]["amcl"]["per_trial"][0]["set_aside"] == 1
     assert "amcl trial 0: 1 observation(s) set aside, 0 odometry re-base(s)" in format_set_aside([result])
+
+
+def test_a_topic_of_another_type_named_as_the_scan_or_cloud_is_a_bag_error():
+    from pimm_env.bags.messages import cloud_points, scan_ranges
+
+    msg = odometry(typestore(), 0.0, np.zeros(3), "odom")  # e.g. a driver's packet topic named as the cloud
+    with pytest.raises(BagError, match="/points message 0: a .*Odometry is not a sensor_msgs/PointCloud2"):
+        cloud_points(msg, "/points message 0")
+    with pytest.raises(BagError, match="/scan message 4: a .*Odometry is not a sensor_msgs/LaserScan"):
+        scan_ranges(msg, 360, 10.0, "/scan message 4")

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.bags.messages import cloud_points, field_of, point_rows, stamp_seconds, typestore
+from pimm_env.bags.messages import cloud_points, expect_type, field_of, point_rows, stamp_seconds, typestore
 from pimm_env.errors import BagError
 from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig, elevations_3d
 
@@ -33,6 +33,7 @@ def returns(points: np.ndarray) -> np.ndarray:
 def scan_layout(msg: Any, where: str) -> Lidar2DConfig:
     """The 2D LiDAR a LaserScan describes. A negative ``angle_increment`` (beams clockwise, as from a LiDAR
     mounted upside down) is read as the same beams counter-clockwise; ``scan_ranges`` reverses them to match."""
+    expect_type(msg, ("ranges", "angle_increment", "angle_min", "angle_max"), "sensor_msgs/LaserScan", where)
     beams = len(msg.ranges)
     increment = float(msg.angle_increment)
     if beams < 1 or (beams > 1 and increment == 0):

@@ -66,6 +66,12 @@ def odometry(store, seconds: float, pose: np.ndarray, frame: str, child: str = "
                                       twist=twist)  # fmt: skip
 
 
+def expect_type(msg: Any, fields: tuple[str, ...], kind: str, where: str) -> None:
+    """A ``BagError`` naming ``where`` and the message's type unless ``msg`` has ``fields`` (it is a ``kind``)."""
+    if not all(hasattr(msg, name) for name in fields):
+        raise BagError(f"{where}: a {type(msg).__name__} is not a {kind}; name a topic of that type")
+
+
 def planar_pose(msg: Any, where: str = "message") -> np.ndarray:
     """(x, y, yaw) of a pose message: ``nav_msgs/Odometry``, ``geometry_msgs/PoseWithCovarianceStamped``,
     ``PoseStamped``, ``Pose`` or ``TransformStamped``; any other type is a ``BagError`` naming ``where``."""
@@ -110,6 +116,7 @@ def scan_ranges(msg: Any, beams: int, max_range: float, where: str) -> np.ndarra
     """The ranges of a LaserScan as the env gives them (no return = ``max_range``, beams counter-clockwise: a
     scan with a negative ``angle_increment`` is reversed); checks the beam count against the message's own
     angles and against the layout expected."""
+    expect_type(msg, ("ranges", "angle_increment", "angle_min", "angle_max"), "sensor_msgs/LaserScan", where)
     ranges = np.asarray(msg.ranges, dtype=np.float32)
     if msg.angle_increment < 0:
         ranges = ranges[::-1]
@@ -180,6 +187,7 @@ def field_of(msg: Any, rows: np.ndarray, name: str) -> np.ndarray | None:
 
 def cloud_points(msg: Any, where: str) -> np.ndarray:
     """(N, 3) float32 x/y/z of a PointCloud2 of any field layout, NaN rows kept (no return)."""
+    expect_type(msg, ("fields", "point_step", "data", "width", "height"), "sensor_msgs/PointCloud2", where)
     offsets = {f.name: f for f in msg.fields}
     missing = [n for n in "xyz" if n not in offsets]
     if missing:
