@@ -74,6 +74,8 @@ def honesty_table(scenarios: dict[str, dict[str, Any]]) -> list[str]:
         "trials without %",
         "3-sigma %",
         "kidnap noticed s",
+        "fix s",
+        "in fix %",
     )
     lines = ["| scenario | localizer | " + " | ".join(columns) + " |", "|---|---|" + "---:|" * len(columns)]
     for scenario, rows in scenarios.items():
@@ -86,6 +88,8 @@ def honesty_table(scenarios: dict[str, dict[str, Any]]) -> list[str]:
                 cell(row.get("false_free_share"), ".0f", 100),
                 cell(row.get("within_3sigma"), ".0f", 100),
                 cell(row.get("kidnap_noticed_s"), ".2f"),
+                cell(row.get("time_to_fix_s"), ".1f"),
+                cell(row.get("localized_share"), ".0f", 100),
             )
             lines.append(f"|{f' {scenario} ' if k == 0 else ' '}| {name} | " + " | ".join(cells) + " |")
     return lines

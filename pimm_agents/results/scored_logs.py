@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from pimm_agents.results.log_files import read_csv, read_sidecar, status_rows
+from pimm_agents.scoring.fix import FixMetrics, fix_metrics, fix_summary
 from pimm_agents.scoring.honesty import HonestyMetrics, honesty_metrics
 from pimm_agents.scoring.log_faults import LogFaults, cleaned, faults_of
 from pimm_agents.scoring.metrics import TrialMetrics, summarize, trial_metrics
@@ -43,6 +44,7 @@ class ScoredLog:
     metrics: TrialMetrics
     honesty: HonestyMetrics
     sidecar: dict[str, Any] = field(default_factory=dict)
+    fix: FixMetrics = field(default_factory=lambda: FixMetrics(None, None))
 
 
 def find_logs(paths: list[Path]) -> list[Path]:
@@ -84,7 +86,7 @@ def score_log(path: Path, drop_repeated: bool = False, drop_uninitialised: bool 
         group = match["group"] if match else Path(path).stem
     metrics = trial_metrics(log.after_kidnap())
     honesty = honesty_metrics(log.after_kidnap(), metrics.convergence_time_s, log.kidnap_index is not None)
-    return ScoredLog(Path(path), group, log, faults, metrics, honesty, sidecar)
+    return ScoredLog(Path(path), group, log, faults, metrics, honesty, sidecar, fix_metrics(log.after_kidnap()))
 
 
 def group_summaries(scored: list[ScoredLog]) -> dict[str, dict[str, Any]]:
@@ -94,7 +96,11 @@ def group_summaries(scored: list[ScoredLog]) -> dict[str, dict[str, Any]]:
     for item in scored:
         groups.setdefault(item.group, []).append(item)
     return {
-        name: {**summarize([i.metrics for i in items]), **honesty_summary([i.honesty for i in items])}
+        name: {
+            **summarize([i.metrics for i in items]),
+            **honesty_summary([i.honesty for i in items]),
+            **fix_summary([i.fix for i in items]),
+        }
         for name, items in groups.items()
     }
 
@@ -102,7 +108,8 @@ def group_summaries(scored: list[ScoredLog]) -> dict[str, dict[str, Any]]:
 def score_record(scored: list[ScoredLog]) -> dict[str, Any]:
     """``evaluate.py score --json``: every log's metrics, group and faults, and the groups' summaries."""
     trials = {
-        str(s.path): {**vars(s.metrics), **vars(s.honesty), "group": s.group, "faults": vars(s.faults)} for s in scored
+        str(s.path): {**vars(s.metrics), **vars(s.honesty), **vars(s.fix), "group": s.group, "faults": vars(s.faults)}
+        for s in scored
     }
     return {"trials": trials, "groups": group_summaries(scored)}
 

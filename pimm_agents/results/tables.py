@@ -121,12 +121,14 @@ def format_scores(scored: list[Any], groups: dict[str, dict[str, Any]]) -> str:
     w = _name_width(groups, 12)
     lines.append(
         f"\n{'group':<{w}}{'trials':>7}{'conv. rate %':>14}{'conv. time s':>14}{'pos. err m':>12}{'ang. err deg':>14}"
+        f"{'fix s':>8}{'in fix %':>9}"
     )
     for name, row in groups.items():
         lines.append(
             f"{name:<{w}}{row['trials']:>7}{100 * float(row['convergence_rate']):>14.0f}"
             f"{cell(row['convergence_time_s'], '.2f'):>14}{cell(row['position_error_m'], '.2f'):>12}"
-            f"{cell(row['angle_error_deg'], '.2f'):>14}"
+            f"{cell(row['angle_error_deg'], '.2f'):>14}{cell(row.get('time_to_fix_s'), '.1f'):>8}"
+            f"{cell(row.get('localized_share'), '.0f', 100):>9}"
         )
     return "\n".join(lines)
 
@@ -191,11 +193,12 @@ def format_set_aside(results: Any) -> str:
 
 def format_honesty(summary: dict[str, Any]) -> str:
     """Does each localizer know when it is right: time to a right ``localized``, time ``localized`` while wrong
-    (mean per trial, share of all localized time, longest spell, trials with none) and covariance consistency."""
+    (mean per trial, share of all localized time, longest spell, trials with none), covariance consistency, and
+    for long runs the time to the first fix and the share of the time within it after (``scoring/fix.py``)."""
     w = _name_width((name for rows in summary["scenarios"].values() for name in rows), 16)
     head = (
         f"{'loc. time s':>12}{'false loc. s':>13}{'false %':>9}{'longest s':>10}{'none %':>8}{'3-sigma %':>10}"
-        f"{'kidnap noticed s':>17}"
+        f"{'kidnap noticed s':>17}{'fix s':>8}{'in fix %':>9}"
     )
     lines = [f"\n  {'knowing when it is right':<{w}}{head}"]
     for scenario, by_localizer in summary["scenarios"].items():
@@ -206,5 +209,6 @@ def format_honesty(summary: dict[str, Any]) -> str:
                 f"{cell(row.get('false_localized_s'), '.2f'):>13}{cell(row.get('false_localized_rate'), '.0f', 100):>9}"
                 f"{cell(row.get('max_false_localized_s'), '.2f'):>10}{cell(row.get('false_free_share'), '.0f', 100):>8}"
                 f"{cell(row.get('within_3sigma'), '.0f', 100):>10}{cell(row.get('kidnap_noticed_s'), '.2f'):>17}"
+                f"{cell(row.get('time_to_fix_s'), '.1f'):>8}{cell(row.get('localized_share'), '.0f', 100):>9}"
             )
     return "\n".join(lines)

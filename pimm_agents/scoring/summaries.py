@@ -8,6 +8,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from pimm_agents.scoring.fix import fix_metrics, fix_summary
 from pimm_agents.scoring.honesty import HonestyMetrics, honesty_metrics
 from pimm_agents.scoring.metrics import kidnap_recoveries, summarize, timing_summary
 from pimm_agents.scoring.trial import TrialResult, TrialSpec
@@ -37,9 +38,14 @@ def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] 
             honesty_metrics(t.log.after_kidnap(), t.metrics.convergence_time_s, t.log.kidnap_index is not None)
             for t in trials
         ]
-        rows = [_trial_row(results[i], h, errors[i] if errors else None) for i, h in zip(indices, honesty, strict=True)]
+        fixes = [fix_metrics(t.log.after_kidnap()) for t in trials]
+        rows = [
+            {**_trial_row(results[i], h, errors[i] if errors else None), **asdict(f)}
+            for i, h, f in zip(indices, honesty, fixes, strict=True)
+        ]
         entry["per_trial"] = rows
         entry.update(honesty_summary(honesty))
+        entry.update(fix_summary(fixes))
         entry["spread"] = _spread(rows)
         for kind in ("ape", "rpe"):
             stats = [r[kind] for r in rows if r.get(kind)]
