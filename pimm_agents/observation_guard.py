@@ -58,7 +58,8 @@ class ObservationGuard:
         self.last_odom: np.ndarray | None = None  # raw, as the last taken observation had it
         self.offset = np.zeros(3)  # corrected odometry = compose(offset, raw odometry)
         self._pending: list[tuple[float, np.ndarray]] = []  # set-aside observations that agree with each other
-        self.glitches = 0  # observations set aside
+        #: observations set aside, by kind: ``stamp_back``, ``stamp_gap`` (beyond max_gap_s), ``too_fast``
+        self.set_aside: dict[str, int] = {}
         self.rebases = 0  # lasting jumps taken as a new base (the jump counted as no motion)
 
     def check(self, obs: Observation, keys: tuple[str, ...]) -> None:
@@ -91,11 +92,12 @@ class ObservationGuard:
         odom = np.asarray(obs["odom"], dtype=float).reshape(3)
         if self.last_time is None or self.last_odom is None:
             return self._accept(obs, t, odom)
-        if self._plausible(self.last_time, self.last_odom, t, odom):
+        fault = self._fault(self.last_time, self.last_odom, t, odom)
+        if fault is None:
             self._pending.clear()
             return self._accept(obs, t, odom)
-        self.glitches += 1
-        if self._pending and not self._plausible(*self._pending[-1], t, odom):
+        self.set_aside[fault] = self.set_aside.get(fault, 0) + 1
+        if self._pending and self._fault(*self._pending[-1], t, odom) is not None:
             self._pending.clear()
         self._pending.append((t, odom))
         if len(self._pending) < self.config.confirm:
@@ -108,18 +110,27 @@ class ObservationGuard:
         self.rebases += 1
         return self._accept(obs, t, odom)
 
-    def _plausible(self, t0: float, odom0: np.ndarray, t1: float, odom1: np.ndarray) -> bool:
+    @property
+    def glitches(self) -> int:
+        """Observations set aside, of every kind."""
+        return sum(self.set_aside.values())
+
+    def _fault(self, t0: float, odom0: np.ndarray, t1: float, odom1: np.ndarray) -> str | None:
+        """Why an observation at (t1, odom1) cannot follow one at (t0, odom0); None if it can."""
         c = self.config
         dt = t1 - t0
-        if dt < 0 or dt > c.max_gap_s:
-            return False
+        if dt < 0:
+            return "stamp_back"
+        if dt > c.max_gap_s:
+            return "stamp_gap"
         step = relative_motion(odom0, odom1)
         slack = 0.05  # m and rad: what a single control step may show at standstill
         allowed = dt + c.stamp_jitter_s
-        return bool(
-            np.hypot(step[0], step[1]) <= c.max_speed * allowed + slack
-            and abs(step[2]) <= c.max_turn_rate * allowed + slack
+        fast = (
+            np.hypot(step[0], step[1]) > c.max_speed * allowed + slack
+            or abs(step[2]) > c.max_turn_rate * allowed + slack
         )
+        return "too_fast" if fast else None
 
     def _accept(self, obs: Observation, t: float, odom: np.ndarray) -> Observation:
         self.last_time, self.last_odom = t, odom.copy()

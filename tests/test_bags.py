@@ -230,9 +230,10 @@ def test_what_the_guard_sets_aside_is_counted_in_the_log_the_summary_and_the_pri
             writer.write(odom, at, store.serialize_cdr(odometry(store, t, raw, "odom"), "nav_msgs/msg/Odometry"))
     spec = TrialSpec("glitch", "amcl", 0, 0, "iilab", AMCL)
     (result,), has_truth = replay_bag(bag, [spec], map_path=Path("maps/iilab/occupancy.yaml"))
-    assert has_truth and (result.log.set_aside, result.log.rebased) == (1, 0)
-    assert summary_of([result])["scenarios"]["glitch"]["amcl"]["per_trial"][0]["set_aside"] == 1
-    assert "amcl trial 0: 1 observation(s) set aside, 0 odometry re-base(s)" in format_set_aside([result])
+    assert has_truth and (result.log.set_aside, result.log.rebased) == ({"too_fast": 1}, 0)
+    assert summary_of([result])["scenarios"]["glitch"]["amcl"]["per_trial"][0]["set_aside"] == {"too_fast": 1}
+    printed = format_set_aside([result])
+    assert "amcl trial 0: 1 observation(s) set aside (too_fast 1), 0 odometry re-base(s)" in printed
 
 
 def test_a_topic_of_another_type_named_as_the_scan_or_cloud_is_a_bag_error():

@@ -113,6 +113,6 @@ def test_the_recorder_and_the_trial_store_keep_the_status_and_the_xy_covariance(
     result = TrialResult(TrialSpec("s", "unsure", 0, 0, str(room_file)), log, metrics_of(log), 1.0, True)
     back = load_trial(save_trial(tmp_path, result)).log
     assert np.array_equal(back.status, log.status) and np.array_equal(back.cov_xy, log.cov_xy)
-    counted = replace(log, set_aside=3, rebased=1)  # what a guard set aside is kept with the trial
+    counted = replace(log, set_aside={"too_fast": 3, "stamp_back": 1}, rebased=1)  # kept with the trial
     again = load_trial(save_trial(tmp_path, replace(result, log=counted))).log
-    assert (again.set_aside, again.rebased) == (3, 1)
+    assert (again.set_aside, again.rebased) == ({"too_fast": 3, "stamp_back": 1}, 1)

@@ -33,6 +33,7 @@ def test_stamps_that_go_back_or_leap_ahead_are_glitches():
     assert guard.take(_obs(1e9, [0, 0, 0])) is None  # a stamp a billion seconds ahead
     assert guard.take(_obs(0.5, [0, 0, 0])) is None  # back in time
     assert guard.take(_obs(1.1, [0.01, 0, 0])) is not None
+    assert guard.set_aside == {"stamp_gap": 1, "stamp_back": 1} and guard.glitches == 2  # counted by kind
     future_scan = guard.take({**_obs(1.2, [0.02, 0, 0]), "scan_time": np.array([99.0])})
     assert future_scan is not None and future_scan["scan_time"][0] == -np.inf  # that scan is not fresh
 

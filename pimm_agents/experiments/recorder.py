@@ -98,8 +98,8 @@ class LocalizationRecorder(gym.Wrapper):
         )
 
 
-def guard_counts(localizer: Localizer) -> tuple[int, int]:
-    """(observations set aside, odometry re-bases) by the localizer's observation guard since its last reset;
-    (0, 0) for a localizer without one (a plugin)."""
+def guard_counts(localizer: Localizer) -> tuple[dict[str, int], int]:
+    """(observations set aside by kind, odometry re-bases) by the localizer's observation guard since its last
+    reset; nothing for a localizer without one (a plugin)."""
     guard = getattr(localizer, "guard", None)
-    return int(getattr(guard, "glitches", 0)), int(getattr(guard, "rebases", 0))
+    return dict(getattr(guard, "set_aside", {})), int(getattr(guard, "rebases", 0))

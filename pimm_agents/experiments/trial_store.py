@@ -121,7 +121,7 @@ def load_trial(path: Path) -> TrialResult:
                 tuple(meta.get("kidnap_rows", ())),  # older files: TrialLog derives it from kidnap_index
                 data["status"] if "status" in data.files else None,  # older files: always localized
                 data["cov_xy"] if "cov_xy" in data.files else None,
-                int(meta.get("set_aside", 0)),
+                {str(k): int(v) for k, v in meta.get("set_aside", {}).items()},
                 int(meta.get("rebased", 0)),
             )
         spec = TrialSpec(**meta["spec"])

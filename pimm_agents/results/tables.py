@@ -180,8 +180,8 @@ def format_replay(replay: Any, truth_topic: str) -> str:
 def format_set_aside(results: Any) -> str:
     """A line per trial whose localizer's guard set observations aside or re-based the odometry (none: '')."""
     lines = [
-        f"  {r.spec.name} trial {r.spec.trial}: {r.log.set_aside} observation(s) set aside, {r.log.rebased}"
-        " odometry re-base(s)"
+        f"  {r.spec.name} trial {r.spec.trial}: {sum(r.log.set_aside.values())} observation(s) set aside"
+        f"{_kinds(r.log.set_aside)}, {r.log.rebased} odometry re-base(s)"
         for r in results
         if r.log.set_aside or r.log.rebased
     ]
@@ -189,6 +189,10 @@ def format_set_aside(results: Any) -> str:
         return ""
     head = "\n\nset aside by the observation guard (its limits: the guard.* settings, docs/localizers.md):"
     return head + "\n" + "\n".join(lines)
+
+
+def _kinds(counts: dict[str, int]) -> str:
+    return f" ({', '.join(f'{kind} {n}' for kind, n in sorted(counts.items()))})" if counts else ""
 
 
 def format_honesty(summary: dict[str, Any]) -> str:

@@ -30,9 +30,9 @@ class TrialLog:
     kidnap_rows: tuple[int, ...] = ()
     status: np.ndarray | None = None
     cov_xy: np.ndarray | None = None
-    #: observations the localizer's guard set aside as glitches, and lasting jumps it took as a new odometry base
-    #: (observation_guard.py): nothing it drops goes uncounted
-    set_aside: int = 0
+    #: observations the localizer's guard set aside as glitches, by kind, and lasting jumps it took as a new
+    #: odometry base (observation_guard.py): nothing it drops goes uncounted
+    set_aside: dict[str, int] = field(default_factory=dict)
     rebased: int = 0
 
     def __post_init__(self) -> None:
