@@ -129,6 +129,23 @@ def record(
 
 
 @command(app)
+def convert(
+    log: Path = typer.Argument(..., help="a CARMEN text log (.log or .log.gz): ODOM and FLASER lines"),
+    out: Path = typer.Option(..., help="the rosbag2 folder to write (must not exist)"),
+    max_range: float = typer.Option(80.0, help="readings at or beyond this (m) are no return (+inf)"),
+) -> None:
+    """Write a CARMEN laser log as a rosbag2 (/odom, /scan, /ground_truth from its corrected poses) for replay."""
+    from pimm_env.bags.carmen import convert_carmen
+
+    counts = convert_carmen(log, out, max_range)
+    typer.echo(
+        f"wrote {out}: {counts['odom']} odometry, {counts['scan']} scans, {counts['truth']} true poses"
+        f" ({counts['resets']} odometry resets of the corrected log left out); python evaluate.py replay {out}"
+        " --map MAP.yaml --localizers amcl"
+    )
+
+
+@command(app)
 def replay(
     bag: Path = typer.Argument(..., help="a rosbag2 folder or a ROS 1 .bag"),
     localizers: list[str] = typer.Option(["amcl"], "--localizers", help="names or module:factory"),

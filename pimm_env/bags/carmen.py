@@ -1,0 +1,130 @@
+"""CARMEN text logs (the format of the classic 2D SLAM benchmarks' laser logs) written as a rosbag2.
+
+Lines read: ``ODOM x y theta tv rv accel ipc_timestamp hostname logger_timestamp`` and ``FLASER n r1 ... rn x y
+theta odom_x odom_y odom_theta ipc_timestamp hostname logger_timestamp``; the rest (PARAM, NEFF, ...) is
+skipped. What is written:
+
+- ``/odom``: the wheel odometry as a chain of the relative motions between ODOM lines. In the benchmarks'
+  "corrected" logs the ODOM line after each FLASER resets the odometry to the corrected pose (its stamp is 0):
+  that line is not written and the step into it is left out of the chain;
+- ``/scan``: each FLASER's ranges, ``n`` beams over 180 deg from -90 deg (an odd ``n`` with both ends included,
+  as 181 beams at 1 deg; an even one without the last, as 360 at 0.5 deg); readings at or beyond ``max_range``
+  (the SICK's 81.9 m "no return") become +inf;
+- ``/ground_truth``: the FLASER's own pose (in a corrected log the SLAM-corrected pose of the laser, the
+  benchmarks' approximate truth).
+
+Messages keep the log's stamps in their headers (some repeat or step back); the bag's receive times follow the
+log's line order, one nanosecond apart where the stamps do not advance.
+"""
+
+from __future__ import annotations
+
+import gzip
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pimm_env.bags.messages import TOPICS, BagError, laser_scan, odometry, typestore
+from pimm_env.errors import MissingFileError
+from pimm_env.geometry import compose, relative_motion
+from pimm_env.sim.lidar import Lidar2DConfig
+
+
+@dataclass(frozen=True)
+class CarmenLine:
+    kind: str  # "odom" or "laser"
+    stamp: float
+    pose: np.ndarray  # ODOM: the odometry; FLASER: the laser's (corrected) pose
+    ranges: np.ndarray | None = None
+
+
+def read_carmen(path: Path) -> Iterator[CarmenLine]:
+    """The ODOM and FLASER lines of a CARMEN log (plain or .gz), in order; a malformed one is a ``BagError``
+    naming the file and line."""
+    path = Path(path)
+    if not path.is_file():
+        raise MissingFileError(f"{path}: no such CARMEN log")
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt") as handle:
+        for number, line in enumerate(handle, start=1):
+            words = line.split()
+            if not words or words[0] not in ("ODOM", "FLASER"):
+                continue
+            try:
+                if words[0] == "ODOM":
+                    yield CarmenLine("odom", float(words[7]), np.array(words[1:4], dtype=float))
+                else:
+                    n = int(words[1])
+                    ranges = np.array(words[2 : 2 + n], dtype=float)
+                    pose = np.array(words[2 + n : 5 + n], dtype=float)
+                    if len(ranges) != n or len(pose) != 3:
+                        raise ValueError(f"{n} ranges and a pose expected")
+                    yield CarmenLine("laser", float(words[8 + n]), pose, ranges)
+            except (IndexError, ValueError) as error:
+                raise BagError(f"{path}:{number}: not a CARMEN {words[0]} line ({error})") from None
+
+
+def scan_layout_of(beams: int, max_range: float) -> Lidar2DConfig:
+    """The 2D LiDAR of ``beams`` FLASER readings over 180 deg (see the module's text)."""
+    step = 180.0 / (beams - 1 if beams % 2 else beams)
+    return Lidar2DConfig(
+        beams=beams, angle_min_deg=-90.0, angle_max_deg=-90.0 + step * (beams - 1), max_range=max_range
+    )
+
+
+def convert_carmen(log: Path, out: Path, max_range: float = 80.0) -> dict[str, int]:
+    """Write ``log`` as the rosbag2 folder ``out`` (which must not exist); returns how many messages of each
+    topic were written and how many odometry resets were left out."""
+    from rosbags.rosbag2 import Writer
+
+    from pimm_env.sim.lidar import beam_bearings_2d
+
+    out = Path(out)
+    if out.exists():
+        raise BagError(f"{out} already exists: give a new folder")
+    store = typestore()
+    counts = {"odom": 0, "scan": 0, "truth": 0, "resets": 0}
+    received = -1
+    chain: np.ndarray | None = None  # the odometry written, and the raw ODOM pose it stands for
+    last_raw: np.ndarray | None = None
+    after_laser = False
+    lines = read_carmen(log)
+    with Writer(out, version=9) as writer:
+        topics = {
+            name: writer.add_connection(TOPICS[name], kind, typestore=store)
+            for name, kind in (
+                ("odom", "nav_msgs/msg/Odometry"),
+                ("scan", "sensor_msgs/msg/LaserScan"),
+                ("truth", "nav_msgs/msg/Odometry"),
+            )
+        }
+
+        def write(name: str, stamp: float, msg: object, kind: str) -> None:
+            nonlocal received
+            received = max(round(stamp * 1e9), received + 1)
+            writer.write(topics[name], received, store.serialize_cdr(msg, kind))
+            counts[name] += 1
+
+        for line in lines:
+            if line.kind == "laser":
+                assert line.ranges is not None
+                lidar = scan_layout_of(len(line.ranges), max_range)
+                ranges = np.where(line.ranges >= max_range, np.inf, line.ranges)
+                msg = laser_scan(store, line.stamp, ranges, beam_bearings_2d(lidar), lidar)
+                write("scan", line.stamp, msg, "sensor_msgs/msg/LaserScan")
+                write("truth", line.stamp, odometry(store, line.stamp, line.pose, "map"), "nav_msgs/msg/Odometry")
+                after_laser = True
+                continue
+            if chain is None or last_raw is None:
+                chain = line.pose.copy()
+            elif after_laser:  # the corrected log's reset line: not a motion
+                counts["resets"] += 1
+                last_raw, after_laser = line.pose, False
+                continue
+            else:
+                chain = compose(chain, relative_motion(last_raw, line.pose))[0]
+            last_raw, after_laser = line.pose, False
+            write("odom", line.stamp, odometry(store, line.stamp, chain, "odom"), "nav_msgs/msg/Odometry")
+    return counts
