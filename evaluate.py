@@ -145,6 +145,33 @@ def convert(
     )
 
 
+@command(app, "map")
+def map_command(
+    from_bag: Path = typer.Option(..., "--from-bag", help="a bag with 2D scans and true poses"),
+    out: Path = typer.Option(..., help="the map_server .yaml to write (its .pgm beside it)"),
+    resolution: float = typer.Option(0.05, min=0.01, help="cell size (m)"),
+    scan_topic: str = typer.Option("/scan", "--scan-topic"),
+    truth_topic: str = typer.Option("/ground_truth", "--truth-topic"),
+    odom_topic: str = typer.Option("/odom", "--odom-topic"),
+) -> None:
+    """A map_server map from a bag's scans laid at its true poses (it flatters a localizer replaying that bag)."""
+    from pimm_env.bags.layout import layouts_from_bag
+    from pimm_env.bags.read import BagTopics
+    from pimm_env.mapping.from_scans import ScanMapConfig, map_from_bag
+    from pimm_env.mapping.occupancy import save_map_server
+
+    topics = BagTopics(odom=odom_topic, scan=scan_topic, points=None, truth=truth_topic, events=None)
+    _, lidar2d = layouts_from_bag(from_bag, scan_topic, None)
+    occupancy = map_from_bag(from_bag, topics, lidar2d, ScanMapConfig(resolution=resolution))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    save_map_server(occupancy, out)
+    rows, cols = occupancy.grid.shape
+    typer.echo(
+        f"wrote {out} ({cols} x {rows} cells of {resolution} m, {int(occupancy.occupied.sum())} occupied): built"
+        f" from the bag's own scans, it flatters a localizer replaying {from_bag}"
+    )
+
+
 @command(app)
 def replay(
     bag: Path = typer.Argument(..., help="a rosbag2 folder or a ROS 1 .bag"),
