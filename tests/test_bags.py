@@ -168,7 +168,7 @@ def test_replay_runs_trials_from_a_known_start_with_the_recorded_seed(room, kidn
     assert np.array_equal(done.results[0].log.estimate, live.log.estimate)
     args = ["replay", str(kidnap_bag), "--world", room, "--truth-topic", "/nope", "--start", "known"]
     refused = CliRunner().invoke(evaluate.app, evaluate.expand_list_options([*args, "--out", str(tmp_path / "k")]))
-    assert refused.exit_code == 1 and "known start needs the true pose" in refused.output
+    assert refused.exit_code == 1 and "a known start needs a true pose; no step of the bag has one" in refused.output
 
 
 def test_truth_as_pose_stamped_is_read_and_a_type_without_a_pose_is_named(tmp_path):

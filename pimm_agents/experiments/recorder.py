@@ -30,6 +30,9 @@ class LocalizationRecorder(gym.Wrapper):
             raise ExperimentError(f"start must be one of {STARTS}, got {start!r}")
         self.localizer = localizer
         self.start = start
+        #: observations passed over before the localizer started (a replay's known start waits for the first
+        #: true pose): counted with what its guard set aside, as ``before_start``
+        self.passed_over = 0
         self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray, float, int]] = []
         self._timings: list[dict[str, float]] = []
         self._kidnap_rows: list[int] = []  # the first row after each kidnap; metrics count from the last
@@ -94,12 +97,15 @@ class LocalizationRecorder(gym.Wrapper):
             tuple(self._kidnap_rows),
             np.array(status, dtype=np.int8),
             np.array(cov_xy),
-            *guard_counts(self.localizer),
+            *guard_counts(self.localizer, self.passed_over),
         )
 
 
-def guard_counts(localizer: Localizer) -> tuple[dict[str, int], int]:
+def guard_counts(localizer: Localizer, passed_over: int = 0) -> tuple[dict[str, int], int]:
     """(observations set aside by kind, odometry re-bases) by the localizer's observation guard since its last
-    reset; nothing for a localizer without one (a plugin)."""
+    reset (nothing for a localizer without one, a plugin), with ``passed_over`` as ``before_start``."""
     guard = getattr(localizer, "guard", None)
-    return dict(getattr(guard, "set_aside", {})), int(getattr(guard, "rebases", 0))
+    counts = dict(getattr(guard, "set_aside", {}))
+    if passed_over:
+        counts["before_start"] = passed_over
+    return counts, int(getattr(guard, "rebases", 0))

@@ -36,11 +36,15 @@ class BagEnv(gym.Env):
         self._next = next(self._steps, None)
         return step
 
-    def first_truth_missing(self) -> bool:
-        """Whether the first step (served by the next ``reset``) has no true pose; reads it ahead if need be."""
+    def skip_to_truth(self) -> int:
+        """Pass over the steps before the first one with a true pose (a log's odometry before its first scan),
+        so that the next ``reset`` serves that one; returns how many were passed over."""
         if self._next is None:
             self._next = next(self._steps, None)
-        return self._next is None or self._next.true_pose is None
+        skipped = 0
+        while self._next is not None and self._next.true_pose is None:
+            self._next, skipped = next(self._steps, None), skipped + 1
+        return skipped
 
     @property
     def done(self) -> bool:
