@@ -18,6 +18,8 @@ command = command_line.command
 app = typer.Typer(add_completion=False, no_args_is_help=False, help=__doc__)
 world_app = typer.Typer(add_completion=False, help="Bring your own building: import a ROS map or a mesh, prepare it.")
 app.add_typer(world_app, name="world")
+convert_app = typer.Typer(add_completion=False, help="Turn logs in other formats into bags that replay reads.")
+app.add_typer(convert_app, name="convert")
 
 WORLD = typer.Option("iilab", help="world name or world file")
 OUT = typer.Option(Path("results"), help="where the timestamped results folder goes")
@@ -128,20 +130,20 @@ def record(
     typer.echo(f"wrote {path} (python evaluate.py replay {path} --world {world} --seed {seed} --localizers ...)")
 
 
-@command(app)
-def convert(
+@command(convert_app, "carmen")
+def convert_carmen(
     log: Path = typer.Argument(..., help="a CARMEN text log (.log or .log.gz): ODOM and FLASER lines"),
     out: Path = typer.Option(..., help="the rosbag2 folder to write (must not exist)"),
     max_range: float = typer.Option(80.0, help="readings at or beyond this (m) are no return (+inf)"),
 ) -> None:
     """Write a CARMEN laser log as a rosbag2 (/odom, /scan, /ground_truth from its corrected poses) for replay."""
-    from pimm_env.bags.carmen import convert_carmen
+    from pimm_env.bags import carmen
 
-    counts = convert_carmen(log, out, max_range)
+    counts = carmen.convert_carmen(log, out, max_range)
     typer.echo(
         f"wrote {out}: {counts['odom']} odometry, {counts['scan']} scans, {counts['truth']} true poses"
-        f" ({counts['resets']} odometry resets of the corrected log left out); python evaluate.py replay {out}"
-        " --map MAP.yaml --localizers amcl"
+        f" ({counts['resets']} odometry resets of the corrected log left out); then: python evaluate.py map"
+        f" --from-bag {out} --out MAP.yaml; python evaluate.py replay {out} --map MAP.yaml --localizers amcl"
     )
 
 
