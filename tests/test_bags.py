@@ -244,3 +244,45 @@ def test_a_topic_of_another_type_named_as_the_scan_or_cloud_is_a_bag_error():
         cloud_points(msg, "/points message 0")
     with pytest.raises(BagError, match="/scan message 4: a .*Odometry is not a sensor_msgs/LaserScan"):
         scan_ranges(msg, 360, 10.0, "/scan message 4")
+
+
+def test_reading_a_bag_gives_the_same_steps_under_any_hash_seed(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from rosbags.rosbag2 import Writer
+
+    store = typestore()
+    bag = tmp_path / "hashed"
+    with Writer(bag, version=9) as writer:
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        truth = writer.add_connection("/ground_truth", "nav_msgs/msg/Odometry", typestore=store)
+        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        lidar = SimConfig().lidar2d
+        angles = np.linspace(-np.pi, np.pi, lidar.beams, endpoint=False)
+        for i in range(5):
+            at, t = int(1e8) * i, 0.1 * i
+            for connection, msg, kind in (
+                (odom, odometry(store, t, np.array([t, 0.0, 0.0]), "odom"), "nav_msgs/msg/Odometry"),
+                (truth, odometry(store, t, np.array([t, 1.0, 0.0]), "map"), "nav_msgs/msg/Odometry"),
+                (scan, laser_scan(store, t, np.full(lidar.beams, 2.0 + i), angles, lidar), "sensor_msgs/msg/LaserScan"),
+            ):
+                writer.write(connection, at, store.serialize_cdr(msg, kind))
+    code = (
+        "import sys; from pathlib import Path; from pimm_env.bags.read import BagTopics, read_steps;"
+        "from pimm_env.envs.base_env import SimConfig; c = SimConfig();"
+        "print([(s.true_pose is not None, float(s.obs['scan'][0])) for s in read_steps(Path(sys.argv[1]),"
+        " BagTopics(), c.lidar2d, c.lidar3d)])"
+    )
+    outputs = {
+        subprocess.run(
+            [sys.executable, "-c", code, str(bag)],
+            env={**os.environ, "PYTHONHASHSEED": seed},
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        for seed in ("1", "2", "3", "4")
+    }
+    assert outputs == {str([(True, 2.0 + i) for i in range(5)]) + "\n"}
