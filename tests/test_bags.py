@@ -286,3 +286,29 @@ def test_reading_a_bag_gives_the_same_steps_under_any_hash_seed(tmp_path):
         for seed in ("1", "2", "3", "4")
     }
     assert outputs == {str([(True, 2.0 + i) for i in range(5)]) + "\n"}
+
+
+def test_rows_without_truth_are_left_out_of_the_scoring_and_counted_not_the_whole_truth_dropped(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    store = typestore()
+    lidar = SimConfig().lidar2d
+    angles = np.linspace(-np.pi, np.pi, lidar.beams, endpoint=False)
+    bag = tmp_path / "late_truth"
+    with Writer(bag, version=9) as writer:
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        truth = writer.add_connection("/ground_truth", "nav_msgs/msg/Odometry", typestore=store)
+        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        for i in range(30):
+            at, t = int(1e8) * i, 0.1 * i
+            pose = np.array([2.0 + 0.05 * i, 2.0, 0.0])
+            msg = laser_scan(store, t, np.full(lidar.beams, 3.0), angles, lidar)
+            writer.write(scan, at, store.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
+            if i >= 5:  # the truth topic starts late
+                writer.write(truth, at, store.serialize_cdr(odometry(store, t, pose, "map"), "nav_msgs/msg/Odometry"))
+            writer.write(odom, at, store.serialize_cdr(odometry(store, t, pose - [2.0, 2.0, 0.0], "odom"),
+                                                       "nav_msgs/msg/Odometry"))  # fmt: skip
+    spec = TrialSpec("late", "amcl", 0, 0, "iilab", AMCL)
+    (result,), has_truth = replay_bag(bag, [spec], map_path=Path("maps/iilab/occupancy.yaml"))
+    assert has_truth and result.log.set_aside == {"no_truth_rows": 5}
+    assert np.all(np.isfinite(result.log.true)) and len(result.log) == 25

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from pimm_agents.scoring.log_faults import with_truth
 from pimm_agents.scoring.trial import TrialResult, TrialSpec, metrics_of
 from pimm_env.errors import ExperimentError
 
@@ -20,7 +21,8 @@ def replay_bag(
 ) -> tuple[list[TrialResult], bool]:
     """Every spec's localizer (built for ``spec.world``, or from ``map_path`` alone) on the bag, each reset
     with its spec's seed; returns the results and whether the bag had ground truth (without it the logs'
-    truth is NaN and the metrics mean nothing)."""
+    truth is NaN and the metrics mean nothing). Rows without a true pose (before the bag's first, or while its
+    truth topic was silent) are left out of the scoring and counted in ``set_aside`` as ``no_truth_rows``."""
     from pimm_agents.experiments.recorder import LocalizationRecorder
     from pimm_agents.factory import make_localizer
     from pimm_env.bags.read import BagTopics, read_steps
@@ -63,6 +65,10 @@ def replay_bag(
     results = []
     for spec, recorder in zip(specs, recorders, strict=True):
         log = recorder.trial_log()
+        if bag_env.has_truth:  # scored on the rows with a true pose; the others are counted, not dropped whole
+            log, untrue = with_truth(log)
+            if untrue:
+                log.set_aside["no_truth_rows"] = untrue
         results.append(TrialResult(spec, log, metrics_of(log), wall, True))
     return results, bag_env.has_truth
 

@@ -187,7 +187,10 @@ def format_set_aside(results: Any) -> str:
     ]
     if not lines:
         return ""
-    head = "\n\nset aside by the observation guard (its limits: the guard.* settings, docs/localizers.md):"
+    head = (
+        "\n\nset aside (by the observation guard, whose limits are the guard.* settings; before a known start;"
+        " rows without a true pose, not scored):"
+    )
     return head + "\n" + "\n".join(lines)
 
 

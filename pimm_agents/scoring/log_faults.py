@@ -61,7 +61,8 @@ def _rows(log: TrialLog, keep: np.ndarray) -> TrialLog:
     timings = [t for t, k in zip(log.timings, keep, strict=False) if k] if len(log.timings) == len(keep) else []
     status, cov_xy = np.asarray(log.status)[keep], np.asarray(log.cov_xy)[keep]
     return TrialLog(log.time[keep], log.estimate_time[keep], log.true[keep], log.estimate[keep], log.cov[keep],
-                    kidnap, timings, status=status, cov_xy=cov_xy)  # fmt: skip
+                    kidnap, timings, status=status, cov_xy=cov_xy, set_aside=log.set_aside,
+                    rebased=log.rebased)  # fmt: skip
 
 
 def cleaned(log: TrialLog, drop_repeated: bool = False, drop_uninitialised: bool = False) -> TrialLog:
@@ -74,6 +75,15 @@ def cleaned(log: TrialLog, drop_repeated: bool = False, drop_uninitialised: bool
     if not keep.any():
         raise ResultsError("dropping those rows leaves the log empty")
     return _rows(log, keep)
+
+
+def with_truth(log: TrialLog) -> tuple[TrialLog, int]:
+    """``log`` without the rows that have no true pose (NaN: a replayed bag's steps before its first truth
+    message, or while its truth topic was silent), and how many rows that left out."""
+    keep = np.all(np.isfinite(log.true), axis=1)
+    if keep.all():
+        return log, 0
+    return _rows(log, keep), int(np.count_nonzero(~keep))
 
 
 GAP_S = 1.0

@@ -27,7 +27,8 @@ class BagEnv(gym.Env):
         self.observation_space = observation_space(self.config)
         self._steps = steps
         self._next: Step | None = None
-        self.has_truth = True
+        self.has_truth = False  # whether any step served had a true pose
+        self.steps_without_truth = 0
 
     def _take(self) -> Step:
         step = self._next if self._next is not None else next(self._steps, None)
@@ -56,7 +57,9 @@ class BagEnv(gym.Env):
 
     def _serve(self, step: Step) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         if step.true_pose is None:
-            self.has_truth = False
+            self.steps_without_truth += 1
+        else:
+            self.has_truth = True
         truth = np.full(3, np.nan) if step.true_pose is None else step.true_pose
         return step.obs, {"true_pose": truth, "fresh_scan": step.fresh_scan, "fresh_cloud": step.fresh_cloud}
 
