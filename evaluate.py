@@ -203,7 +203,7 @@ def replay(
 
     topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic)
     chosen = resolve_localizers(localizers, params, settings)
-    done = run_replay(bag, chosen, out, seed, world, map_path, sensors, topics, start, trials)
+    done = run_replay(bag, chosen, out, seed, world, map_path, sensors, topics, start, trials, _command_line())
     if json_out:  # without ground truth there are no metrics: the record says so, and where the estimates are
         record = done.summary if done.has_truth else {"ground_truth": False, "estimates": f"{done.folder}/tum"}
         typer.echo(_json(record, done.folder))

@@ -156,6 +156,7 @@ def run_replay(
     topics: Any = None,
     start: str = "global",
     trials: int = 1,
+    command: str | None = None,
 ) -> Replay:
     """Feed ``bag`` to every localizer (``{name: resolved params}``) ``trials`` times, trial i with seed ``seed`` +
     i (``seed`` None: the seed the bag was recorded with, else 0), from a ``start`` of ``global`` or ``known``,
@@ -198,9 +199,9 @@ def run_replay(
         shutil.rmtree(folder, ignore_errors=True)  # made before the layouts were read into it: no empty results
         raise
     write_params_file(folder / "config.yaml", localizers)
-    record = {"bag": str(bag), "world": None if map_path else world, "map": str(map_path) if map_path else None,
-              "localizers": list(localizers), "seed": seed, "trials": trials, "start": start,
-              "ground_truth": has_truth,
+    record = {"command": command, "bag": str(bag), "world": None if map_path else world,
+              "map": str(map_path) if map_path else None, "localizers": list(localizers), "seed": seed,
+              "trials": trials, "start": start, "ground_truth": has_truth,
               "sensors": specs[0].sensors if specs else sensors}  # fmt: skip
     if not has_truth:
         write_run_record(folder, record)
