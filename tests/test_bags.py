@@ -205,17 +205,14 @@ def test_truth_as_pose_stamped_is_read_and_a_type_without_a_pose_is_named(tmp_pa
         planar_pose(msg, "/scan message 0")
 
 
-def test_what_the_guard_sets_aside_is_counted_in_the_log_the_summary_and_the_printout(tmp_path):
+def drive_bag(bag: Path, odom_of, truth_from: int = 0) -> Path:
+    """30 steps 0.1 s apart east along y = 2 from x = 2 (0.05 m a step) in the iilab's free space: a scan of 3 m
+    everywhere, the truth from step ``truth_from`` on, and the odometry ``odom_of(step, true pose)``."""
     from rosbags.rosbag2 import Writer
 
-    from pimm_agents.results.tables import format_set_aside
-    from pimm_agents.scoring.summaries import summary_of
-
     store = typestore()
-    config = SimConfig()
-    lidar = config.lidar2d
+    lidar = SimConfig().lidar2d
     angles = np.linspace(-np.pi, np.pi, lidar.beams, endpoint=False)
-    bag = tmp_path / "glitch"
     with Writer(bag, version=9) as writer:
         odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
         truth = writer.add_connection("/ground_truth", "nav_msgs/msg/Odometry", typestore=store)
@@ -223,11 +220,23 @@ def test_what_the_guard_sets_aside_is_counted_in_the_log_the_summary_and_the_pri
         for i in range(30):
             at, t = int(1e8) * i, 0.1 * i
             pose = np.array([2.0 + 0.05 * i, 2.0, 0.0])
-            raw = np.array([0.05 * i + (100.0 if i == 15 else 0.0), 0.0, 0.0])  # one 100 m glitch
             msg = laser_scan(store, t, np.full(lidar.beams, 3.0), angles, lidar)
             writer.write(scan, at, store.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
-            writer.write(truth, at, store.serialize_cdr(odometry(store, t, pose, "map"), "nav_msgs/msg/Odometry"))
-            writer.write(odom, at, store.serialize_cdr(odometry(store, t, raw, "odom"), "nav_msgs/msg/Odometry"))
+            if i >= truth_from:
+                writer.write(truth, at, store.serialize_cdr(odometry(store, t, pose, "map"), "nav_msgs/msg/Odometry"))
+            raw = odometry(store, t, odom_of(i, pose), "odom")
+            writer.write(odom, at, store.serialize_cdr(raw, "nav_msgs/msg/Odometry"))
+    return bag
+
+
+def test_what_the_guard_sets_aside_is_counted_in_the_log_the_summary_and_the_printout(tmp_path):
+    from pimm_agents.results.tables import format_set_aside
+    from pimm_agents.scoring.summaries import summary_of
+
+    def one_glitch(i: int, pose: np.ndarray) -> np.ndarray:  # the odometry jumps 100 m at step 15, once
+        return np.array([0.05 * i + (100.0 if i == 15 else 0.0), 0.0, 0.0])
+
+    bag = drive_bag(tmp_path / "glitch", one_glitch)
     spec = TrialSpec("glitch", "amcl", 0, 0, "iilab", AMCL)
     (result,), has_truth = replay_bag(bag, [spec], map_path=Path("maps/iilab/occupancy.yaml"))
     assert has_truth and (result.log.set_aside, result.log.rebased) == ({"too_fast": 1}, 0)
@@ -289,25 +298,7 @@ def test_reading_a_bag_gives_the_same_steps_under_any_hash_seed(tmp_path):
 
 
 def test_rows_without_truth_are_left_out_of_the_scoring_and_counted_not_the_whole_truth_dropped(tmp_path):
-    from rosbags.rosbag2 import Writer
-
-    store = typestore()
-    lidar = SimConfig().lidar2d
-    angles = np.linspace(-np.pi, np.pi, lidar.beams, endpoint=False)
-    bag = tmp_path / "late_truth"
-    with Writer(bag, version=9) as writer:
-        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
-        truth = writer.add_connection("/ground_truth", "nav_msgs/msg/Odometry", typestore=store)
-        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
-        for i in range(30):
-            at, t = int(1e8) * i, 0.1 * i
-            pose = np.array([2.0 + 0.05 * i, 2.0, 0.0])
-            msg = laser_scan(store, t, np.full(lidar.beams, 3.0), angles, lidar)
-            writer.write(scan, at, store.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
-            if i >= 5:  # the truth topic starts late
-                writer.write(truth, at, store.serialize_cdr(odometry(store, t, pose, "map"), "nav_msgs/msg/Odometry"))
-            writer.write(odom, at, store.serialize_cdr(odometry(store, t, pose - [2.0, 2.0, 0.0], "odom"),
-                                                       "nav_msgs/msg/Odometry"))  # fmt: skip
+    bag = drive_bag(tmp_path / "late_truth", lambda i, pose: pose - [2.0, 2.0, 0.0], truth_from=5)
     spec = TrialSpec("late", "amcl", 0, 0, "iilab", AMCL)
     (result,), has_truth = replay_bag(bag, [spec], map_path=Path("maps/iilab/occupancy.yaml"))
     assert has_truth and result.log.set_aside == {"no_truth_rows": 5}

@@ -40,32 +40,31 @@ def test_the_block_rules_the_twin_out():
     assert tracker.update(now, now, (now - [12.0, 0.0, 0.0])[None, :]) == 0
 
 
-def test_a_held_place_stands_until_enough_scans_rule_it_out():
+def rivals_along(config: RivalConfig, held: np.ndarray, truths: np.ndarray) -> list[int]:
+    """How many rivals stand at each update of a drive along ``truths`` (odometry = the path) with ``held``
+    kept as a rival from the start and nothing else offered."""
     occupancy = twin_rooms()
-    tracker = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, RivalConfig(refine_scans=5))
-    left = np.array([8.0, 3.0, np.pi])  # where an estimate jumped away from (wrongly placed)
-    tracker.keep(left)
-    truths = np.array([[x, 1.0, 0.0] for x in np.arange(14.0, 17.0, 0.1)])
+    tracker = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, config)
+    tracker.keep(held)
     counts = []
     for k, pose in enumerate(truths):
         tracker.add_scan(pose, rays_from(occupancy, pose, 10.0))
         if k:
             tracker.move(truths[k - 1], pose)
         counts.append(tracker.update(pose, pose, np.zeros((0, 3))))
+    return counts
+
+
+def test_a_held_place_stands_until_enough_scans_rule_it_out():
+    left = np.array([8.0, 3.0, np.pi])  # where an estimate jumped away from (wrongly placed)
+    truths = np.array([[x, 1.0, 0.0] for x in np.arange(14.0, 17.0, 0.1)])
+    counts = rivals_along(RivalConfig(refine_scans=5), left, truths)
     assert counts[:4] == [1, 1, 1, 1]  # fewer scans than refine_scans: it stands unscored
     assert counts[-1] == 0  # then the scans rule it out
     # a kept rival stands until the scans favour the estimate by drop_log_ratio, not log_ratio: with the two
     # equal it is dropped sooner
     equal = RivalConfig(refine_scans=5, drop_log_ratio=RivalConfig().log_ratio)
-    loose = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, equal)
-    loose.keep(left)
-    loose_counts = []
-    for k, pose in enumerate(truths):
-        loose.add_scan(pose, rays_from(occupancy, pose, 10.0))
-        if k:
-            loose.move(truths[k - 1], pose)
-        loose_counts.append(loose.update(pose, pose, np.zeros((0, 3))))
-    assert sum(loose_counts) < sum(counts)
+    assert sum(rivals_along(equal, left, truths)) < sum(counts)
 
 
 def test_headings_find_the_heading_that_fits():
