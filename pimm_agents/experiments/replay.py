@@ -89,14 +89,11 @@ def replay_specs(
     LiDAR layouts: ``sensors`` if given, else the sensors file recorded with the bag (else its record file's
     presets), else read from the bag's first scan and cloud into ``folder``/sensors.yaml
     (``pimm_env/bags/layout.py``)."""
-    from pimm_env.bags.record import RECORD_FILE, SENSORS_FILE
+    from pimm_env.bags.record import SENSORS_FILE
 
     scenario, recorded = Path(bag).name, None
-    record_file = Path(bag) / RECORD_FILE
-    if record_file.is_file():
-        import yaml
-
-        record = yaml.safe_load(record_file.read_text()) or {}
+    record = bag_record(bag)
+    if record is not None:
         scenario, recorded = str(record.get("scenario", scenario)), str(record.get("sensors", "thesis"))
         if (Path(bag) / SENSORS_FILE).is_file():  # the whole layouts, mount poses included
             recorded = str(Path(bag) / SENSORS_FILE)
@@ -107,17 +104,22 @@ def replay_specs(
     ]
 
 
-def recorded_seed(bag: Path) -> int:
-    """The seed a bag was recorded with (its record file), else 0: replayed with it, a recorded trial gives the
-    live trial's results."""
+def bag_record(bag: Path) -> dict[str, Any] | None:
+    """What ``record`` wrote beside a bag (world, scenario, seed, sensors), or None for a bag made elsewhere."""
     from pimm_env.bags.record import RECORD_FILE
 
     record_file = Path(bag) / RECORD_FILE
     if not record_file.is_file():
-        return 0
+        return None
     import yaml
 
-    return int((yaml.safe_load(record_file.read_text()) or {}).get("seed", 0))
+    return yaml.safe_load(record_file.read_text()) or {}
+
+
+def recorded_seed(bag: Path) -> int:
+    """The seed a bag was recorded with (its record file), else 0: replayed with it, a recorded trial gives the
+    live trial's results."""
+    return int((bag_record(bag) or {}).get("seed", 0))
 
 
 def layouts_file(bag: Path, topics: Any, folder: Path | None) -> str:

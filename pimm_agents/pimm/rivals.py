@@ -80,6 +80,8 @@ class RivalTracker:
         self.temperature = temperature
         self.config = config
         self._scans: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.history_scans)
+        self._added = 0  # scans kept so far: with the odometry, says whether the newest-scans stack is current
+        self._recent: tuple[tuple[int, bytes], _Stack] | None = None
         p = field.params
         floor = p.z_rand / p.range_max
         #: per map cell: log pz of a point there, relative to a point on a wall (so 0 at best)
@@ -93,6 +95,7 @@ class RivalTracker:
 
     def reset(self) -> None:
         self._scans.clear()
+        self._recent = None
         self.forget()
 
     def forget(self) -> None:
@@ -108,6 +111,7 @@ class RivalTracker:
         """Keep a scan's wall points (M, 2; robot frame) with the odometry at which they were seen."""
         if len(wall_points):
             self._scans.append((np.asarray(odom, dtype=float).copy(), np.asarray(wall_points, dtype=float)))
+            self._added += 1
 
     def move(self, odom_then: np.ndarray, odom_now: np.ndarray) -> None:
         """Carry the rivals by the odometry since ``odom_then``."""
@@ -123,6 +127,14 @@ class RivalTracker:
         scan_of = np.repeat(np.arange(len(scans)), [len(points) for _, points in scans])
         motions = np.array([relative_motion(odom_now, odom) for odom, _ in scans])
         return _Stack(points, scan_of, motions)
+
+    def recent(self, odom_now: np.ndarray) -> _Stack:
+        """``stack`` of the newest ``refine_scans`` scans, built once per update (``headings`` and ``update``
+        both score on it)."""
+        key = (self._added, np.asarray(odom_now, dtype=float).tobytes())
+        if self._recent is None or self._recent[0] != key:
+            self._recent = (key, self.stack(odom_now, self.config.refine_scans))
+        return self._recent[1]
 
     def evidence(self, poses: np.ndarray, stack: _Stack) -> np.ndarray:
         """Summed tempered log-likelihood of the stacked scans for a robot now at each of ``poses`` (K, 3),
@@ -194,7 +206,7 @@ class RivalTracker:
             return np.zeros((0, 3))
         angles = np.radians(np.arange(-180.0, 180.0, 10.0))
         poses = np.column_stack([np.repeat(positions, len(angles), axis=0), np.tile(angles, len(positions))])
-        scores = self.evidence(poses, self.stack(odom_now, self.config.refine_scans)).reshape(len(positions), -1)
+        scores = self.evidence(poses, self.recent(odom_now)).reshape(len(positions), -1)
         return poses.reshape(len(positions), len(angles), 3)[np.arange(len(positions)), np.argmax(scores, axis=1)]
 
     def update(
@@ -208,7 +220,7 @@ class RivalTracker:
         c = self.config
         if len(self._scans) < c.refine_scans:
             return len(self.rivals)
-        recent = self.stack(odom_now, c.refine_scans)
+        recent = self.recent(odom_now)
         pool = [p for p in self.rivals]
         for q in np.zeros((0, 3)) if first is None else np.asarray(first, dtype=float).reshape(-1, 3):
             if not self._known(q, [estimate, *pool]):
