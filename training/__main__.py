@@ -184,7 +184,7 @@ def _check_backend(backend: str, address: str | None) -> None:
 @command_line.command(app)
 def buildings(
     seeds: str = typer.Option(
-        "100-129", help="building seeds: 'A-B' or 'A,B,C' (held out: 910-929 and 970-977, never train on them)"
+        "100-129", help="building seeds: 'A-B' or 'A,B,C' (held out: 910-929 and 980-987, never train on them)"
     ),
     out: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
 ) -> None:
@@ -209,7 +209,7 @@ def heldout(
     localizers: list[str] = typer.Option(["pimm", "amcl"], "--localizers", help="localizers to run"),
     trials: int = typer.Option(3, min=1, help="trials per route"),
     scans: int = typer.Option(30, min=1, help="fresh scans for the perception figures"),
-    seeds: str = typer.Option("920-929", help="held-out building seeds (the look-alike set: 970-977)"),
+    seeds: str = typer.Option("920-929", help="held-out building seeds (the look-alike set: 980-987)"),
     workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
     worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
     out: Path = typer.Option(Path("results/heldout"), help="where results and the table go"),
