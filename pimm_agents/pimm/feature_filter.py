@@ -30,6 +30,7 @@ from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
 from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
+from pimm_agents.pimm.twins import MapTwins
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -165,6 +166,10 @@ class FeatureFilter:
         self.rivals = None
         if rivals.enabled and wall_field is not None and wall_temperature is not None:
             self.rivals = RivalTracker(wall_field, occupancy.free, wall_temperature, rivals)
+        self.twins = None
+        if self.rivals is not None and wall_field is not None and rivals.twins.enabled:
+            self.twins = MapTwins(occupancy, rivals.twins)
+        self._twin_updates = 0  # localized updates since the twins were last offered
         self._rivals_odom: np.ndarray | None = None
         self.reading = BeliefReading("lost", np.eye(3), ())
         self._odom_ref: np.ndarray | None = None
@@ -190,6 +195,7 @@ class FeatureFilter:
         if self.rivals is not None:
             self.rivals.reset()
         self._rivals_odom = None
+        self._twin_updates = 0
         self.reading = BeliefReading("lost", self.covariance(self.best_mean()), ())
 
     # ------------------------------------------------------------------ motion
@@ -482,7 +488,14 @@ class FeatureFilter:
         heaviest = outside[np.argsort(-self.weights[outside])[: 5 * self.rivals.config.candidates]]
         suggested = self.rivals.headings(np.asarray(suggestions, dtype=float).reshape(-1, 2), odom)
         candidates = np.vstack([modes[tried:], suggested, self.particles[heaviest]])
-        if self.rivals.update(pose, odom, candidates, modes[:tried]) == 0:
+        first = modes[:tried]
+        if self.twins is not None and reading.status == "localized":
+            # the map's look-alikes of a place about to be called localized, and every few updates while it is
+            self._twin_updates += 1
+            if self.reading.status != "localized" or self._twin_updates >= self.twins.config.every_updates:
+                first = np.vstack([first, self.twins.of(pose)])
+                self._twin_updates = 0
+        if self.rivals.update(pose, odom, candidates, first) == 0:
             if reading.status == "localized" and not self.rivals.settled:
                 return BeliefReading("ambiguous", reading.covariance, reading.hypotheses, chosen)
             return reading

@@ -6,9 +6,10 @@ however well it fits. So the weights alone cannot say whether the estimate is th
 the robot saw. This module asks the scans directly: it keeps the wall points of the last ``history_scans``
 measurement updates with the odometry at each, and for a candidate place carries the candidate back along the
 odometry to every kept scan and sums the scans' tempered log-likelihoods there (the filter's wall field).
-Candidates are the filter's own: its other compact modes and its best particles away from the estimate (the
-injection puts some near every place the fingerprints suggest). A candidate is a *rival* while its summed
-evidence is within ``log_ratio`` of the estimate's; rivals are kept, carried by the odometry and re-scored at
+Candidates are the filter's own (its other compact modes and its best particles away from the estimate; the
+injection puts some near every place the fingerprints suggest) and, for a localized estimate, the map's own
+look-alikes of it (twins.py), which the map cannot miss the way the filter can. A candidate is a *rival* while
+its summed evidence is within ``log_ratio`` of the estimate's; rivals are kept, carried by the odometry and re-scored at
 every update, until the scans favour the estimate over them by ``drop_log_ratio`` (a wider margin, so that a twin
 does not flicker in and out). While any rival stands, and until ``settle_scans`` scans are kept, the status is
 ``ambiguous``. The check only reports: the filter is not fed from it (particles injected at rivals made the
@@ -18,11 +19,12 @@ estimate wander between twins, docs/design.md).
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from pimm_agents.particles.likelihood_field import LikelihoodField
+from pimm_agents.pimm.twins import TwinConfig
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
 
@@ -49,6 +51,8 @@ class RivalConfig:
     distinct_m: float = 1.0  # a candidate closer than this (and distinct_deg) to the estimate or a rival is that place
     distinct_deg: float = 10.0
     refine_scans: int = 10  # a candidate is first fitted to the newest scans (coordinate steps of 0.1 m and 2 deg)
+    #: the map's own look-alikes of a localized estimate, offered beside the filter's candidates (twins.py)
+    twins: TwinConfig = field(default_factory=TwinConfig)
 
     def __post_init__(self) -> None:
         if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:

@@ -1,0 +1,130 @@
+"""The map's own look-alikes: places whose walls around them match the walls around a given place.
+
+The rival check (rivals.py) can only rule on the places it is offered. The filter's modes, its best particles and
+the fingerprint suggestions all come from what the robot saw, and a twin place that lost its particles and that
+the fingerprints did not rank is offered by none of them: on a held-out look-alike building PIMM held a place
+29 m from the truth as ``localized`` for 5 s while the kept scans fitted the truth better, because nothing put the
+truth in front of the check. The walls of the map say where such twins are, whatever the robot saw: this module
+takes the wall cells within ``radius_m`` of a place, turns them by every ``angle_step_deg`` and slides them over
+the map's walls (one FFT correlation per angle, at ``resolution_m``), and returns the poses where at least
+``min_overlap`` of them land on walls there. A robot at a twin sees what it would see at the place, so the check
+tries them beside its other candidates. Results are kept per ``cell_m`` cell of the map.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from pimm_env.errors import LocalizerError
+from pimm_env.geometry import wrap_angle
+from pimm_env.mapping.occupancy import OccupancyGrid
+
+
+@dataclass(frozen=True)
+class TwinConfig:
+    """Ours."""
+
+    enabled: bool = True
+    radius_m: float = 8.0  # the surroundings compared: about what the kept scans span
+    resolution_m: float = 0.25  # the map is compared at this cell size; walls count within one cell
+    angle_step_deg: float = 10.0  # a divisor of 90, so that a building's own axes are among the turns
+    min_overlap: float = 0.6  # share of the place's wall cells that must land on walls at a twin
+    max_twins: int = 6  # the best-matching twins offered (at least 1.5 m apart)
+    cell_m: float = 1.0  # twins are worked out once per cell of this size and carried to poses inside it
+    #: the twins are offered when an estimate is about to be called localized, and again at this many updates'
+    #: interval while it is (2 s of 10 Hz scans): a twin the scans had ruled out is not re-offered at once
+    every_updates: int = 20
+
+    def __post_init__(self) -> None:
+        if self.radius_m <= 0 or self.resolution_m <= 0 or self.cell_m <= 0:
+            raise LocalizerError("twins: radius_m, resolution_m and cell_m must be positive")
+        if not 0 < self.angle_step_deg <= 90 or 90 % self.angle_step_deg:
+            raise LocalizerError(f"twins: angle_step_deg must divide 90, got {self.angle_step_deg}")
+        if not 0 < self.min_overlap <= 1 or self.max_twins < 0 or self.every_updates < 1:
+            raise LocalizerError("twins: min_overlap must lie in (0, 1], max_twins >= 0, every_updates >= 1")
+
+
+class MapTwins:
+    """Twins of places in one map. Walls are the occupied cells that free space can see (a solid block counts by
+    its faces only, so the mass outside a building does not swamp the walls inside it)."""
+
+    def __init__(self, occupancy: OccupancyGrid, config: TwinConfig) -> None:
+        self.config = config
+        grid = occupancy.grid
+        self.grid = grid
+        self.free = occupancy.free
+        factor = max(1, round(config.resolution_m / grid.resolution))
+        self.resolution = grid.resolution * factor
+        rows, cols = (-(-grid.shape[0] // factor), -(-grid.shape[1] // factor))
+        walls = np.zeros((rows * factor, cols * factor), dtype=bool)
+        walls[: grid.shape[0], : grid.shape[1]] = occupancy.surfaces()
+        #: wall cells at the coarse size, and the same grown by a cell: where a turned wall cell may land
+        self.walls = walls.reshape(rows, factor, cols, factor).any(axis=(1, 3))
+        target = ndimage.binary_dilation(self.walls, structure=np.ones((3, 3), dtype=bool))
+        self._reach = int(np.ceil(config.radius_m / self.resolution))
+        self._shape = (rows + 2 * self._reach + 1, cols + 2 * self._reach + 1)
+        padded = np.zeros(self._shape)
+        padded[self._reach : self._reach + rows, self._reach : self._reach + cols] = target
+        self._target_fft = np.fft.rfft2(padded)
+        self._cache: dict[tuple[int, int], np.ndarray] = {}
+
+    def of(self, pose: np.ndarray) -> np.ndarray:
+        """Twin poses (K, 3) of ``pose`` (x, y, heading), best match first; none where the place sees too few
+        walls to compare."""
+        c = self.config
+        if not c.enabled or c.max_twins == 0:
+            return np.zeros((0, 3))
+        key = (int(np.floor(pose[0] / c.cell_m)), int(np.floor(pose[1] / c.cell_m)))
+        if key not in self._cache:
+            self._cache[key] = self._twins_at(np.array([(key[0] + 0.5) * c.cell_m, (key[1] + 0.5) * c.cell_m]))
+        found = self._cache[key]  # (K, 5): centre x, y, turn, the cell centre's x, y
+        if not len(found):
+            return np.zeros((0, 3))
+        turn = found[:, 2]
+        dx, dy = pose[0] - found[:, 3], pose[1] - found[:, 4]
+        cos, sin = np.cos(turn), np.sin(turn)
+        return np.column_stack(
+            [found[:, 0] + cos * dx - sin * dy, found[:, 1] + sin * dx + cos * dy, wrap_angle(pose[2] + turn)]
+        )
+
+    def _twins_at(self, centre: np.ndarray) -> np.ndarray:
+        c, res, reach = self.config, self.resolution, self._reach
+        ys, xs = np.nonzero(self.walls)
+        wx = self.grid.origin[0] + (xs + 0.5) * res - centre[0]
+        wy = self.grid.origin[1] + (ys + 0.5) * res - centre[1]
+        near = wx**2 + wy**2 <= c.radius_m**2
+        wx, wy = wx[near], wy[near]
+        if len(wx) < 2 * c.radius_m / res:  # fewer wall cells than one wall across the surroundings
+            return np.zeros((0, 5))
+        peaks: list[tuple[float, float, float, float]] = []
+        for turn in np.radians(np.arange(0.0, 360.0, c.angle_step_deg)):
+            cos, sin = np.cos(turn), np.sin(turn)
+            u = np.rint((cos * wx - sin * wy) / res).astype(int) + reach
+            v = np.rint((sin * wx + cos * wy) / res).astype(int) + reach
+            kernel = np.zeros(self._shape)
+            kernel[v, u] = 1.0
+            count = kernel.sum()
+            score = np.fft.irfft2(self._target_fft * np.conj(np.fft.rfft2(kernel)), s=self._shape) / count
+            score = score[: self.walls.shape[0], : self.walls.shape[1]]  # score[r, q]: the place at cell (r, q)
+            top = (score >= c.min_overlap) & (score == ndimage.maximum_filter(score, size=5))
+            for r, q in zip(*np.nonzero(top), strict=True):
+                x = self.grid.origin[0] + (q + 0.5) * res
+                y = self.grid.origin[1] + (r + 0.5) * res
+                peaks.append((float(score[r, q]), x, y, float(turn)))
+        kept: list[tuple[float, float, float]] = []
+        for _, x, y, turn in sorted(peaks, reverse=True):
+            if np.hypot(x - centre[0], y - centre[1]) < 1.5 and abs(wrap_angle(turn)) < np.radians(c.angle_step_deg):
+                continue  # the place itself
+            if not self._free_at(x, y) or any(np.hypot(x - a, y - b) < 1.5 for a, b, _ in kept):
+                continue
+            kept.append((x, y, turn))
+            if len(kept) == c.max_twins:
+                break
+        return np.array([[x, y, t, centre[0], centre[1]] for x, y, t in kept]).reshape(-1, 5)
+
+    def _free_at(self, x: float, y: float) -> bool:
+        rows, cols, valid = self.grid.cells_of(np.array([[x, y]]))
+        return bool(valid[0] and self.free[rows[0], cols[0]])

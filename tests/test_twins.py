@@ -1,0 +1,94 @@
+import numpy as np
+import pytest
+
+from pimm_agents.corners.lookup import NearestCornerGrid
+from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
+from pimm_agents.pimm.rivals import RivalConfig
+from pimm_agents.pimm.twins import MapTwins, TwinConfig
+from pimm_env.errors import LocalizerError
+from pimm_env.geometry import wrap_angle
+from pimm_env.mapping.corner_map import CornerMap
+from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.world.grid import GridSpec
+from tests.test_feature_filter import rays_from, track, twin_rooms, wall_field_for
+
+
+def turned_rooms() -> OccupancyGrid:
+    """Two 8 x 5 m rooms 12 m apart, each with a 1.5 x 1 m alcove: the second is the first turned half a turn."""
+    grid = GridSpec.covering(np.array([0.0, 0.0]), np.array([20.0, 5.0]), 0.1, margin=0.5)
+    gx, gy = grid.cell_centers()
+    first = (gx > 0) & (gx < 8) & (gy > 0) & (gy < 5) & ~((gx > 6.5) & (gy > 4))
+    second = (gx > 12) & (gx < 20) & (gy > 0) & (gy < 5) & ~((gx < 13.5) & (gy < 1))
+    free = first | second
+    return OccupancyGrid(grid, occupied=~free, free=free)
+
+
+def near(poses: np.ndarray, pose: np.ndarray, metres: float = 0.4, degrees: float = 6.0) -> bool:
+    return bool(
+        np.any(
+            (np.hypot(poses[:, 0] - pose[0], poses[:, 1] - pose[1]) < metres)
+            & (np.abs(wrap_angle(poses[:, 2] - pose[2])) < np.radians(degrees))
+        )
+    )
+
+
+def test_the_same_room_further_on_is_a_twin():
+    twins = MapTwins(twin_rooms(), TwinConfig())
+    found = twins.of(np.array([2.0, 1.0, 0.3]))
+    assert near(found, np.array([14.0, 1.0, 0.3]))
+    assert not near(found, np.array([2.0, 1.0, 0.3]), metres=1.4)  # not the place itself
+
+
+def test_a_room_turned_half_a_turn_gives_a_turned_twin():
+    twins = MapTwins(turned_rooms(), TwinConfig())
+    pose = np.array([2.0, 1.5, 0.5])
+    # the first room's (x, y) is the second's (20 - x, 5 - y), facing the other way
+    assert near(twins.of(pose), np.array([18.0, 3.5, 0.5 + np.pi]))
+
+
+def test_twins_are_carried_to_every_pose_of_a_cell():
+    twins = MapTwins(twin_rooms(), TwinConfig())
+    a, b = twins.of(np.array([2.1, 1.1, 0.0])), twins.of(np.array([2.8, 1.7, 1.0]))
+    turn = a[:, 2]  # each twin turns the place by its own angle, the offset within the cell with it
+    offsets = np.column_stack([np.cos(turn) * 0.7 - np.sin(turn) * 0.6, np.sin(turn) * 0.7 + np.cos(turn) * 0.6])
+    assert len(a) == len(b) > 0 and np.allclose(b[:, :2] - a[:, :2], offsets, atol=1e-9)
+    assert np.allclose(wrap_angle(b[:, 2] - a[:, 2]), 1.0)
+
+
+def test_a_place_that_sees_no_walls_has_no_twins():
+    grid = GridSpec.covering(np.array([0.0, 0.0]), np.array([40.0, 40.0]), 0.1)
+    gx, gy = grid.cell_centers()
+    free = (gx > 0) & (gx < 40) & (gy > 0) & (gy < 40)
+    twins = MapTwins(OccupancyGrid(grid, occupied=~free, free=free), TwinConfig())
+    assert len(twins.of(np.array([20.0, 20.0, 0.0]))) == 0
+
+
+@pytest.mark.parametrize("bad", [{"angle_step_deg": 7.0}, {"min_overlap": 0.0}, {"radius_m": 0.0}])
+def test_bad_settings_are_named(bad):
+    with pytest.raises(LocalizerError, match="twins"):
+        TwinConfig(**bad)
+
+
+def started_at_the_truth(twins: bool) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """A filter that starts around the true pose in the second room (no particle in the first), driven as in
+    the twin-rooms test: east through the door, the block in sight from x = 15.6, on to x = 21."""
+    occupancy = twin_rooms()
+    corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
+    rivals = RivalConfig(twins=TwinConfig(enabled=twins))
+    filt = FeatureFilter(
+        occupancy, corners, FeatureFilterConfig(num_particles=2000), wall_field_for(occupancy), 0.2, rivals=rivals
+    )
+    turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
+    truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 21.0, 0.12)]])
+    filt.reset(np.random.default_rng(0), truth[0], np.diag([0.1, 0.1, 0.01]))
+    return track(filt, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
+
+
+def test_a_twin_the_filter_never_held_keeps_the_place_ambiguous_until_the_block_is_seen():
+    with_twins = started_at_the_truth(twins=True)
+    before = [status for status, _, pose in with_twins if pose[0] < 15.5]
+    assert "localized" not in before
+    assert with_twins[-1][0] == "localized"
+    # without the map's twins nothing offers the first room, and the place is called localized before the block
+    without = [status for status, _, pose in started_at_the_truth(twins=False) if pose[0] < 15.5]
+    assert "localized" in without
