@@ -5,7 +5,7 @@ from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.pimm.rivals import RivalConfig
 from pimm_agents.pimm.twins import MapTwins, TwinConfig
-from pimm_env.errors import LocalizerError
+from pimm_env.errors import LocalizerError, ParamsError
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -92,3 +92,13 @@ def test_a_twin_the_filter_never_held_keeps_the_place_ambiguous_until_the_block_
     # without the map's twins nothing offers the first room, and the place is called localized before the block
     without = [status for status, _, pose in started_at_the_truth(twins=False) if pose[0] < 15.5]
     assert "localized" in without
+
+
+def test_the_twins_are_set_from_a_params_section():
+    from pimm_agents.params import apply_params
+    from pimm_agents.pimm.localizer import PimmConfig
+
+    config = apply_params(PimmConfig(), {"rivals": {"log_ratio": 5.0, "twins": {"radius_m": 6.0}}}, "pimm")
+    assert config.rivals.twins.radius_m == 6.0 and config.rivals.log_ratio == 5.0
+    with pytest.raises(ParamsError, match="pimm.rivals.twins.*angle_step_deg"):
+        apply_params(PimmConfig(), {"rivals": {"twins": {"angle_step_deg": 7.0}}}, "pimm")

@@ -25,6 +25,7 @@ from pimm_agents.perception.point_features import valid_returns
 from pimm_agents.perception.resample import LayoutResampler
 from pimm_agents.perception.segmenter import Segmenter
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
+from pimm_agents.pimm.rivals import RivalConfig
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry, compose, relative_motion
 from pimm_env.mapping.corner_map import CornerMap
@@ -90,6 +91,7 @@ class PimmConfig:
     corners: CornerDetectorConfig = field(default_factory=CornerDetectorConfig)
     wall_field: WallFieldConfig = field(default_factory=WallFieldConfig)
     belief: BeliefConfig = field(default_factory=BeliefConfig)  # modes, status (particles/belief.py)
+    rivals: RivalConfig = field(default_factory=RivalConfig)  # look-alike places the scans cannot rule out
     guard: GuardConfig = field(default_factory=GuardConfig)  # glitches set aside (observation_guard.py)
     use_suggestions: bool = True  # seed injected particles around the fingerprint map's suggestions
     # Ours: weigh (and resample and inject) once per scan, at the first motion update after it, as nav2 uses
@@ -213,6 +215,7 @@ class PimmLocalizer:
             LikelihoodField(occupancy, field_params) if walls.enabled else None,
             wall_temperature=walls.temperature if walls.model == "product" else None,
             belief=config.belief,
+            rivals=config.rivals,
         )
         self.history = OdometryHistory(config.odometry_history_s)
         self.guard = ObservationGuard(config.guard)
