@@ -25,3 +25,23 @@ def test_a_corner_whose_face_is_glass_is_not_counted_visible():
         assert not _in_sight(env.caster, origin, on_glass, l3.max_range, half_fov, 0.1, on_wall=True)
     finally:
         env.close()
+
+
+def test_perception_reports_segmentation_where_the_corner_map_is_empty():
+    """A world without corners (no ceiling over its walls): corner quality cannot be measured, the rest is."""
+    import dataclasses
+
+    from pimm_agents.measurement.corner_quality import collect_scans
+    from pimm_agents.measurement.perception_quality import perception_report
+    from pimm_agents.perception.files import load_perception
+    from pimm_env.mapping.corner_map import CornerMap
+
+    # the iilab's scans, with no corner in sight: what collect_scans gives in a world whose corner map is empty
+    scans = [dataclasses.replace(s, seen=np.zeros(0, dtype=int)) for s in collect_scans("iilab", 2, 3)]
+    segmenter, _ = load_perception("iilab")
+    empty = CornerMap(xy=np.zeros((0, 2)), z=np.zeros(0), theta=np.zeros(0))
+    report = perception_report(scans, empty, segmenter)
+    assert 0.5 < report["segmentation"]["miou"] <= 1.0
+    for which in ("true_labels", "predicted_labels"):
+        assert report["corners"][which]["recall"] is None  # nothing in sight to find
+        assert report["corners"][which]["precision"] in (0.0, None)  # whatever was detected matches nothing

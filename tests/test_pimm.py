@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -150,3 +152,36 @@ def test_pimm_reads_an_os0_64_through_the_networks_layout():
         obs, *_ = env.step(np.array([0.3, 0.0], dtype=np.float32))
     env.close()
     assert perceived >= 4 and len(pimm.snapshot()["corners"]) > 0  # scans segmented, corners found
+
+
+def test_an_empty_corner_map_leaves_pimm_its_walls_and_fingerprints():
+    import warnings
+
+    from pimm_agents.perception.files import load_perception
+    from pimm_agents.pimm.localizer import PimmConfig
+    from pimm_env.errors import LocalizerError
+    from pimm_env.mapping.corner_map import CornerMap
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    world = load_world("iilab")
+    maps, (segmenter, fingerprints) = ensure_derived_maps(world), load_perception(world)
+    empty = CornerMap(xy=np.zeros((0, 2)), z=np.zeros(0), theta=np.zeros(0))
+    with warnings.catch_warnings(record=True) as heard:
+        warnings.simplefilter("always")
+        pimm = PimmLocalizer(maps.occupancy, empty, segmenter, fingerprints, PimmConfig())
+    assert len(heard) == 1 and "corner map is empty" in str(heard[0].message)
+    env = IILabEnv()
+    obs, _ = env.reset(seed=0, options={"pose": [-18.5, 14.0, 1.57]})
+    pimm.reset(seed=0, initial_pose=np.array([-18.5, 14.0, 1.57]), initial_cov=np.diag([0.25, 0.25, 0.07]))
+    truth = np.array([-18.5, 14.0, 1.57])
+    for _ in range(60):
+        estimate = pimm.update(obs)
+        assert np.isfinite(estimate.pose).all()
+        assert np.hypot(*(estimate.pose[:2] - truth[:2])) < 0.5  # tracked on the wall field
+        obs, _, _, _, info = env.step(np.array([0.3, 0.0], dtype=np.float32))
+        truth = info["true_pose"]
+    env.close()
+    off = PimmConfig(wall_field=dataclasses.replace(PimmConfig().wall_field, enabled=False))
+    with pytest.raises(LocalizerError, match="corner map is empty and the wall field is off"):
+        PimmLocalizer(maps.occupancy, empty, segmenter, fingerprints, off)

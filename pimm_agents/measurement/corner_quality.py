@@ -15,8 +15,8 @@ from pimm_env.world.semantics import SemanticClass
 
 @dataclass(frozen=True)
 class CornerStats:
-    precision: float
-    recall: float
+    precision: float | None  # None: nothing detected
+    recall: float | None  # None: no map corner in sight (an empty corner map), so recall cannot be measured
     median_position_error_m: float | None
     median_orientation_error_deg: float | None
     scans: int
@@ -105,7 +105,7 @@ def corner_stats(
         detected += len(in_map)
         visible += len(seen)
         matched = set()
-        for x, y, theta in in_map:
+        for x, y, theta in in_map if len(corners) else ():  # with no map corner, no detection is right
             distance = np.hypot(*(corners.xy - [x, y]).T)
             k = int(np.argmin(distance))
             if distance[k] <= match_distance:
@@ -115,8 +115,8 @@ def corner_stats(
                 angle_errors.append(abs(float(wrap_angle(theta - corners.theta[k]))))
         found += len(matched & {int(k) for k in seen})
     return CornerStats(
-        precision=correct / detected if detected else 0.0,
-        recall=found / visible if visible else 0.0,
+        precision=correct / detected if detected else None,
+        recall=found / visible if visible else None,
         median_position_error_m=float(np.median(position_errors)) if position_errors else None,
         median_orientation_error_deg=float(np.degrees(np.median(angle_errors))) if angle_errors else None,
         scans=len(scans),

@@ -139,7 +139,7 @@ class FeatureFilter:
     def __init__(
         self,
         occupancy: OccupancyGrid,
-        corners: NearestCornerGrid,
+        corners: NearestCornerGrid | None,
         config: FeatureFilterConfig = FeatureFilterConfig(),
         wall_field: LikelihoodField | None = None,
         wall_temperature: float | None = None,
@@ -228,6 +228,8 @@ class FeatureFilter:
         (features, particles) so every operation runs along the long axis, and the nearest corner read
         straight from the lookup grid's cells.
         """
+        if self.corners is None:
+            raise LocalizerError("the filter has no corner map to weigh corner features with")
         f = np.asarray(features, dtype=np.float32).reshape(-1, len(FEATURE_COLUMNS))
         x, y, theta = (self.particles if poses is None else poses).T.astype(np.float32)
         cos, sin = np.cos(theta), np.sin(theta)
@@ -302,7 +304,7 @@ class FeatureFilter:
         """What one measurement multiplies the weight of a particle at each of ``poses`` by (see
         ``measurement_update``); the wall field's factors are relative to the best of ``poses``."""
         factors = np.ones(len(poses))
-        if len(features):
+        if len(features) and self.corners is not None:
             alpha = self.config.alpha
             factors = alpha * self.likelihoods(features, poses) + (1 - alpha)
         if wall_points is not None and self.wall_field is not None:

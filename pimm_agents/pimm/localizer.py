@@ -9,6 +9,7 @@ compensation, thesis 3.4.2), weight the particles. Timings per stage are in ever
 from __future__ import annotations
 
 import time
+import warnings
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -202,15 +203,29 @@ class PimmLocalizer:
         field_params = LikelihoodFieldParams(
             walls.z_hit, walls.z_rand, walls.sigma_hit, walls.max_distance, walls.range_max, walls.surfaces_only
         )
-        self.filter = FeatureFilter(
-            occupancy,
-            NearestCornerGrid(
+        lookup = None
+        if len(corners):
+            lookup = NearestCornerGrid(
                 corners,
                 config.filter.lookup_resolution_m,
                 orientation_bins=config.filter.lookup_orientation_bins,
                 sigma_pos=config.min_sigma_pos_m,
                 sigma_theta=config.min_sigma_theta_rad,
-            ),
+            )
+        elif not walls.enabled:
+            raise LocalizerError(
+                "the corner map is empty and the wall field is off (pimm.wall_field.enabled): PIMM would have only"
+                " the fingerprint suggestions to go on; turn the wall field on or use amcl"
+            )
+        else:
+            warnings.warn(
+                "the corner map is empty (a world without wall-ceiling corners): PIMM localizes on the wall field"
+                " and the fingerprint suggestions alone",
+                stacklevel=2,
+            )
+        self.filter = FeatureFilter(
+            occupancy,
+            lookup,
             config.filter,
             LikelihoodField(occupancy, field_params) if walls.enabled else None,
             wall_temperature=walls.temperature if walls.model == "product" else None,
@@ -263,9 +278,11 @@ class PimmLocalizer:
         start = time.perf_counter()
         keep = segmented.labels >= 0
         structural = np.isin(segmented.labels, (int(SemanticClass.WALL), int(SemanticClass.CEILING)))
-        features = detect_corners(
-            cloud[keep & structural], segmented.labels[keep & structural], stamp, self.config.corners
-        )
+        features = FeatureList(stamp, [])
+        if self.filter.corners is not None:  # no corner map, nothing to match corners against
+            features = detect_corners(
+                cloud[keep & structural], segmented.labels[keep & structural], stamp, self.config.corners
+            )
         timings["corners"] = 1000 * (time.perf_counter() - start)
         start = time.perf_counter()
         retrieval = self.fingerprints.query(segmented.descriptor)
