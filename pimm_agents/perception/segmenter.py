@@ -16,6 +16,7 @@ import torch
 
 from pimm_agents.perception.point_features import point_features, valid_returns, with_context
 from pimm_agents.perception.pointnet import FusedPointNet, PointNetSegmenter, load_checkpoint
+from pimm_agents.perception.threads import ThreadChooser
 from pimm_env.errors import ObservationError
 
 
@@ -89,6 +90,8 @@ class Segmenter:
         self.checkpoint = Path(checkpoint)
         self.layers = layers
         self.points_per_layer = points_per_layer
+        #: the network's thread count, kept to what runs faster beside whatever else the machine does
+        self.threads = ThreadChooser()
 
     @property
     def descriptor_dim(self) -> int:
@@ -105,6 +108,7 @@ class Segmenter:
         offsets = self.model.config.context_offsets
         chosen = with_context(features, valid_index[sampled], self.layers, self.points_per_layer, offsets)
         net = self.network
+        self.threads.before()
         prepared = time.perf_counter()
         with torch.inference_mode():
             local = net.local_features(torch.from_numpy(chosen))
@@ -121,9 +125,10 @@ class Segmenter:
                 extra = with_context(features, valid_index[todo], self.layers, self.points_per_layer, offsets)
                 logits = net.logits(net.local_features(torch.from_numpy(extra)), glob)
                 in_order[todo] = logits.argmax(dim=1).numpy()
+        done = time.perf_counter()
+        self.threads.after(done - prepared)
         labels = np.full(len(valid), -1, dtype=np.int8)
         labels[valid_index] = in_order
-        done = time.perf_counter()
         return Segmentation(
             labels=labels,
             descriptor=descriptor.numpy().astype(np.float32),
