@@ -102,3 +102,28 @@ def test_the_twins_are_set_from_a_params_section():
     assert config.rivals.twins.radius_m == 6.0 and config.rivals.log_ratio == 5.0
     with pytest.raises(ParamsError, match="pimm.rivals.twins.*angle_step_deg"):
         apply_params(PimmConfig(), {"rivals": {"twins": {"angle_step_deg": 7.0}}}, "pimm")
+
+
+def started_in_the_wrong_room(switch: bool) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The twin-rooms drive with every particle about the first room's twin of the true pose (12 m west)."""
+    occupancy = twin_rooms()
+    corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
+    filt = FeatureFilter(
+        occupancy, corners, FeatureFilterConfig(num_particles=2000), wall_field_for(occupancy), 0.2,
+        rivals=RivalConfig(switch=switch),
+    )  # fmt: skip
+    turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
+    truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 21.0, 0.12)]])
+    filt.reset(np.random.default_rng(0), truth[0] - [12.0, 0.0, 0.0], np.diag([0.1, 0.1, 0.01]))
+    return track(filt, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
+
+
+def test_a_rival_the_scans_favour_decisively_takes_the_estimate():
+    moved = started_in_the_wrong_room(switch=True)
+    status, estimate, truth = moved[-1]
+    assert status == "localized" and np.hypot(*(estimate[:2] - truth[:2])) < 0.3
+    # never localized in the wrong room on the way
+    assert all(s != "localized" or np.hypot(*(e[:2] - t[:2])) < 1.0 for s, e, t in moved)
+    # reporting only, the estimate stays in the wrong room, ambiguous, with the true place a standing rival
+    status, estimate, truth = started_in_the_wrong_room(switch=False)[-1]
+    assert status != "localized" and np.hypot(*(estimate[:2] - truth[:2])) > 10.0

@@ -432,7 +432,9 @@ class FeatureFilter:
         reading = self.read(pose)
         jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
         if self.rivals is not None and self._odom_ref is not None:
-            reading = self.check_rivals(pose, reading, wall_points, previous if jumped else None, suggestions)
+            reading, moved_to = self.check_rivals(pose, reading, wall_points, previous if jumped else None, suggestions)
+            if moved_to is not None:
+                estimate, jumped = moved_to, True
         self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
         self.resample_if_degenerate()
         if self.informed:
@@ -460,7 +462,7 @@ class FeatureFilter:
         wall_points: np.ndarray | None,
         left: np.ndarray | None,
         suggestions: np.ndarray,
-    ) -> BeliefReading:
+    ) -> tuple[BeliefReading, np.ndarray | None]:
         """Keep this update's wall points, carry and re-score the rivals, look at new candidates (the other
         compact modes, the heaviest particles away from the estimate, and each fingerprint suggestion at the
         heading the newest scans fit best); a localized reading with a rival standing becomes ambiguous, and the
@@ -479,7 +481,7 @@ class FeatureFilter:
             self.rivals.reset()
             self.rivals.keep(left)
         if pose is None or self.belief is None or reading.status == "lost":
-            return reading
+            return reading, None
         if wall_points is not None:
             self.rivals.add_scan(odom, np.asarray(wall_points, dtype=float).reshape(-1, 2))
         chosen = reading.chosen
@@ -499,14 +501,42 @@ class FeatureFilter:
                 self._twin_updates = 0
         if self.rivals.update(pose, odom, candidates, first) == 0:
             if reading.status == "localized" and not self.rivals.settled:
-                return BeliefReading("ambiguous", reading.covariance, reading.hypotheses, chosen)
-            return reading
+                return BeliefReading("ambiguous", reading.covariance, reading.hypotheses, chosen), None
+            return reading, None
+        decisive = self.rivals.decisive() if self.rivals.config.switch else None
+        if decisive is not None:
+            return self.move_mode(pose, chosen, self.rivals.rivals[decisive].copy())
         rivals = tuple(
             Hypothesis(float(r[0]), float(r[1]), float(r[2]), 0.0, np.diag([0.25, 0.25, np.radians(10.0) ** 2]))
             for r in self.rivals.rivals
         )
         status = "ambiguous" if reading.status == "localized" else reading.status
-        return BeliefReading(status, reading.covariance, reading.hypotheses + rivals, chosen)
+        return BeliefReading(status, reading.covariance, reading.hypotheses + rivals, chosen), None
+
+    def move_mode(self, pose: np.ndarray, chosen: int, target: np.ndarray) -> tuple[BeliefReading, np.ndarray]:
+        """Move the particles of the estimate's mode (``chosen``; those within 1 m and 30 deg of ``pose`` if it
+        is in none) rigidly from ``pose`` to ``target``, a rival the kept scans favour decisively; the place left
+        is held as a rival until they rule it out. Returns the reading there (``ambiguous``) and ``target``."""
+        assert self.rivals is not None and self.belief is not None
+        if chosen >= 0:
+            members = self.belief.particle_mode == chosen
+        else:
+            d = self.particles - pose
+            members = (np.hypot(d[:, 0], d[:, 1]) <= 1.0) & (np.abs(wrap_angle(d[:, 2])) <= np.radians(30.0))
+        turn = wrap_angle(target[2] - pose[2])
+        c, s = np.cos(turn), np.sin(turn)
+        d = self.particles[members, :2] - pose[:2]
+        self.particles[members, 0] = target[0] + c * d[:, 0] - s * d[:, 1]
+        self.particles[members, 1] = target[1] + s * d[:, 0] + c * d[:, 1]
+        self.particles[members, 2] = wrap_angle(self.particles[members, 2] + turn)
+        self.rivals.forget()
+        self.rivals.keep(pose)
+        self.belief = read_belief(self.particles, self.weights, self.belief_config)
+        reading = self.read(target)
+        left = Hypothesis(
+            float(pose[0]), float(pose[1]), float(pose[2]), 0.0, np.diag([0.25, 0.25, np.radians(10.0) ** 2])
+        )
+        return BeliefReading("ambiguous", reading.covariance, (*reading.hypotheses, left), reading.chosen), target
 
     def weight_near(self, pose: np.ndarray, radius: float, max_angle: float = np.radians(30.0)) -> float:
         """Total weight of the particles within ``radius`` and ``max_angle`` of ``pose``."""

@@ -12,8 +12,10 @@ look-alikes of it (twins.py), which the map cannot miss the way the filter can. 
 its summed evidence is within ``log_ratio`` of the estimate's; rivals are kept, carried by the odometry and re-scored at
 every update, until the scans favour the estimate over them by ``drop_log_ratio`` (a wider margin, so that a twin
 does not flicker in and out). While any rival stands, and until ``settle_scans`` scans are kept, the status is
-``ambiguous``. The check only reports: the filter is not fed from it (particles injected at rivals made the
-estimate wander between twins, docs/design.md).
+``ambiguous``. The filter is not fed from the check (particles injected at every rival made the estimate wander
+between twins, docs/design.md), with one exception: a rival the scans favour over the estimate by
+``drop_log_ratio`` takes the estimate's mode (``switch``; the filter moves it, feature_filter.py), since by the
+check's own rule the estimate would be ruled out were the two the other way round.
 """
 
 from __future__ import annotations
@@ -53,6 +55,9 @@ class RivalConfig:
     refine_scans: int = 10  # a candidate is first fitted to the newest scans (coordinate steps of 0.1 m and 2 deg)
     #: the map's own look-alikes of a localized estimate, offered beside the filter's candidates (twins.py)
     twins: TwinConfig = field(default_factory=TwinConfig)
+    #: when the kept scans favour a rival over the estimate by ``drop_log_ratio`` (the margin that rules a rival
+    #: out, the other way round), move the estimate's mode there; False: the check only reports
+    switch: bool = True
 
     def __post_init__(self) -> None:
         if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:
@@ -96,6 +101,8 @@ class RivalTracker:
             np.log(p.z_hit * np.exp(-(p.max_distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(p.z_hit + floor)
         )
         self.rivals = np.zeros((0, 3))
+        #: per rival, its summed evidence less the estimate's at the last update (NaN: held, not yet scored)
+        self.margins = np.zeros(0)
 
     def reset(self) -> None:
         self._scans.clear()
@@ -105,6 +112,7 @@ class RivalTracker:
     def forget(self) -> None:
         """Drop the rivals (the kept scans stay)."""
         self.rivals = np.zeros((0, 3))
+        self.margins = np.zeros(0)
 
     @property
     def settled(self) -> bool:
@@ -202,6 +210,7 @@ class RivalTracker:
     def keep(self, place: np.ndarray) -> None:
         """Hold ``place`` (3,) as a rival until the scans rule it out (the place an estimate jumped away from)."""
         self.rivals = np.vstack([self.rivals, np.asarray(place, dtype=float).reshape(1, 3)])
+        self.margins = np.append(self.margins, np.nan)
 
     def headings(self, positions: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
         """For each position (M, 2), the pose whose heading (every 10 deg) the newest scans fit best."""
@@ -260,7 +269,16 @@ class RivalTracker:
                 unique.append(int(i))
         unique = unique[: c.max_rivals]
         self.rivals = refined[unique].reshape(-1, 3)
+        self.margins = margins[unique]
         return len(unique)
+
+    def decisive(self) -> int | None:
+        """The rival the kept scans favour over the estimate by ``drop_log_ratio`` or more (the margin that rules a
+        rival out, the other way round), the best of them; None if there is none."""
+        if not len(self.margins) or not self.settled:
+            return None
+        best = int(np.nanargmax(self.margins)) if np.isfinite(self.margins).any() else -1
+        return best if best >= 0 and self.margins[best] >= self.config.drop_log_ratio else None
 
     def _known(self, pose: np.ndarray, places: list[np.ndarray]) -> bool:
         c = self.config
