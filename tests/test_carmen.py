@@ -51,3 +51,29 @@ def test_layouts_and_bad_lines(tmp_path):
         list(read_carmen(bad))
     with pytest.raises(FileNotFoundError, match="nope.log: no such CARMEN log"):
         list(read_carmen(Path(tmp_path / "nope.log")))
+
+
+ROBOT_LASER = """ODOM 0 0 0 0 0 0 20.0 h 20.0
+ROBOTLASER1 0 -1.5707963 3.1415927 1.5707963 50.0 0.01 0 3 1.0 50.0 2.0 2.1 3.0 0.5 2.0 3.0 0.5 0 0 0 0 20.1 h 20.1
+ODOM 0.2 0 0 0 0 0 20.2 h 20.2
+ROBOTLASER1 0 -1.5707963 3.1415927 1.5707963 50.0 0.01 0 3 4.0 5.0 6.0 3 7 8 9 1.0 3.0 3.6415927 1.2 3.0 0.5 \
+0 0 0 0 20.3 h 20.3
+"""
+
+
+def test_robot_laser_lines_give_their_own_angles_in_the_robots_frame(tmp_path):
+    log = tmp_path / "robotlaser.log"
+    log.write_text(ROBOT_LASER)
+    counts = convert_carmen(log, tmp_path / "bag")
+    assert counts["scan"] == 2 and counts["truth"] == 2
+    got: dict[str, list] = {}
+    with AnyReader([tmp_path / "bag"], default_typestore=typestore()) as reader:
+        for connection, _, raw in reader.messages():
+            got.setdefault(connection.topic, []).append(reader.deserialize(raw, connection.msgtype))
+    front, rear = got["/scan"]
+    # 3 beams over 180 deg; the first laser faces forward, the second is turned half a turn on the robot
+    assert np.isclose(front.angle_min, -np.pi / 2, atol=1e-6) and np.isclose(front.angle_increment, np.pi / 2)
+    assert np.isclose(rear.angle_min, np.pi / 2, atol=1e-6)
+    assert np.allclose(front.ranges, [1.0, np.inf, 2.0]) and np.allclose(rear.ranges, [4.0, 5.0, 6.0])
+    # the truth is the robot's pose (the second line had 3 remissions before its poses)
+    assert np.allclose([planar_pose(m) for m in got["/ground_truth"]], [[2.0, 3.0, 0.5], [1.2, 3.0, 0.5]])

@@ -1,8 +1,11 @@
 """CARMEN text logs (the format of the classic 2D SLAM benchmarks' laser logs) written as a rosbag2.
 
-Lines read: ``ODOM x y theta tv rv accel ipc_timestamp hostname logger_timestamp`` and ``FLASER n r1 ... rn x y
-theta odom_x odom_y odom_theta ipc_timestamp hostname logger_timestamp``; the rest (PARAM, NEFF, ...) is
-skipped. What is written:
+Lines read: ``ODOM x y theta tv rv accel ipc_timestamp hostname logger_timestamp``, ``FLASER n r1 ... rn x y
+theta odom_x odom_y odom_theta ipc_timestamp hostname logger_timestamp`` and ``ROBOTLASER1 laser_type
+start_angle field_of_view angular_resolution maximum_range accuracy remission_mode n r1 ... rn [m e1 ... em]
+laser_x laser_y laser_theta robot_x robot_y robot_theta ...`` (the remissions, where the logger wrote them); the
+rest (PARAM, NEFF, RLASER, ...) is skipped. A log with FLASER lines takes its scans from them, one without from
+its ROBOTLASER1 lines. What is written:
 
 - ``/odom``: the wheel odometry as a chain of the relative motions between ODOM lines. In the benchmarks'
   "corrected" logs the ODOM line after each FLASER resets the odometry to the corrected pose (its stamp is 0):
@@ -11,7 +14,10 @@ skipped. What is written:
   as 181 beams at 1 deg; an even one without the last, as 360 at 0.5 deg); readings at or beyond ``max_range``
   (the SICK's 81.9 m "no return") become +inf;
 - ``/ground_truth``: the FLASER's own pose (in a corrected log the SLAM-corrected pose of the laser, the
-  benchmarks' approximate truth).
+  benchmarks' approximate truth);
+- a ROBOTLASER1 line gives its own angles: its scan is written in the robot's frame (the beams turned by the
+  laser's yaw on the robot, laser_theta - robot_theta, so a rear laser reads backwards) and its truth is the
+  robot pose; the laser's offset from the robot's centre (some centimetres) is not modelled, as for FLASER.
 
 Messages keep the log's stamps in their headers (some repeat or step back); the bag's receive times follow the
 log's line order, one nanosecond apart where the stamps do not advance.
@@ -34,15 +40,34 @@ from pimm_env.sim.lidar import Lidar2DConfig
 
 @dataclass(frozen=True)
 class CarmenLine:
-    kind: str  # "odom" or "laser"
+    kind: str  # "odom", "laser" (FLASER) or "robotlaser" (ROBOTLASER1)
     stamp: float
-    pose: np.ndarray  # ODOM: the odometry; FLASER: the laser's (corrected) pose
+    pose: np.ndarray  # ODOM: the odometry; FLASER: the laser's (corrected) pose; ROBOTLASER1: the robot's
     ranges: np.ndarray | None = None
+    #: ROBOTLASER1 only: the first beam's bearing in the robot's frame, the step between beams (rad) and the range
+    angles: tuple[float, float, float] | None = None
+
+
+def _robot_laser(words: list[str]) -> CarmenLine:
+    """One ROBOTLASER1 line (split), with or without remissions."""
+    start, _, step, max_range = (float(w) for w in words[2:6])
+    n = int(words[8])
+    ranges = np.array(words[9 : 9 + n], dtype=float)
+    rest = words[9 + n :]
+    if rest and rest[0].lstrip("-").isdigit():  # a count: the remissions come first
+        rest = rest[1 + int(rest[0]) :]
+    poses = np.array(rest[:6], dtype=float)
+    if len(ranges) != n or len(poses) != 6:
+        raise ValueError(f"{n} ranges and the laser and robot poses expected")
+    laser, robot = poses[:3], poses[3:]
+    first = start + laser[2] - robot[2]  # the first beam in the robot's frame, in [-pi, pi)
+    first = float((first + np.pi) % (2 * np.pi) - np.pi)
+    return CarmenLine("robotlaser", float(words[-3]), robot, ranges, (first, step, max_range))
 
 
 def read_carmen(path: Path) -> Iterator[CarmenLine]:
-    """The ODOM and FLASER lines of a CARMEN log (plain or .gz), in order; a malformed one is a ``BagError``
-    naming the file and line."""
+    """The ODOM, FLASER and ROBOTLASER1 lines of a CARMEN log (plain or .gz), in order; a malformed one is a
+    ``BagError`` naming the file and line."""
     path = Path(path)
     if not path.is_file():
         raise MissingFileError(f"{path}: no such CARMEN log")
@@ -50,11 +75,13 @@ def read_carmen(path: Path) -> Iterator[CarmenLine]:
     with opener(path, "rt") as handle:
         for number, line in enumerate(handle, start=1):
             words = line.split()
-            if not words or words[0] not in ("ODOM", "FLASER"):
+            if not words or words[0] not in ("ODOM", "FLASER", "ROBOTLASER1"):
                 continue
             try:
                 if words[0] == "ODOM":
                     yield CarmenLine("odom", float(words[7]), np.array(words[1:4], dtype=float))
+                elif words[0] == "ROBOTLASER1":
+                    yield _robot_laser(words)
                 else:
                     n = int(words[1])
                     ranges = np.array(words[2 : 2 + n], dtype=float)
@@ -74,6 +101,18 @@ def scan_layout_of(beams: int, max_range: float) -> Lidar2DConfig:
     )
 
 
+def robot_laser_layout(beams: int, angles: tuple[float, float, float]) -> Lidar2DConfig:
+    """The 2D LiDAR of a ROBOTLASER1 line: ``beams`` from ``angles`` (first bearing, step, both rad; range)."""
+    start, step, max_range = angles
+    first = float(np.degrees(start))
+    return Lidar2DConfig(
+        beams=beams,
+        angle_min_deg=first,
+        angle_max_deg=first + float(np.degrees(step)) * (beams - 1),
+        max_range=max_range,
+    )
+
+
 def convert_carmen(log: Path, out: Path, max_range: float = 80.0) -> dict[str, int]:
     """Write ``log`` as the rosbag2 folder ``out`` (which must not exist); returns how many messages of each
     topic were written and how many odometry resets were left out."""
@@ -90,6 +129,8 @@ def convert_carmen(log: Path, out: Path, max_range: float = 80.0) -> dict[str, i
     chain: np.ndarray | None = None  # the odometry written, and the raw ODOM pose it stands for
     last_raw: np.ndarray | None = None
     after_laser = False
+    # the scans come from the FLASER lines where there are any, else from the ROBOTLASER1 lines
+    scans_from = "laser" if any(line.kind == "laser" for line in read_carmen(log)) else "robotlaser"
     lines = read_carmen(log)
     with Writer(out, version=9) as writer:
         topics = {
@@ -108,10 +149,15 @@ def convert_carmen(log: Path, out: Path, max_range: float = 80.0) -> dict[str, i
             counts[name] += 1
 
         for line in lines:
-            if line.kind == "laser":
+            if line.kind in ("laser", "robotlaser"):
+                if line.kind != scans_from:
+                    continue
                 assert line.ranges is not None
-                lidar = scan_layout_of(len(line.ranges), max_range)
-                ranges = np.where(line.ranges >= max_range, np.inf, line.ranges)
+                if line.angles is None:
+                    lidar = scan_layout_of(len(line.ranges), max_range)
+                else:
+                    lidar = robot_laser_layout(len(line.ranges), line.angles)
+                ranges = np.where(line.ranges >= lidar.max_range, np.inf, line.ranges)
                 msg = laser_scan(store, line.stamp, ranges, beam_bearings_2d(lidar), lidar)
                 write("scan", line.stamp, msg, "sensor_msgs/msg/LaserScan")
                 write("truth", line.stamp, odometry(store, line.stamp, line.pose, "map"), "nav_msgs/msg/Odometry")
