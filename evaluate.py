@@ -194,6 +194,7 @@ def replay(
     out: Path = OUT,
     json_out: bool = JSON,
     sensors: str | None = typer.Option(None, help="LiDAR presets or .yaml (default: the bag's record, or its data)"),
+    stamps: str = typer.Option("header", help="time messages by their header stamps or by when the bag received them"),
 ) -> None:
     """Feed a bag to localizers and write the same results folder as run (metrics where it has ground truth)."""
     from pimm_agents.experiments.replay import run_replay
@@ -201,7 +202,7 @@ def replay(
     from pimm_agents.results.tables import format_replay
     from pimm_env.bags.read import BagTopics
 
-    topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic)
+    topics = BagTopics(odom=odom_topic, scan=scan_topic, points=points_topic, truth=truth_topic, stamps=stamps)
     chosen = resolve_localizers(localizers, params, settings)
     done = run_replay(bag, chosen, out, seed, world, map_path, sensors, topics, start, trials, _command_line())
     if json_out:  # without ground truth there are no metrics: the record says so, and where the estimates are

@@ -303,3 +303,27 @@ def test_rows_without_truth_are_left_out_of_the_scoring_and_counted_not_the_whol
     (result,), has_truth = replay_bag(bag, [spec], map_path=Path("maps/iilab/occupancy.yaml"))
     assert has_truth and result.log.set_aside == {"no_truth_rows": 5}
     assert np.all(np.isfinite(result.log.true)) and len(result.log) == 25
+
+
+def test_steps_are_timed_by_header_stamps_or_by_receive_times(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    store = typestore()
+    bag = tmp_path / "stamps"
+    header_stamps = [0.0, 0.1, 0.05, 0.3]  # a driver's clock that steps back once
+    with Writer(bag, version=9) as writer:
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        for i, stamp in enumerate(header_stamps):
+            msg = odometry(store, stamp, np.array([0.1 * i, 0.0, 0.0]), "odom")
+            writer.write(odom, 1_000_000_000 + i * 100_000_000, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
+    config = SimConfig()
+
+    def times(stamps: str) -> list[float]:
+        steps = read_steps(bag, BagTopics(stamps=stamps), config.lidar2d, config.lidar3d)
+        return [float(step.obs["time"][0]) for step in steps]
+
+    assert np.allclose(times("header"), header_stamps)
+    assert np.allclose(times("receive"), [1.0, 1.1, 1.2, 1.3])
+    with pytest.raises(BagError, match="stamps must be 'header' or 'receive'"):
+        BagTopics(stamps="sensor")

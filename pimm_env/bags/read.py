@@ -1,6 +1,7 @@
 """Read a bag (rosbag2 or ROS 1: whatever ``rosbags`` reads) back as the env's observations.
 
-Messages are taken in the bag's order (receive time); messages received at the same time are taken events,
+Messages are taken in the bag's order (receive time) and timed by their header stamps (or, with
+``BagTopics.stamps`` "receive", by their receive times); messages received at the same time are taken events,
 truth, scan, cloud, then odometry, so that the step an odometry message closes holds what arrived with it
 (the reader's own order among them is not fixed: it followed the order of a set, which changes with Python's
 hash seed). Each cloud is placed into the 3D LiDAR layout's grid
@@ -43,6 +44,13 @@ class BagTopics:
     points: str | None = TOPICS["points"]
     truth: str | None = TOPICS["truth"]
     events: str | None = TOPICS["events"]
+    #: the time of each message: its header stamp ("header", when the sensor saw it) or when the bag received it
+    #: ("receive": for a log whose stamps are wrong or from unsynchronized clocks)
+    stamps: str = "header"
+
+    def __post_init__(self) -> None:
+        if self.stamps not in ("header", "receive"):
+            raise BagError(f"stamps must be 'header' or 'receive', got {self.stamps!r}")
 
 
 @dataclass
@@ -86,7 +94,8 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
         truth: np.ndarray | None = None
         fresh_scan = fresh_cloud = kidnapped = False
         counts: dict[str, int] = {}
-        for connection, _, raw in in_step_order(reader.messages(connections=connections), priority):
+        by_receipt = topics.stamps == "receive"
+        for connection, received, raw in in_step_order(reader.messages(connections=connections), priority):
             topic = connection.topic
             index = counts[topic] = counts.get(topic, -1) + 1
             where = f"{path}: {topic} message {index}"
@@ -97,13 +106,14 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
                 truth = planar_pose(msg, where)
             elif topic == topics.scan:
                 scan = scan_ranges(msg, lidar2d.beams, lidar2d.max_range, where)
-                scan_time, fresh_scan = stamp_seconds(msg), True
+                scan_time, fresh_scan = received * 1e-9 if by_receipt else stamp_seconds(msg), True
             elif topic == topics.points:
                 cloud, mask = organize(cloud_points(msg, where), lidar3d, where)
-                cloud_time, fresh_cloud = stamp_seconds(msg), True
+                cloud_time, fresh_cloud = received * 1e-9 if by_receipt else stamp_seconds(msg), True
             elif topic == topics.odom:
-                t = stamp_seconds(msg)  # a header stamp that goes back is served as it is: the localizers'
-                # guard sets that observation aside and counts it (the bag's receive order is the order)
+                # a header stamp that goes back is served as it is: the localizers' guard sets that observation
+                # aside and counts it (the bag's receive order is the order)
+                t = received * 1e-9 if by_receipt else stamp_seconds(msg)
                 obs = {
                     "odom": planar_pose(msg, where).astype(np.float32),
                     "cloud": cloud.copy(),
