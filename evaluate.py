@@ -188,7 +188,7 @@ def replay(
     odom_topic: str = typer.Option("/odom", "--odom-topic"),
     scan_topic: str = typer.Option("/scan", "--scan-topic"),
     points_topic: str = typer.Option("/points", "--points-topic"),
-    truth_topic: str = typer.Option("/ground_truth", "--truth-topic", help="nav_msgs/Odometry of the true pose"),
+    truth_topic: str = typer.Option("/ground_truth", "--truth-topic", help="true pose (Odometry, Pose*, /tf)"),
     params: Path | None = PARAMS,
     settings: list[str] = SETTINGS,
     out: Path = OUT,

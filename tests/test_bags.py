@@ -327,3 +327,74 @@ def test_steps_are_timed_by_header_stamps_or_by_receive_times(tmp_path):
     assert np.allclose(times("receive"), [1.0, 1.1, 1.2, 1.3])
     with pytest.raises(BagError, match="stamps must be 'header' or 'receive'"):
         BagTopics(stamps="sensor")
+
+
+def test_truth_from_tf_is_the_base_in_the_map_direct_or_through_odom():
+    from pimm_env.bags.tf_truth import TfTruth
+
+    t = typestore().types
+
+    def transform(parent: str, child: str, x: float, y: float, yaw: float):
+        header = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id=parent)
+        return t["geometry_msgs/msg/TransformStamped"](
+            header=header,
+            child_frame_id=child,
+            transform=t["geometry_msgs/msg/Transform"](
+                translation=t["geometry_msgs/msg/Vector3"](x=x, y=y, z=0.0),
+                rotation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=np.sin(yaw / 2), w=np.cos(yaw / 2)),
+            ),
+        )
+
+    def tf(*transforms):
+        return t["tf2_msgs/msg/TFMessage"](transforms=list(transforms))
+
+    truth = TfTruth()
+    assert truth.update(tf(transform("odom", "base_link", 1.0, 0.0, 0.0)), "m0") is None  # no map frame yet
+    # map -> odom turned a quarter: the base 1 m ahead in odom is 1 m along the map's y
+    pose = truth.update(tf(transform("/map", "odom", 2.0, 0.0, np.pi / 2)), "m1")
+    assert np.allclose(pose, [2.0, 1.0, np.pi / 2])
+    assert truth.update(tf(transform("base_link", "laser", 0.1, 0.0, 0.0)), "m2") is None  # nothing new
+    # a direct map -> base transform wins over the chain
+    assert np.allclose(truth.update(tf(transform("map", "base_footprint", 5.0, 6.0, 0.3)), "m3"), [5.0, 6.0, 0.3])
+    with pytest.raises(BagError, match="m4: a .*Odometry is not a tf2_msgs/TFMessage"):
+        truth.update(odometry(typestore(), 0.0, np.zeros(3), "odom"), "m4")
+
+
+def test_a_bag_with_tf_truth_gives_true_poses(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    store = typestore()
+    t = store.types
+    bag = tmp_path / "tf_bag"
+    with Writer(bag, version=9) as writer:
+        tf = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        lidar = SimConfig().lidar2d
+        angles = np.linspace(-np.pi, np.pi, lidar.beams, endpoint=False)
+        for i in range(3):
+            header = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=i, nanosec=0), frame_id="map")
+            moved = t["geometry_msgs/msg/TransformStamped"](
+                header=header,
+                child_frame_id="base_link",
+                transform=t["geometry_msgs/msg/Transform"](
+                    translation=t["geometry_msgs/msg/Vector3"](x=1.0 + i, y=2.0, z=0.0),
+                    rotation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                ),
+            )
+            at = (i + 1) * 1_000_000_000
+            ranges = laser_scan(store, float(i), np.full(lidar.beams, 3.0), angles, lidar)
+            writer.write(scan, at, store.serialize_cdr(ranges, "sensor_msgs/msg/LaserScan"))
+            writer.write(
+                tf, at, store.serialize_cdr(t["tf2_msgs/msg/TFMessage"](transforms=[moved]), "tf2_msgs/msg/TFMessage")
+            )
+            writer.write(
+                odom,
+                at,
+                store.serialize_cdr(
+                    odometry(store, float(i), np.array([i, 0.0, 0.0]), "odom"), "nav_msgs/msg/Odometry"
+                ),
+            )
+    config = SimConfig()
+    steps = list(read_steps(bag, BagTopics(points=None, truth="/tf"), config.lidar2d, config.lidar3d))
+    assert np.allclose([s.true_pose for s in steps], [[1.0, 2.0, 0.0], [2.0, 2.0, 0.0], [3.0, 2.0, 0.0]])

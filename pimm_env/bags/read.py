@@ -32,6 +32,7 @@ from pimm_env.bags.messages import (
     stamp_seconds,
     typestore,
 )
+from pimm_env.bags.tf_truth import TfTruth
 from pimm_env.errors import MissingFileError
 
 
@@ -92,6 +93,7 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
         scan = np.full(lidar2d.beams, lidar2d.max_range, np.float32)
         cloud_time = scan_time = 0.0
         truth: np.ndarray | None = None
+        tf_truth = TfTruth()
         fresh_scan = fresh_cloud = kidnapped = False
         counts: dict[str, int] = {}
         by_receipt = topics.stamps == "receive"
@@ -103,7 +105,11 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
             if topic == topics.events:
                 kidnapped = kidnapped or msg.data == KIDNAP
             elif topic == topics.truth:
-                truth = planar_pose(msg, where)
+                if connection.msgtype.endswith("TFMessage"):  # /tf: the base in the map, when a message says it
+                    pose = tf_truth.update(msg, where)
+                    truth = truth if pose is None else pose
+                else:
+                    truth = planar_pose(msg, where)
             elif topic == topics.scan:
                 scan = scan_ranges(msg, lidar2d.beams, lidar2d.max_range, where)
                 scan_time, fresh_scan = received * 1e-9 if by_receipt else stamp_seconds(msg), True
