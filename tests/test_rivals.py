@@ -103,3 +103,22 @@ def test_the_first_candidates_are_tried_whatever_the_count():
     first = tracker_along(truths)
     first.config = none_taken
     assert first.update(now, now, np.zeros((0, 3)), first=offered) == 1  # a filter's mode is tried all the same
+
+
+def test_a_rival_takes_the_estimate_only_after_leading_at_switch_updates_updates_in_a_row():
+    truths = np.vstack([west_half_drive(), [[x, 1.0, 0.0] for x in np.arange(15.0, 19.0, 0.1)]])
+    occupancy = twin_rooms()
+    tracker = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, RivalConfig(switch_updates=3))
+    for pose in truths:
+        tracker.add_scan(pose, rays_from(occupancy, pose, 10.0))
+    now = truths[-1]
+    wrong = now - [12.0, 0.0, 0.0]  # the estimate in the first room, the block seen: the truth leads by far
+    leads = []
+    for _ in range(4):
+        tracker.update(wrong, now, now[None, :])
+        assert len(tracker.rivals) == 1 and tracker.margins[0] > tracker.config.drop_log_ratio
+        leads.append(tracker.decisive())
+    assert leads == [None, None, 0, 0]
+    tracker.forget()  # after a switch, the count starts again
+    tracker.update(wrong, now, now[None, :])
+    assert tracker.decisive() is None

@@ -58,10 +58,16 @@ class RivalConfig:
     #: when the kept scans favour a rival over the estimate by ``drop_log_ratio`` (the margin that rules a rival
     #: out, the other way round), move the estimate's mode there; False: the check only reports
     switch: bool = True
+    #: ... and only when the same rival has been that far ahead at this many updates in a row: over a turn the
+    #: margins swing by tens of nats from one update to the next (a heading fitted a degree off carries 15 m of
+    #: history 0.25 m), and a switch on one update's margin went back and forth between twins
+    switch_updates: int = 10  # as many as a localized reading needs before it is reported (belief.confirm_updates)
 
     def __post_init__(self) -> None:
         if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:
             raise LocalizerError("rivals: history_scans and refine_scans must be at least 1, the counts at least 0")
+        if self.switch_updates < 1:
+            raise LocalizerError(f"rivals: switch_updates must be at least 1, got {self.switch_updates}")
         if self.log_ratio <= 0 or self.distinct_m <= 0 or self.distinct_deg <= 0:
             raise LocalizerError("rivals: log_ratio, distinct_m and distinct_deg must be positive")
         if self.drop_log_ratio < self.log_ratio or self.settle_scans < 0:
@@ -105,6 +111,8 @@ class RivalTracker:
         self.rivals = np.zeros((0, 3))
         #: per rival, its summed evidence less the estimate's at the last update (NaN: held, not yet scored)
         self.margins = np.zeros(0)
+        self._leader: np.ndarray | None = None  # the rival ahead by drop_log_ratio, and for how many updates
+        self._lead = 0
 
     def reset(self) -> None:
         self._scans.clear()
@@ -115,6 +123,7 @@ class RivalTracker:
         """Drop the rivals (the kept scans stay)."""
         self.rivals = np.zeros((0, 3))
         self.margins = np.zeros(0)
+        self._leader, self._lead = None, 0
 
     @property
     def settled(self) -> bool:
@@ -131,6 +140,8 @@ class RivalTracker:
         """Carry the rivals by the odometry since ``odom_then``."""
         if len(self.rivals):
             self.rivals = carried(self.rivals, relative_motion(odom_then, odom_now))
+        if self._leader is not None:
+            self._leader = carried(self._leader[None, :], relative_motion(odom_then, odom_now))[0]
 
     def stack(self, odom_now: np.ndarray, last: int | None = None) -> _Stack:
         """The kept scans (the ``last`` newest) as one array of points, each with its scan's motion from now."""
@@ -276,15 +287,29 @@ class RivalTracker:
         unique = unique[: c.max_rivals]
         self.rivals = refined[unique].reshape(-1, 3)
         self.margins = margins[unique]
+        self._follow_leader()
         return len(unique)
 
+    def _follow_leader(self) -> None:
+        """Count the updates in a row at which the same rival (within ``distinct_m``, ``distinct_deg``) led the
+        estimate by ``drop_log_ratio``."""
+        ahead = np.flatnonzero(np.nan_to_num(self.margins, nan=-np.inf) >= self.config.drop_log_ratio)
+        if not len(ahead):
+            self._leader, self._lead = None, 0
+            return
+        best = self.rivals[ahead[np.argmax(self.margins[ahead])]]
+        same = self._leader is not None and self._known(best, [self._leader])
+        self._leader, self._lead = best.copy(), self._lead + 1 if same else 1
+
     def decisive(self) -> int | None:
-        """The rival the kept scans favour over the estimate by ``drop_log_ratio`` or more (the margin that rules a
-        rival out, the other way round), the best of them; None if there is none."""
-        if not len(self.margins) or not self.settled:
+        """The rival the kept scans have favoured over the estimate by ``drop_log_ratio`` or more (the margin that
+        rules a rival out, the other way round) at the last ``switch_updates`` updates; None if there is none."""
+        if self._leader is None or self._lead < self.config.switch_updates or not self.settled:
             return None
-        best = int(np.nanargmax(self.margins)) if np.isfinite(self.margins).any() else -1
-        return best if best >= 0 and self.margins[best] >= self.config.drop_log_ratio else None
+        for i, rival in enumerate(self.rivals):
+            if self._known(rival, [self._leader]):
+                return i
+        return None
 
     def _known(self, pose: np.ndarray, places: list[np.ndarray]) -> bool:
         c = self.config
