@@ -170,6 +170,9 @@ class FeatureFilter:
         if self.rivals is not None and wall_field is not None and rivals.twins.enabled:
             self.twins = MapTwins(occupancy, rivals.twins)
         self._twin_updates = 0  # localized updates since the twins were last offered
+        #: whether the estimate has been reported localized since it last jumped: a held place is not moved by the
+        #: rival check (its margins over 150 scans are not enough to overturn a place the scans confirmed)
+        self._held = False
         self._rivals_odom: np.ndarray | None = None
         self.reading = BeliefReading("lost", np.eye(3), ())
         self._odom_ref: np.ndarray | None = None
@@ -196,6 +199,7 @@ class FeatureFilter:
             self.rivals.reset()
         self._rivals_odom = None
         self._twin_updates = 0
+        self._held = False
         self.reading = BeliefReading("lost", self.covariance(self.best_mean()), ())
 
     # ------------------------------------------------------------------ motion
@@ -436,6 +440,7 @@ class FeatureFilter:
             if moved_to is not None:
                 estimate, jumped = moved_to, True
         self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
+        self._held = (self._held and not jumped and self.reading.status != "lost") or self.reading.status == "localized"
         self.resample_if_degenerate()
         if self.informed:
             self.inject(suggestions)
@@ -503,7 +508,7 @@ class FeatureFilter:
             if reading.status == "localized" and not self.rivals.settled:
                 return BeliefReading("ambiguous", reading.covariance, reading.hypotheses, chosen), None
             return reading, None
-        decisive = self.rivals.decisive() if self.rivals.config.switch else None
+        decisive = self.rivals.decisive() if self.rivals.config.switch and not self._held else None
         if decisive is not None:
             return self.move_mode(pose, chosen, self.rivals.rivals[decisive].copy())
         rivals = tuple(
