@@ -6,7 +6,7 @@ from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.pimm.rivals import RivalConfig
 from pimm_agents.pimm.twins import MapTwins, TwinConfig
 from pimm_env.errors import LocalizerError, ParamsError
-from pimm_env.geometry import wrap_angle
+from pimm_env.geometry import carry, wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
@@ -127,3 +127,26 @@ def test_a_rival_the_scans_favour_decisively_takes_the_estimate():
     # reporting only, the estimate stays in the wrong room, ambiguous, with the true place a standing rival
     status, estimate, truth = started_in_the_wrong_room(switch=False)[-1]
     assert status != "localized" and np.hypot(*(estimate[:2] - truth[:2])) > 10.0
+
+
+def test_a_place_reported_localized_is_not_moved_by_the_rival_check():
+    """The wrong-room drive again, with the wrong place taken as held (as if it had been reported localized
+    since its last jump): the true place stands as a rival, the estimate is not moved to it."""
+    occupancy = twin_rooms()
+    corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
+    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=2000), wall_field_for(occupancy), 0.2)
+    turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
+    truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 21.0, 0.12)]])
+    filt.reset(np.random.default_rng(0), truth[0] - [12.0, 0.0, 0.0], np.diag([0.1, 0.1, 0.01]))
+    estimate, at, updates = None, None, 0
+    for odom in truth:
+        if filt.motion_update(odom):
+            previous = None if estimate is None else carry(estimate, at, odom)
+            found = filt.correct(np.zeros((0, 5)), np.zeros((0, 2)), previous, rays_from(occupancy, odom, 10.0))
+            estimate, at = (found, odom) if found is not None else (previous, odom)
+            updates += 1
+            if updates == 3:
+                filt._held = True
+    assert estimate is not None and np.hypot(*(estimate[:2] - (truth[-1, :2] - [12.0, 0.0]))) < 0.5
+    assert filt.reading.status != "localized"
+    assert any(np.hypot(h.x - truth[-1, 0], h.y - truth[-1, 1]) < 0.5 for h in filt.reading.hypotheses)
