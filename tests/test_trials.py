@@ -134,3 +134,29 @@ def test_a_known_start_gives_every_localizer_the_true_pose(room_with_routes):
 def test_an_unknown_backend_is_refused(room_with_routes):
     with pytest.raises(ValueError, match="expected local or ray"):
         run_trials([_spec(room_with_routes, "amcl", params=AMCL)], backend="dask")
+
+
+def test_a_trial_whose_robot_hits_the_post_is_counted_as_a_collision(room_file, tmp_path):
+    from pimm_agents.experiments.trial_store import load_trial, save_trial
+    from pimm_agents.results.tables import format_collisions
+    from pimm_agents.scoring.summaries import summary_of
+
+    (room_file.parent / "scenarios.yaml").write_text(
+        ROUTES + "  through_post:\n    start: [4.5, 0.8, 1.5708]\n    waypoints: [[4.5, 0.8], [4.5, 3.2]]\n"
+        "    speed: 0.5\n"
+    )
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    ensure_derived_maps(load_world(room_file))
+    world = str(room_file)
+    hit = run_shared([_spec(world, DEAD, "through_post")])[0]
+    clear = run_shared([_spec(world, DEAD, "there")])[0]
+    assert hit.collided and not clear.collided
+    summary = summary_of([hit, clear])
+    assert summary["scenarios"]["through_post"][DEAD]["collisions"] == 1
+    assert summary["scenarios"]["there"][DEAD]["collisions"] == 0
+    assert summary["scenarios"]["through_post"][DEAD]["per_trial"][0]["collided"] is True
+    assert "through_post: 1 of 1 trial(s)" in format_collisions(summary) and "there:" not in format_collisions(summary)
+    saved = save_trial(tmp_path, hit)
+    assert load_trial(saved).collided

@@ -72,7 +72,8 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
         env.close()
     wall = time.perf_counter() - start
     return [
-        TrialResult(spec, log, metrics_of(log), wall, rollout.completed) for spec, log in zip(specs, logs, strict=True)
+        TrialResult(spec, log, metrics_of(log), wall, rollout.completed, rollout.collided)
+        for spec, log in zip(specs, logs, strict=True)
     ]
 
 

@@ -75,6 +75,7 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
         },
         "wall_s": result.wall_s,
         "completed": result.completed,
+        "collided": result.collided,
         "kidnap_index": log.kidnap_index,
         "kidnap_rows": list(log.kidnap_rows),
         "stages": stages,
@@ -127,7 +128,9 @@ def load_trial(path: Path) -> TrialResult:
         spec = TrialSpec(**meta["spec"])
     except (OSError, KeyError, ValueError, TypeError) as error:
         raise ResultsError(f"{path}: not a saved trial ({error})") from None
-    return TrialResult(spec, log, metrics_of(log), float(meta["wall_s"]), bool(meta["completed"]))
+    return TrialResult(
+        spec, log, metrics_of(log), float(meta["wall_s"]), bool(meta["completed"]), bool(meta.get("collided", False))
+    )
 
 
 def stored_keys(folder: Path) -> set[str]:

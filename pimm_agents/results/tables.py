@@ -157,9 +157,21 @@ def format_run(outcome: Any) -> str:
     reused = f" ({outcome.trials_reused} more from the earlier run)" if outcome.trials_reused else ""
     return (
         f"start: {'the true pose, nav2 initial covariance' if known else 'global (pose unknown)'}"
-        f"{format_tables(summary)}\n{format_honesty(summary)}\n{format_timings(summary)}\n\n"
+        f"{format_tables(summary)}\n{format_honesty(summary)}\n{format_timings(summary)}{format_collisions(summary)}\n\n"
         f"{outcome.trials_run} trials in {outcome.wall_s} s{reused}; results: {outcome.folder}/"
     )
+
+
+def format_collisions(summary: dict[str, Any]) -> str:
+    """A line per scenario whose robot touched an obstacle in some trial (none: ''): such a trial's route was
+    not driven as planned, so its figures are not the localizer's alone."""
+    lines = [
+        f"  {scenario}: {entry['collisions']} of {len(entry['per_trial'])} trial(s)"
+        for scenario, by in summary["scenarios"].items()
+        for entry in list(by.values())[:1]  # one simulation feeds every localizer: count it once
+        if entry.get("collisions")
+    ]
+    return "\n\ncollisions (the robot touched an obstacle on the route):\n" + "\n".join(lines) if lines else ""
 
 
 def format_bench(figures: dict[str, float], machine: dict[str, Any]) -> str:

@@ -44,6 +44,7 @@ def summary_of(results: Sequence[TrialResult], errors: Sequence[dict[str, Any]] 
             for i, h, f in zip(indices, honesty, fixes, strict=True)
         ]
         entry["per_trial"] = rows
+        entry["collisions"] = sum(bool(t.collided) for t in trials)  # trials whose robot touched an obstacle
         entry.update(honesty_summary(honesty))
         entry.update(fix_summary(fixes))
         entry["spread"] = _spread(rows)
@@ -64,6 +65,7 @@ def _trial_row(result: TrialResult, honesty: HonestyMetrics, errors: dict[str, A
         "position_error_m": m.position_error_m,
         "angle_error_deg": m.angle_error_deg,
         "completed": result.completed,
+        "collided": result.collided,
         "wall_s": round(result.wall_s, 2),
         "set_aside": result.log.set_aside,  # observations the localizer's guard set aside
         "rebased": result.log.rebased,

@@ -55,6 +55,7 @@ class TrialResult:
     metrics: TrialMetrics  # for kidnap scenarios: measured from the kidnap on
     wall_s: float  # the shared simulation's wall time, with every localizer it fed
     completed: bool
+    collided: bool = False  # the robot touched an obstacle on the way (the trial went on, the route may not)
 
 
 def metrics_of(log: TrialLog) -> TrialMetrics:
