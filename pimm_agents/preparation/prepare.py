@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pimm_env.driving.routes import RouteConfig
+from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.model import World
 
 
@@ -49,7 +50,7 @@ def prepare_world(
     start = time.perf_counter()
     written = new_routes or not scenarios_path(loaded).is_file()
     if written:
-        planned = plan_routes(maps.occupancy, routes, seed)
+        planned = plan_routes(drivable(loaded, maps.occupancy), routes, seed)
         scenarios_path(loaded).write_text(scenarios_document(loaded.name, planned, routes, seed))
     seconds["routes"] = time.perf_counter() - start
     start = time.perf_counter()
@@ -68,6 +69,15 @@ def prepare_world(
         routes_written=written,
         seconds=seconds,
     )
+
+
+def drivable(world: World, occupancy: OccupancyGrid) -> OccupancyGrid:
+    """``occupancy`` with everything the robot's body can touch made occupied: routes are planned on it, so that
+    they keep their clearance from furniture lower than the map's cut (a chair seat, a low table)."""
+    from pimm_env.mapping.occupancy import body_obstacles
+
+    body = body_obstacles(world, occupancy.grid)
+    return OccupancyGrid(occupancy.grid, occupancy.occupied | body, occupancy.free & ~body)
 
 
 def describe(done: Preparation) -> str:

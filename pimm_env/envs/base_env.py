@@ -16,6 +16,7 @@ from pimm_env.envs.sim_config import RAY_CASTERS, SimConfig
 from pimm_env.errors import EnvError, WorldError
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.derived_maps import DerivedMaps, load_derived_maps
+from pimm_env.mapping.occupancy import body_obstacles
 from pimm_env.sim.lidar import (
     azimuths_3d,
     beam_bearings_2d,
@@ -28,7 +29,6 @@ from pimm_env.sim.raycast import BulletRayCaster, EmbreeRayCaster, PrismRayCaste
 from pimm_env.sim.robot import DiffDriveRobot
 from pimm_env.sim.scene import BulletScene
 from pimm_env.world.files import World, load_world
-from pimm_env.world.semantics import SemanticClass
 
 RESET_OPTIONS = frozenset({"pose", "kidnap"})
 
@@ -102,10 +102,7 @@ class LidarRobotEnv(gym.Env):
     def _clearance_maps(self) -> tuple[np.ndarray, np.ndarray]:
         """Distance to anything the robot's body could touch, and the cells where a random start may be."""
         grid = self.maps.occupancy.grid
-        body = grid.empty_mask()
-        solid = [SemanticClass.WALL, SemanticClass.CLUTTER]
-        for height in (0.05, 0.2, 0.35):
-            body |= self.world.footprint(grid, self.world.floor_z + height, classes=solid)
+        body = body_obstacles(self.world, grid)
         clearance = ndimage.distance_transform_edt(~body) * grid.resolution
         radius = self.config.robot.footprint_radius
         start = self.maps.occupancy.free & (clearance >= radius + self.config.start_clearance)

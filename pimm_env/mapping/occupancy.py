@@ -43,6 +43,21 @@ class OccupancyGrid:
         return ndimage.distance_transform_edt(~surfaces) * self.grid.resolution
 
 
+#: Heights above the floor (m) at which the robot's body is checked for contact (its bumper, deck and top).
+BODY_HEIGHTS = (0.05, 0.2, 0.35)
+
+
+def body_obstacles(world: World, grid: GridSpec) -> np.ndarray:
+    """Cells where a wall or clutter stands at any of ``BODY_HEIGHTS``: what the robot's body can touch, which a
+    cut at the occupancy map's one height misses (a chair seat, a low table, a book on the floor)."""
+    from pimm_env.world.semantics import SemanticClass
+
+    body = grid.empty_mask()
+    for height in BODY_HEIGHTS:
+        body |= world.footprint(grid, world.floor_z + height, classes=[SemanticClass.WALL, SemanticClass.CLUTTER])
+    return body
+
+
 def occupancy_from_world(world: World, resolution: float, height: float) -> OccupancyGrid:
     """Cells occupied at ``height`` above the floor by elements flagged for the occupancy map."""
     grid = world.grid(resolution)
