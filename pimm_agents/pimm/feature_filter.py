@@ -135,6 +135,13 @@ class BeliefReading:
 FEATURE_COLUMNS = ("x", "y", "theta", "sigma_pos", "sigma_theta")
 
 
+def rival_hypothesis(place: np.ndarray) -> Hypothesis:
+    """A rival place as a hypothesis: weight 0 (the filter holds no particles there), 0.5 m and 10 deg (1 sigma)."""
+    return Hypothesis(
+        float(place[0]), float(place[1]), float(place[2]), 0.0, np.diag([0.25, 0.25, np.radians(10.0) ** 2])
+    )
+
+
 class FeatureFilter:
     def __init__(
         self,
@@ -469,12 +476,15 @@ class FeatureFilter:
         suggestions: np.ndarray,
     ) -> tuple[BeliefReading, np.ndarray | None]:
         """Keep this update's wall points, carry and re-score the rivals, look at new candidates (the other
-        compact modes, the heaviest particles away from the estimate, and each fingerprint suggestion at the
-        heading the newest scans fit best); a localized reading with a rival standing becomes ambiguous, and the
-        rivals join the hypotheses. When the estimate jumped to another place, away from ``left`` (the last
-        estimate, carried to now), the kept scans are dropped, since those before a kidnap link to nothing, and
-        ``left`` is held as a rival until the scans since the jump rule it out (it is where the robot still is
-        if the jump was wrong). When no place is held (lost), scans and rivals are dropped."""
+        compact modes, the heaviest particles away from the estimate, each fingerprint suggestion at the
+        heading the newest scans fit best and, for a localized reading, the map's twins of the place); a
+        localized reading with a rival standing becomes ambiguous, and the rivals join the hypotheses. A rival
+        that has decisively led an estimate not held since its last jump takes its mode (``move_mode``): the
+        second value returned is then the new estimate, else None. When the estimate jumped to another place,
+        away from ``left`` (the last estimate, carried to now), the kept scans are dropped, since those before a
+        kidnap link to nothing, and ``left`` is held as a rival until the scans since the jump rule it out (it is
+        where the robot still is if the jump was wrong). When no place is held (lost), scans and rivals are
+        dropped."""
         assert self.rivals is not None and self._odom_ref is not None
         odom = self._odom_ref
         if self._rivals_odom is not None:
@@ -504,17 +514,14 @@ class FeatureFilter:
             if self.reading.status != "localized" or self._twin_updates >= self.twins.config.every_updates:
                 first = np.vstack([first, self.twins.of(pose)])
                 self._twin_updates = 0
-        if self.rivals.update(pose, odom, candidates, first) == 0:
+        if self.rivals.update(pose, odom, candidates, first, lead=not self._held) == 0:
             if reading.status == "localized" and not self.rivals.settled:
                 return BeliefReading("ambiguous", reading.covariance, reading.hypotheses, chosen), None
             return reading, None
         decisive = self.rivals.decisive() if self.rivals.config.switch and not self._held else None
         if decisive is not None:
             return self.move_mode(pose, chosen, self.rivals.rivals[decisive].copy())
-        rivals = tuple(
-            Hypothesis(float(r[0]), float(r[1]), float(r[2]), 0.0, np.diag([0.25, 0.25, np.radians(10.0) ** 2]))
-            for r in self.rivals.rivals
-        )
+        rivals = tuple(rival_hypothesis(r) for r in self.rivals.rivals)
         status = "ambiguous" if reading.status == "localized" else reading.status
         return BeliefReading(status, reading.covariance, reading.hypotheses + rivals, chosen), None
 
@@ -538,9 +545,7 @@ class FeatureFilter:
         self.rivals.keep(pose)
         self.belief = read_belief(self.particles, self.weights, self.belief_config)
         reading = self.read(target)
-        left = Hypothesis(
-            float(pose[0]), float(pose[1]), float(pose[2]), 0.0, np.diag([0.25, 0.25, np.radians(10.0) ** 2])
-        )
+        left = rival_hypothesis(pose)
         return BeliefReading("ambiguous", reading.covariance, (*reading.hypotheses, left), reading.chosen), target
 
     def weight_near(self, pose: np.ndarray, radius: float, max_angle: float = np.radians(30.0)) -> float:

@@ -240,13 +240,19 @@ class RivalTracker:
         return poses.reshape(len(positions), len(angles), 3)[np.arange(len(positions)), np.argmax(scores, axis=1)]
 
     def update(
-        self, estimate: np.ndarray, odom_now: np.ndarray, candidates: np.ndarray, first: np.ndarray | None = None
+        self,
+        estimate: np.ndarray,
+        odom_now: np.ndarray,
+        candidates: np.ndarray,
+        first: np.ndarray | None = None,
+        lead: bool = True,
     ) -> int:
         """Re-score the kept rivals and the new ``candidates`` (M, 3) against ``estimate``; keep the new ones within
         ``log_ratio`` and the kept ones within ``drop_log_ratio``. ``first`` (the filter's heaviest other modes)
         are tried whatever the newest scans say of them unrefined; of the other candidates, the ``candidates``
-        the newest scans fit best. Returns how many rivals stand; with fewer than ``refine_scans`` scans kept
-        (just after a jump) the kept rivals stand unscored."""
+        the newest scans fit best. With ``lead`` (and ``switch``), follow the rival that leads the estimate
+        (``decisive``; off for a held estimate, which no rival may take). Returns how many rivals stand; with
+        fewer than ``refine_scans`` scans kept (just after a jump) the kept rivals stand unscored."""
         c = self.config
         if len(self._scans) < c.refine_scans:
             return len(self.rivals)
@@ -287,8 +293,10 @@ class RivalTracker:
         unique = unique[: c.max_rivals]
         self.rivals = refined[unique].reshape(-1, 3)
         self.margins = margins[unique]
-        if self.config.switch:
+        if self.config.switch and lead:
             self._follow_leader(estimate, history)
+        elif self._leader is not None:
+            self._leader, self._lead = None, 0
         return len(unique)
 
     def _follow_leader(self, estimate: np.ndarray, history: _Stack) -> None:
