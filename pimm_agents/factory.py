@@ -9,6 +9,7 @@ Three kinds of names:
 from __future__ import annotations
 
 import importlib
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib.metadata import entry_points
@@ -204,6 +205,13 @@ def _from_map(name: str, map_path: Path, settings: Params, sensors: str | None) 
     from pimm_env.sim.sensors import sensor_layouts
 
     if name in MAP_ONLY:
+        if sensors is None:  # a bare scan array does not say its angles: say what is assumed
+            warnings.warn(
+                f"make_localizer({name!r}, map=...) without sensors= reads each scan as the thesis's 2D LiDAR"
+                " (360 beams over 360 deg from -180 deg); a scan of as many beams over another field of view would"
+                " be read at the wrong angles: pass sensors= a preset (e.g. 'sick-lms200') or a sensors .yaml",
+                stacklevel=3,
+            )
         lidar = sensor_layouts(sensors)[1]
         return Amcl(load_map_server(map_path), resolve_config(name, settings), lidar=lidar, name=name)
     if name in BUILT_IN:

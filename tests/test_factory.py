@@ -63,3 +63,13 @@ def test_a_plugin_localizer_runs_from_the_command_line(tmp_path):
     assert sorted(p.name for p in (folder / "logs").iterdir()) == [
         f"area_b_tests.plugins.dead_reckoning-make_trial00.{ext}" for ext in ("csv", "json")
     ]
+
+
+def test_a_map_only_localizer_without_sensors_says_which_lidar_it_assumes():
+    import warnings
+
+    with warnings.catch_warnings(record=True) as heard:
+        warnings.simplefilter("always")
+        factory.make_localizer("amcl", map="maps/iilab/occupancy.yaml")
+        factory.make_localizer("amcl", map="maps/iilab/occupancy.yaml", sensors="sick-lms200")
+    assert len(heard) == 1 and "sensors=" in str(heard[0].message) and "360 beams over 360 deg" in str(heard[0].message)

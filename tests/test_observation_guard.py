@@ -55,7 +55,9 @@ def test_bad_values_name_the_key_and_shape():
 def test_the_limits_come_from_each_localizers_params():
     from pimm_agents.factory import make_localizer
 
-    amcl = make_localizer("amcl", map="maps/iilab/occupancy.yaml", params={"guard": {"max_speed": 10.0}})
+    amcl = make_localizer(
+        "amcl", map="maps/iilab/occupancy.yaml", sensors="thesis", params={"guard": {"max_speed": 10.0}}
+    )
     assert amcl.guard.config == GuardConfig(max_speed=10.0)
     with pytest.raises(ObservationError, match="guard.max_turn_rate must be positive, got 0"):
         GuardConfig(max_turn_rate=0)

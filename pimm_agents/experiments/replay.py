@@ -37,7 +37,7 @@ def replay_bag(
     config = config or with_sensors(SimConfig(), specs[0].sensors)
     start = time.perf_counter()
     localizers = [
-        make_localizer(s.localizer, params=s.params, map=map_path, sensors=s.sensors)
+        make_localizer(s.localizer, params=s.params, map=map_path, sensors=s.sensors or "thesis")
         if map_path is not None
         else make_localizer(s.localizer, s.world, params=s.params, sensors=s.sensors)
         for s in specs
