@@ -2,9 +2,9 @@
 
 The rival check (rivals.py) can only rule on the places it is offered. The filter's modes, its best particles and
 the fingerprint suggestions all come from what the robot saw, and a twin place that lost its particles and that
-the fingerprints did not rank is offered by none of them: on a held-out look-alike building PIMM held a place
-29 m from the truth as ``localized`` for 5 s while the kept scans fitted the truth better, because nothing put the
-truth in front of the check. The walls of the map say where such twins are, whatever the robot saw: this module
+the fingerprints did not rank is offered by none of them: on a look-alike building (gen-972, route 4) PIMM held
+a place 29 m from the truth as ``localized`` for 5 s while the kept scans fitted the truth better, because nothing
+put the truth in front of the check. The walls of the map say where such twins are, whatever the robot saw: this module
 takes the wall cells within ``radius_m`` of a place, turns them by every ``angle_step_deg`` and slides them over
 the map's walls (one FFT correlation per angle, at ``resolution_m``), and returns the poses where at least
 ``min_overlap`` of them land on walls there. A robot at a twin sees what it would see at the place, so the check
