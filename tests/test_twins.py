@@ -146,7 +146,7 @@ def test_a_place_reported_localized_is_not_moved_by_the_rival_check():
             estimate, at = (found, odom) if found is not None else (previous, odom)
             updates += 1
             if updates == 3:
-                filt._held = True
+                filt.ambiguity.held = True
     assert estimate is not None and np.hypot(*(estimate[:2] - (truth[-1, :2] - [12.0, 0.0]))) < 0.5
     assert filt.reading.status != "localized"
     assert any(np.hypot(h.x - truth[-1, 0], h.y - truth[-1, 1]) < 0.5 for h in filt.reading.hypotheses)

@@ -180,3 +180,14 @@ def weigh_modes(
     with np.errstate(divide="ignore", invalid="ignore"):
         scale = np.where(posterior_total > 0, target / posterior_total, 0.0)
     return posterior * scale[labels]
+
+
+@dataclass(frozen=True)
+class BeliefReading:
+    """What the filter's belief says of an estimate: its status, covariance (of the estimate's mode, about the
+    estimate) and the belief's heaviest modes."""
+
+    status: str
+    covariance: np.ndarray
+    hypotheses: tuple[Hypothesis, ...]
+    chosen: int = -1  # the estimate's mode in the belief (-1: none)

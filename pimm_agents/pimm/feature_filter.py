@@ -11,10 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from pimm_agents.corners.lookup import NearestCornerGrid
-from pimm_agents.localizer import Hypothesis
 from pimm_agents.particles.belief import (
     Belief,
     BeliefConfig,
+    BeliefReading,
     Confirmation,
     belief_status,
     compact_modes,
@@ -29,8 +29,8 @@ from pimm_agents.particles.kld import bin_keys, kld_sample_count
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
+from pimm_agents.pimm.ambiguity import AmbiguityCheck
 from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
-from pimm_agents.pimm.twins import MapTwins
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -120,26 +120,8 @@ class FeatureFilterConfig:
                 raise LocalizerError(f"{name} must be in [0, 1], got {getattr(self, name)}")
 
 
-@dataclass(frozen=True)
-class BeliefReading:
-    """What the filter's belief says of an estimate: its status, covariance (of the estimate's mode, about the
-    estimate) and the belief's heaviest modes."""
-
-    status: str
-    covariance: np.ndarray
-    hypotheses: tuple[Hypothesis, ...]
-    chosen: int = -1  # the estimate's mode in the belief (-1: none)
-
-
 #: Columns of the feature array the filter takes: x, y, theta (robot frame), sigma_pos (m), sigma_theta (rad).
 FEATURE_COLUMNS = ("x", "y", "theta", "sigma_pos", "sigma_theta")
-
-
-def rival_hypothesis(place: np.ndarray) -> Hypothesis:
-    """A rival place as a hypothesis: weight 0 (the filter holds no particles there), 0.5 m and 10 deg (1 sigma)."""
-    return Hypothesis(
-        float(place[0]), float(place[1]), float(place[2]), 0.0, np.diag([0.25, 0.25, np.radians(10.0) ** 2])
-    )
 
 
 class FeatureFilter:
@@ -169,18 +151,10 @@ class FeatureFilter:
         self.ess = float(config.num_particles)
         self.informed = False  # whether the last measurement update had anything to weigh with
         self.belief: Belief | None = None  # the modes after the last measurement update
-        #: look-alike places the recent scans cannot tell from the estimate (rivals.py): with a tempered wall field
-        self.rivals = None
+        #: whether the estimate is the only place the scans allow (ambiguity.py): with a tempered wall field
+        self.ambiguity = None
         if rivals.enabled and wall_field is not None and wall_temperature is not None:
-            self.rivals = RivalTracker(wall_field, occupancy.free, wall_temperature, rivals)
-        self.twins = None
-        if self.rivals is not None and wall_field is not None and rivals.twins.enabled:
-            self.twins = MapTwins(occupancy, rivals.twins)
-        self._twin_updates = 0  # localized updates since the twins were last offered
-        #: whether the estimate has been reported localized since it last jumped: a held place is not moved by the
-        #: rival check (its margins over 150 scans are not enough to overturn a place the scans confirmed)
-        self._held = False
-        self._rivals_odom: np.ndarray | None = None
+            self.ambiguity = AmbiguityCheck(occupancy, wall_field, wall_temperature, rivals)
         self.reading = BeliefReading("lost", np.eye(3), ())
         self._odom_ref: np.ndarray | None = None
 
@@ -202,11 +176,8 @@ class FeatureFilter:
         self._odom_ref = None
         self.belief = None
         self.confirmation.reset()
-        if self.rivals is not None:
-            self.rivals.reset()
-        self._rivals_odom = None
-        self._twin_updates = 0
-        self._held = False
+        if self.ambiguity is not None:
+            self.ambiguity.reset()
         self.reading = BeliefReading("lost", self.covariance(self.best_mean()), ())
 
     # ------------------------------------------------------------------ motion
@@ -442,12 +413,16 @@ class FeatureFilter:
         pose = estimate if estimate is not None else previous
         reading = self.read(pose)
         jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
-        if self.rivals is not None and self._odom_ref is not None:
-            reading, moved_to = self.check_rivals(pose, reading, wall_points, previous if jumped else None, suggestions)
+        if self.ambiguity is not None and self._odom_ref is not None:
+            left = previous if jumped else None
+            reading, moved_to = self.ambiguity.check(
+                self, self._odom_ref, pose, reading, wall_points, left, suggestions
+            )
             if moved_to is not None:
                 estimate, jumped = moved_to, True
         self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
-        self._held = (self._held and not jumped and self.reading.status != "lost") or self.reading.status == "localized"
+        if self.ambiguity is not None:
+            self.ambiguity.after(self.reading.status, jumped)
         self.resample_if_degenerate()
         if self.informed:
             self.inject(suggestions)
@@ -467,86 +442,10 @@ class FeatureFilter:
         cov = covariance_about(self.belief.modes[chosen], pose) if chosen >= 0 else self.covariance(pose)
         return BeliefReading(status, cov, hypotheses, chosen)
 
-    def check_rivals(
-        self,
-        pose: np.ndarray | None,
-        reading: BeliefReading,
-        wall_points: np.ndarray | None,
-        left: np.ndarray | None,
-        suggestions: np.ndarray,
-    ) -> tuple[BeliefReading, np.ndarray | None]:
-        """Keep this update's wall points, carry and re-score the rivals, look at new candidates (the other
-        compact modes, the heaviest particles away from the estimate, each fingerprint suggestion at the
-        heading the newest scans fit best and, for a localized reading, the map's twins of the place); a
-        localized reading with a rival standing becomes ambiguous, and the rivals join the hypotheses. A rival
-        that has decisively led an estimate not held since its last jump takes its mode (``move_mode``): the
-        second value returned is then the new estimate, else None. When the estimate jumped to another place,
-        away from ``left`` (the last estimate, carried to now), the kept scans are dropped, since those before a
-        kidnap link to nothing, and ``left`` is held as a rival until the scans since the jump rule it out (it is
-        where the robot still is if the jump was wrong). When no place is held (lost), scans and rivals are
-        dropped."""
-        assert self.rivals is not None and self._odom_ref is not None
-        odom = self._odom_ref
-        if self._rivals_odom is not None:
-            self.rivals.move(self._rivals_odom, odom)
-        self._rivals_odom = odom.copy()
-        if reading.status == "lost":
-            self.rivals.reset()
-        elif left is not None and pose is not None:
-            self.rivals.reset()
-            self.rivals.keep(left)
-        if pose is None or self.belief is None or reading.status == "lost":
-            return reading, None
-        if wall_points is not None:
-            self.rivals.add_scan(odom, np.asarray(wall_points, dtype=float).reshape(-1, 2))
-        chosen = reading.chosen
-        modes = np.array([m.mean for k, m in enumerate(self.belief.modes) if k != chosen and m.weight > 0])
-        modes = modes.reshape(-1, 3)
-        tried = self.rivals.config.candidates  # the heaviest other modes are tried first, whatever their fit
-        outside = np.flatnonzero(self.belief.particle_mode != chosen)
-        heaviest = outside[np.argsort(-self.weights[outside])[: 5 * self.rivals.config.candidates]]
-        suggested = self.rivals.headings(np.asarray(suggestions, dtype=float).reshape(-1, 2), odom)
-        candidates = np.vstack([modes[tried:], suggested, self.particles[heaviest]])
-        first = modes[:tried]
-        if self.twins is not None and reading.status == "localized":
-            # the map's look-alikes of a place about to be called localized, and every few updates while it is
-            self._twin_updates += 1
-            if self.reading.status != "localized" or self._twin_updates >= self.twins.config.every_updates:
-                first = np.vstack([first, self.twins.of(pose)])
-                self._twin_updates = 0
-        if self.rivals.update(pose, odom, candidates, first, lead=not self._held) == 0:
-            if reading.status == "localized" and not self.rivals.settled:
-                return BeliefReading("ambiguous", reading.covariance, reading.hypotheses, chosen), None
-            return reading, None
-        decisive = self.rivals.decisive() if self.rivals.config.switch and not self._held else None
-        if decisive is not None:
-            return self.move_mode(pose, chosen, self.rivals.rivals[decisive].copy())
-        rivals = tuple(rival_hypothesis(r) for r in self.rivals.rivals)
-        status = "ambiguous" if reading.status == "localized" else reading.status
-        return BeliefReading(status, reading.covariance, reading.hypotheses + rivals, chosen), None
-
-    def move_mode(self, pose: np.ndarray, chosen: int, target: np.ndarray) -> tuple[BeliefReading, np.ndarray]:
-        """Move the particles of the estimate's mode (``chosen``; those within 1 m and 30 deg of ``pose`` if it
-        is in none) rigidly from ``pose`` to ``target``, a rival the kept scans favour decisively; the place left
-        is held as a rival until they rule it out. Returns the reading there (``ambiguous``) and ``target``."""
-        assert self.rivals is not None and self.belief is not None
-        if chosen >= 0:
-            members = self.belief.particle_mode == chosen
-        else:
-            d = self.particles - pose
-            members = (np.hypot(d[:, 0], d[:, 1]) <= 1.0) & (np.abs(wrap_angle(d[:, 2])) <= np.radians(30.0))
-        turn = wrap_angle(target[2] - pose[2])
-        c, s = np.cos(turn), np.sin(turn)
-        d = self.particles[members, :2] - pose[:2]
-        self.particles[members, 0] = target[0] + c * d[:, 0] - s * d[:, 1]
-        self.particles[members, 1] = target[1] + s * d[:, 0] + c * d[:, 1]
-        self.particles[members, 2] = wrap_angle(self.particles[members, 2] + turn)
-        self.rivals.forget()
-        self.rivals.keep(pose)
-        self.belief = read_belief(self.particles, self.weights, self.belief_config)
-        reading = self.read(target)
-        left = rival_hypothesis(pose)
-        return BeliefReading("ambiguous", reading.covariance, (*reading.hypotheses, left), reading.chosen), target
+    @property
+    def rivals(self) -> RivalTracker | None:
+        """The rival check's tracker (its kept scans and standing rivals), if the filter has one."""
+        return None if self.ambiguity is None else self.ambiguity.tracker
 
     def weight_near(self, pose: np.ndarray, radius: float, max_angle: float = np.radians(30.0)) -> float:
         """Total weight of the particles within ``radius`` and ``max_angle`` of ``pose``."""

@@ -15,7 +15,7 @@ does not flicker in and out). While any rival stands, and until ``settle_scans``
 ``ambiguous``. The filter is not fed from the check (particles injected at every rival made the estimate wander
 between twins, docs/design.md), with one exception: a rival the scans favour over the estimate by
 ``drop_log_ratio``, both fitted to them to convergence, at ``switch_updates`` updates in a row takes the mode
-of an estimate not reported localized since it last jumped (``switch``; the filter moves it, feature_filter.py):
+of an estimate not reported localized since it last jumped (``switch``; ambiguity.py moves it):
 by the check's own rule the estimate would be ruled out were the two the other way round.
 """
 

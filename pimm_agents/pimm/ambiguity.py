@@ -1,0 +1,142 @@
+"""Whether the estimate is the only place the scans allow: the rival check, the map's twins and the one case in
+which the check moves the estimate. The feature filter (feature_filter.py) asks it once per measurement update.
+
+The rival check (rivals.py) keeps the recent scans and the look-alike places they cannot rule out; a localized
+reading with one standing becomes ``ambiguous``. Candidates are the filter's other modes, its best particles away
+from the estimate, the fingerprint suggestions and, for a localized reading, the map's own twins of the place
+(twins.py). A rival that leads an estimate never reported localized since its last jump decisively
+(``RivalConfig.switch``) takes the estimate's mode. Whether the estimate is held is this module's state:
+``after`` is told each update's reported status.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pimm_agents.localizer import Hypothesis
+from pimm_agents.particles.belief import BeliefReading, read_belief
+from pimm_agents.particles.likelihood_field import LikelihoodField
+from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
+from pimm_agents.pimm.twins import MapTwins
+from pimm_env.geometry import wrap_angle
+from pimm_env.mapping.occupancy import OccupancyGrid
+
+
+def rival_hypothesis(place: np.ndarray) -> Hypothesis:
+    """A rival place as a hypothesis: weight 0 (the filter holds no particles there), 0.5 m and 10 deg (1 sigma)."""
+    return Hypothesis(
+        float(place[0]), float(place[1]), float(place[2]), 0.0, np.diag([0.25, 0.25, np.radians(10.0) ** 2])
+    )
+
+
+class AmbiguityCheck:
+    """The rival check of one filter (``check``, called with the filter after its measurement update), with the
+    map's twins and whether the estimate is held (reported localized since it last jumped)."""
+
+    def __init__(
+        self, occupancy: OccupancyGrid, wall_field: LikelihoodField, temperature: float, config: RivalConfig
+    ) -> None:
+        #: look-alike places the recent scans cannot tell from the estimate (rivals.py)
+        self.tracker = RivalTracker(wall_field, occupancy.free, temperature, config)
+        self.twins = MapTwins(occupancy, config.twins) if config.twins.enabled else None
+        self._odom: np.ndarray | None = None  # the odometry the rivals were last carried to
+        self._twin_updates = 0  # localized updates since the twins were last offered
+        #: whether the estimate has been reported localized since it last jumped: a held place is not moved by the
+        #: rival check (its margins over 150 scans are not enough to overturn a place the scans confirmed)
+        self.held = False
+
+    def reset(self) -> None:
+        self.tracker.reset()
+        self._odom = None
+        self._twin_updates = 0
+        self.held = False
+
+    def after(self, status: str, jumped: bool) -> None:
+        """Note the status the filter reported for this update, and whether its estimate jumped."""
+        self.held = (self.held and not jumped and status != "lost") or status == "localized"
+
+    def check(
+        self,
+        filt: Any,
+        odom: np.ndarray,
+        pose: np.ndarray | None,
+        reading: BeliefReading,
+        wall_points: np.ndarray | None,
+        left: np.ndarray | None,
+        suggestions: np.ndarray,
+    ) -> tuple[BeliefReading, np.ndarray | None]:
+        """With ``filt`` just weighed and ``odom`` its odometry now: keep this update's wall points, carry and
+        re-score the rivals, look at new candidates (the other compact modes, the heaviest particles away from the
+        estimate, each fingerprint suggestion at the heading the newest scans fit best and, for a localized
+        reading, the map's twins of the place); a
+        localized reading with a rival standing becomes ambiguous, and the rivals join the hypotheses. A rival
+        that has decisively led an estimate not held since its last jump takes its mode (``move_mode``): the
+        second value returned is then the new estimate, else None. When the estimate jumped to another place,
+        away from ``left`` (the last estimate, carried to now), the kept scans are dropped, since those before a
+        kidnap link to nothing, and ``left`` is held as a rival until the scans since the jump rule it out (it is
+        where the robot still is if the jump was wrong). When no place is held (lost), scans and rivals are
+        dropped."""
+        if self._odom is not None:
+            self.tracker.move(self._odom, odom)
+        self._odom = odom.copy()
+        if reading.status == "lost":
+            self.tracker.reset()
+        elif left is not None and pose is not None:
+            self.tracker.reset()
+            self.tracker.keep(left)
+        if pose is None or filt.belief is None or reading.status == "lost":
+            return reading, None
+        if wall_points is not None:
+            self.tracker.add_scan(odom, np.asarray(wall_points, dtype=float).reshape(-1, 2))
+        chosen = reading.chosen
+        modes = np.array([m.mean for k, m in enumerate(filt.belief.modes) if k != chosen and m.weight > 0])
+        modes = modes.reshape(-1, 3)
+        tried = self.tracker.config.candidates  # the heaviest other modes are tried first, whatever their fit
+        outside = np.flatnonzero(filt.belief.particle_mode != chosen)
+        heaviest = outside[np.argsort(-filt.weights[outside])[: 5 * self.tracker.config.candidates]]
+        suggested = self.tracker.headings(np.asarray(suggestions, dtype=float).reshape(-1, 2), odom)
+        candidates = np.vstack([modes[tried:], suggested, filt.particles[heaviest]])
+        first = modes[:tried]
+        if self.twins is not None and reading.status == "localized":
+            # the map's look-alikes of a place about to be called localized, and every few updates while it is
+            self._twin_updates += 1
+            if filt.reading.status != "localized" or self._twin_updates >= self.twins.config.every_updates:
+                first = np.vstack([first, self.twins.of(pose)])
+                self._twin_updates = 0
+        if self.tracker.update(pose, odom, candidates, first, lead=not self.held) == 0:
+            if reading.status == "localized" and not self.tracker.settled:
+                return BeliefReading("ambiguous", reading.covariance, reading.hypotheses, chosen), None
+            return reading, None
+        decisive = self.tracker.decisive() if self.tracker.config.switch and not self.held else None
+        if decisive is not None:
+            return self.move_mode(filt, pose, chosen, self.tracker.rivals[decisive].copy())
+        rivals = tuple(rival_hypothesis(r) for r in self.tracker.rivals)
+        status = "ambiguous" if reading.status == "localized" else reading.status
+        return BeliefReading(status, reading.covariance, reading.hypotheses + rivals, chosen), None
+
+    def move_mode(
+        self, filt: Any, pose: np.ndarray, chosen: int, target: np.ndarray
+    ) -> tuple[BeliefReading, np.ndarray]:
+        """Move the particles of the estimate's mode (``chosen``; those within 1 m and 30 deg of ``pose`` if it
+        is in none) rigidly from ``pose`` to ``target``, a rival the kept scans favour decisively; the place left
+        is held as a rival until they rule it out. Returns the reading there (``ambiguous``) and ``target``."""
+        assert filt.belief is not None
+        if chosen >= 0:
+            members = filt.belief.particle_mode == chosen
+        else:
+            d = filt.particles - pose
+            members = (np.hypot(d[:, 0], d[:, 1]) <= 1.0) & (np.abs(wrap_angle(d[:, 2])) <= np.radians(30.0))
+        turn = wrap_angle(target[2] - pose[2])
+        c, s = np.cos(turn), np.sin(turn)
+        d = filt.particles[members, :2] - pose[:2]
+        filt.particles[members, 0] = target[0] + c * d[:, 0] - s * d[:, 1]
+        filt.particles[members, 1] = target[1] + s * d[:, 0] + c * d[:, 1]
+        filt.particles[members, 2] = wrap_angle(filt.particles[members, 2] + turn)
+        self.tracker.forget()
+        self.tracker.keep(pose)
+        filt.belief = read_belief(filt.particles, filt.weights, filt.belief_config)
+        reading = filt.read(target)
+        left = rival_hypothesis(pose)
+        return BeliefReading("ambiguous", reading.covariance, (*reading.hypotheses, left), reading.chosen), target
