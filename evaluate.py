@@ -298,25 +298,56 @@ def perception(
 
 @command(world_app, "import")
 def world_import(
-    source: Path = typer.Argument(..., help="a map_server .yaml (+ .pgm/.png) or a mesh (.obj .ply .stl .glb ...)"),
+    source: Path = typer.Argument(
+        ...,
+        help="a map_server .yaml (+ .pgm/.png), a Gazebo world (.world .sdf) or a mesh (.obj .ply .stl .glb .dae ...)",
+    ),
     name: str = typer.Option(..., help="the world's name: it is written to maps/NAME/"),
-    ceiling_height: float = typer.Option(3.0, help="ceiling height (m) of a floor plan"),
+    ceiling_height: float | None = typer.Option(
+        None,
+        help="a floor plan's ceiling height (m; default 3); for a mesh or Gazebo world, add a flat ceiling this high",
+    ),
     ceilings: Path | None = typer.Option(None, help="YAML of areas with other ceiling heights"),
     furnish: int = typer.Option(0, min=0, help="mapped furniture pieces to add to a floor plan"),
     seed: int = typer.Option(0, help="seed of the furniture, the routes and the fingerprint headings"),
     up_axis: str = typer.Option("z", help="a mesh's up axis: z, or y (the map point of (x, y, z) is (x, -z, y))"),
+    rules: Path | None = typer.Option(None, help="YAML list of {match, class} name rules; they win over the defaults"),
+    model_path: list[Path] = typer.Option([], help="folders of Gazebo models (model://NAME); also GAZEBO_MODEL_PATH"),
+    visual: bool = typer.Option(False, help="a Gazebo world's visual geometry instead of its collision geometry"),
     routes: int = typer.Option(4, min=1, help="routes to generate"),
     maps_dir: Path | None = typer.Option(None, help="where worlds live (default: the project's maps/)"),
     prepare: bool = typer.Option(True, help="also prepare the world (maps, fingerprints, routes)"),
 ) -> None:
-    """Write maps/NAME/world.yaml from a ROS map or a mesh, then prepare it."""
-    from pimm_env.importers.world_import import import_world
-    from pimm_env.world.files import MAPS_DIR
+    """Write maps/NAME/world.yaml from a ROS map, a mesh or a Gazebo world, then prepare it."""
+    import shutil
 
-    path = import_world(source, name, maps_dir or MAPS_DIR, ceiling_height, ceilings, furnish, seed, up_axis=up_axis)
-    typer.echo(f"wrote {path}")
+    from pimm_env.importers.mesh_checks import describe_world
+    from pimm_env.importers.world_import import import_world, read_rules
+    from pimm_env.world.files import MAPS_DIR, load_world
+
+    folder = (maps_dir or MAPS_DIR) / name
+    existed = folder.exists()
+    path = import_world(
+        source,
+        name,
+        maps_dir or MAPS_DIR,
+        ceiling_height,
+        ceilings,
+        furnish,
+        seed,
+        rules=read_rules(rules) if rules else None,
+        up_axis=up_axis,
+        model_paths=model_path,
+        geometry="visual" if visual else "collision",
+    )
+    typer.echo(f"wrote {path}\n{describe_world(load_world(path))}")
     if prepare:
-        world_prepare(name=str(path), routes=routes, seed=seed, spacing=0.5, new_routes=True)
+        try:
+            world_prepare(name=str(path), routes=routes, seed=seed, spacing=0.5, new_routes=True)
+        except BaseException:
+            if not existed:
+                shutil.rmtree(folder, ignore_errors=True)
+            raise
 
 
 @command(world_app, "prepare")

@@ -1,8 +1,15 @@
-"""``world import``: a ROS map or a building mesh written as ``maps/NAME/world.yaml`` (and what it needs)."""
+"""``world import``: a ROS map, a building mesh or a Gazebo SDF world written as ``maps/NAME/world.yaml``.
+
+A mesh is copied beside the world file; an SDF world is flattened (:mod:`pimm_env.importers.sdf_world`) into
+one GLB file whose objects keep the models' scoped names. Objects get their classes from name rules (the
+defaults below, then a user's ``--rules`` file, whose rules win), and the import checks what it made
+(:mod:`pimm_env.importers.mesh_checks`). A failed import leaves no folder behind.
+"""
 
 from __future__ import annotations
 
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -13,43 +20,65 @@ from pimm_env.importers.vectorize import vectorize
 from pimm_env.mapping.map_server import read_ros_map
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off", ".dae")
-#: Default name-to-class rules for meshes, first match wins (fnmatch, case-sensitive: both spellings listed).
+SDF_SUFFIXES = (".world", ".sdf")
+#: Default name-to-class rules for meshes: whole words, the last matching rule wins, ``*`` when none matches
+#: (see "Name rules" in :mod:`pimm_env.world.mesh`). Wall comes last: ``floor_01_walls_1`` is a wall.
 DEFAULT_MESH_RULES = [
-    {"match": pattern, "class": semantic}
-    for semantic, words in (
-        ("ceiling", ("ceil", "Ceil", "CEIL", "Cealing")),
-        ("floor", ("floor", "Floor", "FLOOR")),
-        ("wall", ("wall", "Wall", "WALL")),
-    )
-    for pattern in (f"*{word}*" for word in words)
-] + [{"match": "*", "class": "clutter"}]
+    {"match": "*", "class": "clutter"},
+    {"match": "ceiling", "class": "ceiling"},
+    {"match": "cealing", "class": "ceiling"},
+    {"match": "floor", "class": "floor"},
+    {"match": "wall", "class": "wall"},
+]
+
+
+#: A floor plan's ceiling height (m) when none is given.
+PLAN_CEILING_HEIGHT = 3.0
 
 
 def import_world(
     source: Path,
     name: str,
     maps_dir: Path,
-    ceiling_height: float = 3.0,
+    ceiling_height: float | None = None,
     ceilings: Path | None = None,
     furnish_count: int = 0,
     seed: int = 0,
     rules: list[dict[str, str]] | None = None,
     up_axis: str = "z",
+    model_paths: Sequence[Path] = (),
+    geometry: str = "collision",
 ) -> Path:
-    """Write ``maps_dir/name/world.yaml`` from a map_server ``.yaml`` or a mesh file; returns its path."""
+    """Write ``maps_dir/name/world.yaml`` from a map_server ``.yaml``, a mesh or an SDF world; returns its path.
+
+    ``ceiling_height``: a floor plan's ceiling (default 3 m); for a mesh or SDF world, a flat ceiling added that
+    high above the floor (none is added when not given). ``rules`` are added after the defaults and win."""
     source = Path(source)
     if not source.is_file():
         raise MapFileError(f"{source}: no such file")
-    if ceiling_height <= 0:
+    if ceiling_height is not None and ceiling_height <= 0:
         raise MapFileError(f"--ceiling-height: expected a positive height (m), got {ceiling_height}")
     folder = Path(maps_dir) / name
-    if source.suffix.lower() in (".yaml", ".yml"):
-        spec = _from_ros_map(source, name, ceiling_height, ceilings, furnish_count, seed)
-    elif source.suffix.lower() in MESH_SUFFIXES:
-        spec = _from_mesh(source, name, folder, rules or DEFAULT_MESH_RULES, up_axis)
-    else:
-        raise MapFileError(f"{source}: expected a map_server .yaml or a mesh ({', '.join(MESH_SUFFIXES)})")
-    return write_world(spec, folder / "world.yaml")
+    existed = folder.exists()
+    suffix = source.suffix.lower()
+    all_rules = DEFAULT_MESH_RULES + list(rules or [])
+    try:
+        if suffix in (".yaml", ".yml"):
+            spec = _from_ros_map(source, name, ceiling_height or PLAN_CEILING_HEIGHT, ceilings, furnish_count, seed)
+        elif suffix in MESH_SUFFIXES:
+            spec = _from_mesh(source, name, folder, all_rules, up_axis, ceiling_height)
+        elif suffix in SDF_SUFFIXES:
+            spec = _from_sdf(source, name, folder, all_rules, ceiling_height, model_paths, geometry)
+        else:
+            raise MapFileError(
+                f"{source}: expected a map_server .yaml, an SDF world ({', '.join(SDF_SUFFIXES)}) "
+                f"or a mesh ({', '.join(MESH_SUFFIXES)})"
+            )
+        return write_world(spec, folder / "world.yaml")
+    except BaseException:
+        if not existed:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise
 
 
 def _from_ros_map(
@@ -65,28 +94,89 @@ def _from_ros_map(
     return spec
 
 
-def _from_mesh(source: Path, name: str, folder: Path, rules: list[dict[str, str]], up_axis: str) -> dict[str, Any]:
-    from pimm_env.world.mesh import world_from_mesh_spec
-
+def _from_mesh(
+    source: Path, name: str, folder: Path, rules: list[dict[str, str]], up_axis: str, ceiling: float | None
+) -> dict[str, Any]:
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / source.name
     if source.resolve() != target.resolve():
         shutil.copyfile(source, target)
+    return _mesh_spec(source.name, name, folder, rules, up_axis, ceiling, source)
+
+
+def _from_sdf(
+    source: Path,
+    name: str,
+    folder: Path,
+    rules: list[dict[str, str]],
+    ceiling: float | None,
+    model_paths: Sequence[Path],
+    geometry: str,
+) -> dict[str, Any]:
+    import trimesh
+
+    from pimm_env.importers.sdf_world import read_sdf_world
+
+    meshes = read_sdf_world(source, model_paths, geometry)
+    scene = trimesh.Scene()
+    for key, mesh in meshes.items():
+        scene.add_geometry(mesh, node_name=key, geom_name=key)
+    folder.mkdir(parents=True, exist_ok=True)
+    scene.export(folder / f"{source.stem}.glb")
+    return _mesh_spec(f"{source.stem}.glb", name, folder, rules, "z", ceiling, source)
+
+
+def _mesh_spec(
+    mesh: str,
+    name: str,
+    folder: Path,
+    rules: list[dict[str, str]],
+    up_axis: str,
+    ceiling: float | None,
+    source: Path,
+) -> dict[str, Any]:
+    from pimm_env.importers.mesh_checks import check_mesh_world, floor_height
+    from pimm_env.world.mesh import world_from_mesh_spec
+
     spec: dict[str, Any] = {
         "format": "pimm-mesh-world/1",
         "name": name,
-        "mesh": source.name,
+        "mesh": mesh,
         "up_axis": up_axis,
         "rules": rules,
         "occupancy": ["wall", "clutter"],
     }
     world = world_from_mesh_spec(spec, folder / "world.yaml")  # refuses a mesh with no floor, naming the file
-    spec["floor_z"] = round(_floor_top(world), 4)
+    spec["floor_z"] = round(floor_height(world), 4)
+    left_out = check_mesh_world(world, spec["floor_z"], source, ceiling is not None)
+    if left_out:
+        spec["left_out"] = left_out
+    if ceiling is not None:
+        spec["ceiling_height"] = ceiling
     return spec
 
 
-def _floor_top(world: Any) -> float:
-    """The walkable height: the top of the floor geometry."""
-    from pimm_env.world.semantics import SemanticClass
+def read_rules(path: Path) -> list[dict[str, str]]:
+    """A rules file: a YAML list of ``{match: PATTERN_OR_WORD, class: CLASS}`` (or ``{rules: [...]}``)."""
+    import yaml
 
-    return max(e.shape.z_range[1] for e in world.elements if e.semantic == SemanticClass.FLOOR)
+    from pimm_env.world.semantics import parse_class
+
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise MapFileError(f"{path}: cannot read the rules file: {error}") from None
+    if isinstance(data, dict):
+        data = data.get("rules")
+    if not isinstance(data, list) or not data:
+        raise MapFileError(f"{path}: expected a list of {{match: PATTERN, class: CLASS}}, got {data!r}")
+    rules = []
+    for i, rule in enumerate(data):
+        if not isinstance(rule, dict) or not isinstance(rule.get("match"), str) or "class" not in rule:
+            raise MapFileError(f"{path}: rules[{i}]: expected {{match: PATTERN, class: CLASS}}, got {rule!r}")
+        try:
+            parse_class(str(rule["class"]))
+        except ValueError as error:
+            raise MapFileError(f"{path}: rules[{i}].class: {error}") from None
+        rules.append({"match": rule["match"], "class": str(rule["class"])})
+    return rules

@@ -1,7 +1,8 @@
 """The corner map: every place where two walls meet under a ceiling (thesis 3.1.2, "Feature Map").
 
-The thesis drew its ten corners by hand; here they are derived from the world. For each ceiling height,
-the walls are cut just below the ceiling on a fine grid, and every grid vertex where the four cells around
+The thesis drew its ten corners by hand; here they are derived from the world. For each ceiling height (see
+:mod:`pimm_env.mapping.ceilings`: any ceiling's shape), the walls are cut just below the ceiling on a fine grid
+(a mesh wall's hollow inside filled), and every grid vertex where the four cells around
 it hold one odd cell out (three wall cells and a free one: an inside corner; one wall cell and three free:
 an outside corner) is a candidate. A candidate is kept when both wall faces run straight for at least
 ``min_face`` metres (so wall ends at doorways do not count), the ceiling covers it, and it faces a named
@@ -17,6 +18,7 @@ import numpy as np
 from scipy import ndimage
 
 from pimm_env.errors import WorldError
+from pimm_env.mapping.ceilings import ceiling_cover, ceiling_levels
 from pimm_env.world.files import World
 from pimm_env.world.grid import GridSpec
 from pimm_env.world.semantics import SemanticClass
@@ -28,6 +30,7 @@ FORMAT = "pimm-corners/1"
 @dataclass(frozen=True)
 class CornerMapConfig:
     resolution: float = 0.05
+    shell_fill: float = 0.25  # a mesh wall's hollow inside, up to this half-width (m), counts as wall
     below_ceiling: float = 0.10  # height below the ceiling's underside at which walls are cut
     min_face: float = 0.30  # both faces must run straight this far from the corner
     area_margin: float = 0.30  # how far outside a named area a corner may lie
@@ -125,12 +128,28 @@ def _raster_corner_map(world: World, config: CornerMapConfig) -> CornerMap:
     grid = world.grid(config.resolution)
     in_area = ndimage.distance_transform_edt(~world.area_mask(grid)) * grid.resolution <= config.area_margin
     found: list[tuple[float, float, float, float]] = []
-    for height in world.ceiling_heights():
-        walls = world.footprint(grid, height - config.below_ceiling, classes=[SemanticClass.WALL])
-        ceiling = world.footprint(grid, height + 0.01, classes=[SemanticClass.CEILING])
+    for height in ceiling_levels(world):
+        walls = fill_shells(
+            world.footprint(grid, height - config.below_ceiling, classes=[SemanticClass.WALL]), grid, config
+        )
+        ceiling = ceiling_cover(world, grid, height)
         for x, y, theta in _corners_of_mask(walls, ceiling & in_area, grid, config):
             found.append((x, y, height, theta))
     return _as_map(found)
+
+
+def fill_shells(walls: np.ndarray, grid: GridSpec, config: CornerMapConfig) -> np.ndarray:
+    """A mesh wall's cross-section is its outline (the solid is a hollow shell); fill the thin enclosed
+    regions (no cell farther than ``shell_fill`` from the outline), so a wall's inside gives no corners. Rooms,
+    wider than that, stay free."""
+    holes = ndimage.binary_fill_holes(walls) & ~walls
+    if not holes.any():
+        return walls
+    labels, count = ndimage.label(holes)
+    depth = ndimage.distance_transform_edt(holes) * grid.resolution
+    deepest = ndimage.maximum(depth, labels, index=np.arange(1, count + 1))
+    thin = np.flatnonzero(np.asarray(deepest) <= config.shell_fill) + 1
+    return walls | np.isin(labels, thin)
 
 
 def _corners_of_mask(

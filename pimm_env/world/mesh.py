@@ -11,17 +11,26 @@ Mesh world file::
     mesh: ../../../shared/data/iilab/iilab.obj   # relative to this file: .obj, .ply, .stl, .glb, .gltf, ...
     up_axis: y                 # y: a vertex (x, y, z) of the file is the map point (x, -z, y); or z
     floor_z: 0.30
-    rules:                     # first match wins; fnmatch patterns on the OBJ object names
+    rules:                     # see "Name rules" below
       - {match: "Cealing*", class: ceiling}
       - {match: "Floor", class: floor}
       - {match: "Wall*", class: wall}
       - {match: "*", class: clutter}
     occupancy: [wall, clutter] # classes drawn into the occupancy map
+    left_out: [name, ...]      # optional: objects not taken into the world (set by the import, see mesh_checks)
+    ceiling_height: 2.5        # optional: add a flat ceiling this high above floor_z over the floor's extent
     areas: {...}               # optional named polygons, as in a world file; default: the floor's outline
+
+Name rules: a ``match`` with a wildcard (``*?[``) is an fnmatch pattern on the whole object name
+(case-sensitive); a plain word matches names holding that word, whole and in any case, alone or plural
+(``wall`` matches ``HouseWallB_01`` and ``floor_01_walls_1``, not ``Wallpaper``; words split at ``_``, ``-``,
+``.``, ``:``, digits and camelCase). Of the rules that match a name, the last specific one wins; a
+match-everything pattern (``*``) applies only when no other rule matches.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from fnmatch import fnmatchcase
 from pathlib import Path
@@ -33,7 +42,10 @@ from pimm_env.errors import MissingFileError, WorldError, WorldFileError
 from pimm_env.world.model import Element, World
 from pimm_env.world.reader import FieldReader
 from pimm_env.world.semantics import SemanticClass, parse_class
-from pimm_env.world.shapes import Mesh
+from pimm_env.world.shapes import Box, Mesh
+
+_WILDCARDS = re.compile(r"[*?\[]")
+_WORDS = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|[0-9]+")
 
 
 def read_obj(path: Path, up_axis: str = "z") -> dict[str, Mesh]:
@@ -101,11 +113,26 @@ def read_mesh(path: Path, up_axis: str = "z") -> dict[str, Mesh]:
     return meshes
 
 
+def name_words(name: str) -> list[str]:
+    """The words of an object name, lower case: ``HouseWallB_01`` -> ``house wall b 01``."""
+    return [w.lower() for w in _WORDS.findall(name)]
+
+
+def rule_matches(pattern: str, name: str) -> bool:
+    """Whether one rule's ``match`` matches a name (see "Name rules" in the module docstring)."""
+    if _WILDCARDS.search(pattern):
+        return fnmatchcase(name, pattern)
+    word = pattern.lower()
+    return any(w in (word, f"{word}s", f"{word}es") for w in name_words(name))
+
+
 def classify(name: str, rules: list[tuple[str, SemanticClass]]) -> SemanticClass | None:
-    for pattern, semantic in rules:
-        if fnmatchcase(name, pattern):
-            return semantic
-    return None
+    """The class of the last specific rule that matches ``name``; else of a generic (``*``) rule; else None."""
+    specific = [semantic for pattern, semantic in rules if pattern.strip("*") and rule_matches(pattern, name)]
+    if specific:
+        return specific[-1]
+    generic = [semantic for pattern, semantic in rules if not pattern.strip("*")]
+    return generic[-1] if generic else None
 
 
 def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
@@ -138,13 +165,18 @@ def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
         meshes = read_mesh(mesh_path, up_axis)
     except ValueError as exc:
         raise WorldFileError(path, "mesh", str(exc)) from None
+    left_out = set(data.get("left_out") or [])
     elements = []
     for name, mesh in meshes.items():
+        if name in left_out:
+            continue
         semantic = classify(name, rules)
         if semantic is None:
             raise WorldFileError(path, "rules", f"no rule matches object {name!r} of {mesh_path.name}")
         elements.append(Element(name, semantic, mesh, semantic in occupancy_classes))
     floor_z = float(data.get("floor_z", 0.0))
+    if data.get("ceiling_height") is not None:
+        elements.append(_added_ceiling(elements, floor_z, data["ceiling_height"], path))
     areas_raw = data.get("areas")
     if areas_raw:
         reader = FieldReader(path)
@@ -160,3 +192,23 @@ def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
         areas = {"all": np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])}
     name = data.get("name") or Path(path).parent.name
     return World(name=str(name), elements=elements, areas=areas, floor_z=floor_z, source=Path(path))
+
+
+def _added_ceiling(elements: list[Element], floor_z: float, height: Any, path: Path) -> Element:
+    """A flat 10 cm ceiling slab ``height`` above the floor over the floor objects' extent."""
+    try:
+        height = float(height)
+    except (TypeError, ValueError):
+        raise WorldFileError(path, "ceiling_height", f"expected a height in metres, got {height!r}") from None
+    if not 0.5 <= height <= 50.0:
+        raise WorldFileError(path, "ceiling_height", f"expected a height between 0.5 and 50 m, got {height}")
+    floors = [
+        e.shape.vertices[:, :2] for e in elements if e.semantic == SemanticClass.FLOOR and isinstance(e.shape, Mesh)
+    ]
+    if not floors:
+        raise WorldFileError(path, "ceiling_height", "the world has no floor object to lay the ceiling over")
+    pts = np.concatenate(floors)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    center = ((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, floor_z + height + 0.05)
+    half = ((hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, 0.05)
+    return Element("added_ceiling", SemanticClass.CEILING, Box(center, half), False)

@@ -1,0 +1,77 @@
+"""Ceilings of any shape give the corners under them: a closed slab, a one-sided plane, two heights."""
+
+import numpy as np
+import pytest
+
+from pimm_env.importers.world_import import import_world
+from pimm_env.mapping.ceilings import ceiling_levels
+from pimm_env.mapping.corner_map import derive_corner_map
+from pimm_env.world.files import load_world
+
+
+def _box(lo, hi):
+    import trimesh
+
+    return trimesh.creation.box(bounds=np.array([lo, hi], dtype=float))
+
+
+def _plane(z: float, x0: float, x1: float, y0: float, y1: float, facing_up: bool):
+    import trimesh
+
+    faces = [[0, 1, 2], [0, 2, 3]] if facing_up else [[0, 2, 1], [0, 3, 2]]
+    return trimesh.Trimesh([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], faces, process=False)
+
+
+def _two_rooms(tmp_path, ceilings: dict):
+    """Rooms 0..4 and 4.2..8 (x) by 0..4 (y), walls 0.2 thick and 4 m tall (hollow mesh shells)."""
+    import trimesh
+
+    scene = trimesh.Scene()
+    scene.add_geometry(_box([-0.5, -0.5, -0.1], [8.7, 4.7, 0.0]), node_name="Floor")
+    walls = [
+        ([-0.2, -0.2, 0], [8.2, 0, 4]),
+        ([-0.2, 4, 0], [8.2, 4.2, 4]),
+        ([-0.2, 0, 0], [0, 4, 4]),
+        ([4.0, 0, 0], [4.2, 4, 4]),
+        ([8.0, 0, 0], [8.2, 4, 4]),
+    ]
+    for k, (lo, hi) in enumerate(walls):
+        scene.add_geometry(_box(lo, hi), node_name=f"Wall_{k}")
+    for name, mesh in ceilings.items():
+        scene.add_geometry(mesh, node_name=name)
+    source = tmp_path / "rooms.glb"
+    scene.export(source)
+    return load_world(import_world(source, "rooms", tmp_path / "maps"))
+
+
+@pytest.mark.parametrize(
+    "ceiling",
+    [
+        {"Ceiling_slab": _box([-0.2, -0.2, 3.0], [8.2, 4.2, 3.2])},
+        {"Ceiling_plane": _plane(3.0, -0.2, 8.2, -0.2, 4.2, facing_up=True)},
+        {"Ceiling_plane": _plane(3.0, -0.2, 8.2, -0.2, 4.2, facing_up=False)},
+    ],
+    ids=["closed slab", "plane facing up", "plane facing down"],
+)
+def test_a_ceiling_of_any_shape_covers_every_room_corner(tmp_path, ceiling):
+    world = _two_rooms(tmp_path, ceiling)
+    assert ceiling_levels(world) == [3.0]
+    corners = derive_corner_map(world)
+    assert len(corners) == 8  # four per room, none inside the hollow walls
+    assert corners.z == pytest.approx(np.full(8, 3.0))
+
+
+def test_two_ceiling_heights_give_each_room_its_own(tmp_path):
+    world = _two_rooms(
+        tmp_path,
+        {
+            "Ceiling_low": _box([-0.2, -0.2, 2.5], [4.1, 4.2, 2.6]),
+            "Ceiling_high": _box([4.1, -0.2, 3.5], [8.2, 4.2, 3.6]),
+        },
+    )
+    assert ceiling_levels(world) == [2.5, 3.5]
+    corners = derive_corner_map(world)
+    low = corners.xy[np.isclose(corners.z, 2.5)]
+    high = corners.xy[np.isclose(corners.z, 3.5)]
+    assert len(low) == 4 and np.all(low[:, 0] < 4.1)
+    assert len(high) == 4 and np.all(high[:, 0] > 4.1)
