@@ -6,8 +6,11 @@
 3. Each ring is cut into straight runs (Douglas-Peucker at ``tolerance``), a line is fitted to the traced points
    of each run away from its ends, and each vertex is moved to where the lines of its two runs meet: a 30 deg
    staircase becomes one edge at 30 deg, and a corner lands on the walls' junction, not on a raster step.
-4. The structure is the map's rectangle minus the free space; its piece around the outside is the walls, the
-   pieces standing inside a room are walls when large and clutter (pillars, fixed furniture) when small.
+4. The structure is the map's rectangle minus the free space, kept only within ``structure_reach_m`` of an
+   occupied cell: unknown space (a SLAM map's unseen exterior) stays unknown, as map_server and nav2 read it,
+   while a wall drawn hollow (unknown or a free sliver between two lines) is solid. The piece of structure
+   around the outside is the walls, the pieces standing inside a room are walls when large and clutter
+   (pillars, fixed furniture) when small.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ class VectorizeConfig:
     island_clutter_m2: float = 4.0  # structure standing inside a room is clutter when smaller than this
     island_wall_length_m: float = 1.5  # ... unless it runs this long (a free-standing partition)
     margin_m: float = 0.5  # the structure's outer rectangle extends this far beyond the map
+    structure_reach_m: float = 0.3  # non-free cells farther than this from an occupied cell are unknown, not wall
 
 
 @dataclass(frozen=True)
@@ -152,10 +156,15 @@ def vectorize(raster: RasterMap, config: VectorizeConfig | None = None) -> Floor
     rows, cols = space.shape
     m = config.margin_m
     solid = box(-m, -m, cols * res + m, rows * res + m).difference(spaces)
+    near = ndimage.distance_transform_edt(~raster.occupied) * res <= config.structure_reach_m
+    if not near.all():
+        reach = shapely.unary_union([Polygon(o, h) for o, h in _traced_polygons(near, res)]).buffer(res)
+        solid = solid.intersection(reach)
     to_map = _map_transform(raster)
     walls, clutter = [], []
+    rooms = [Polygon(space.exterior) for space in _polygons(spaces)]
     for polygon in _polygons(solid):
-        touches_edge = polygon.bounds[0] <= -m + 1e-6 or polygon.bounds[1] <= -m + 1e-6
+        touches_edge = not any(room.contains(polygon) for room in rooms)  # not an island inside one room
         long_side = max(_sides(polygon.minimum_rotated_rectangle))
         if touches_edge or polygon.area >= config.island_clutter_m2 or long_side >= config.island_wall_length_m:
             walls.append(to_map(polygon))
