@@ -65,6 +65,8 @@ class RivalConfig:
     #: margins swing by tens of nats from one update to the next (a heading fitted a degree off carries 15 m of
     #: history 0.25 m), and a switch on one update's margin went back and forth between twins
     switch_updates: int = 10  # as many as a localized reading needs before it is reported (belief.confirm_updates)
+    #: the lead (summed log-likelihood, both fitted to convergence) at which a rival counts as ahead for the switch
+    switch_log_ratio: float = float(np.log(1000.0))
 
     def __post_init__(self) -> None:
         if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:
@@ -118,6 +120,9 @@ class RivalTracker:
         self.margins = np.zeros(0)
         self._leader: np.ndarray | None = None  # the rival ahead by drop_log_ratio, and for how many updates
         self._lead = 0
+        #: the estimate's place as fitted to the kept scans, carried and fitted a touch at every update like a
+        #: rival, so that rivals and estimate are scored alike (None: not fitted yet, or the estimate moved)
+        self._anchor: np.ndarray | None = None
 
     def reset(self) -> None:
         self._scans.clear()
@@ -129,6 +134,7 @@ class RivalTracker:
         self.rivals = np.zeros((0, 3))
         self.margins = np.zeros(0)
         self._leader, self._lead = None, 0
+        self._anchor = None
 
     @property
     def settled(self) -> bool:
@@ -147,6 +153,8 @@ class RivalTracker:
             self.rivals = carried(self.rivals, relative_motion(odom_then, odom_now))
         if self._leader is not None:
             self._leader = carried(self._leader[None, :], relative_motion(odom_then, odom_now))[0]
+        if self._anchor is not None:
+            self._anchor = carried(self._anchor[None, :], relative_motion(odom_then, odom_now))[0]
 
     def stack(self, odom_now: np.ndarray, last: int | None = None) -> _Stack:
         """The kept scans (the ``last`` newest) as one array of points, each with its scan's motion from now."""
@@ -282,12 +290,13 @@ class RivalTracker:
         # place a degree off in heading would carry back metres off along 15 m of history and lose a rival
         history = self.stack(odom_now)
         refined = self.refine(refined, history, rounds=1, steps=FINE_STEP)
-        scores = self.evidence(np.vstack([estimate[None, :], refined]), history)
-        margins = scores[1:] - scores[0]
+        anchor = self._fit_estimate(estimate, recent, history)
+        scores = self.evidence(np.vstack([estimate[None, :], anchor[None, :], refined]), history)
+        margins = scores[2:] - max(scores[0], scores[1])
         unique: list[int] = []
         limits = np.where(np.arange(len(refined)) < kept, c.drop_log_ratio, c.log_ratio)
         for i in np.argsort(-margins):
-            if margins[i] <= -limits[i] or self._known(refined[i], [estimate]):
+            if margins[i] <= -limits[i] or self._known(refined[i], [estimate, anchor]):
                 continue
             if not self._known(refined[i], [refined[j] for j in unique]):
                 unique.append(int(i))
@@ -300,6 +309,16 @@ class RivalTracker:
             self._leader, self._lead = None, 0
         return len(unique)
 
+    def _fit_estimate(self, estimate: np.ndarray, recent: _Stack, history: _Stack) -> np.ndarray:
+        """The estimate's place fitted as the rivals are: from where it was fitted last (carried), if the
+        estimate is still there, else fitted to the newest scans first; then a touch against all kept scans.
+        Scored unfitted against rivals fitted at every update since they stood, a right estimate trailed its
+        twins by up to 500 nats on a development building (gen-970 route 2) and stayed ``ambiguous``."""
+        if self._anchor is None or not self._known(self._anchor, [estimate]):
+            self._anchor = self.refine(estimate[None, :], recent, rounds=3)[0]
+        self._anchor = self.refine(self._anchor[None, :], history, rounds=1, steps=FINE_STEP)[0]
+        return self._anchor
+
     def _follow_leader(self, estimate: np.ndarray, history: _Stack) -> None:
         """Count the updates in a row at which the same rival (within ``distinct_m``, ``distinct_deg``) led the
         estimate by ``drop_log_ratio``, both fitted to the kept scans to convergence first (``DEEP_STEPS``). The
@@ -307,12 +326,12 @@ class RivalTracker:
         as the filter left it: enough for a status, which errs towards ``ambiguous``, but on a development
         building (gen-970 route 3) the right estimate then trailed its twins by 15-70 nats over 150 scans, and
         by 20-150 nats the other way once both were fitted to convergence."""
-        ahead = np.flatnonzero(np.nan_to_num(self.margins, nan=-np.inf) >= self.config.drop_log_ratio)
+        ahead = np.flatnonzero(np.nan_to_num(self.margins, nan=-np.inf) >= self.config.switch_log_ratio)
         best = self.rivals[ahead[np.argmax(self.margins[ahead])]] if len(ahead) else None
         if best is not None:
             fitted = self.refine(np.vstack([estimate, best]), history, rounds=30, steps=DEEP_STEPS)
             scores = self.evidence(fitted, history)
-            if scores[1] - scores[0] < self.config.drop_log_ratio:
+            if scores[1] - scores[0] < self.config.switch_log_ratio:
                 best = None
         if best is None:
             self._leader, self._lead = None, 0
