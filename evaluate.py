@@ -296,6 +296,22 @@ def perception(
     typer.echo(json.dumps(result) if json_out else text)
 
 
+@command(app, "passive-bound")
+def passive_bound_command(
+    world: str = typer.Argument(..., help="a world name or world file"),
+    scenarios: list[str] = typer.Option(["route_1"], "--scenarios", help="scenarios of that world"),
+    seed: int = typer.Option(0, help="the trial's seed"),
+) -> None:
+    """The first time the truth led every look-alike of it (a bound for any passive localizer's time to
+    localized), beside PIMM's, one JSON line per scenario ([benchmarks](docs/benchmarks.md))."""
+    from dataclasses import asdict
+
+    from pimm_agents.measurement.passive_bound import passive_bound
+
+    for scenario in scenarios:
+        typer.echo(json.dumps(asdict(passive_bound(world, scenario, seed))))
+
+
 @command(world_app, "import")
 def world_import(
     source: Path = typer.Argument(

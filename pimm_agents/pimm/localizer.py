@@ -252,6 +252,11 @@ class PimmLocalizer:
             self.perceive(5.0 * directions, np.ones(len(directions), dtype=bool), 0.0, {})
             bar.update()
 
+    @property
+    def last_estimate(self) -> PoseEstimate | None:
+        """The estimate the last update returned (None before the first)."""
+        return self._last
+
     def reset(
         self, seed: int | None = None, initial_pose: np.ndarray | None = None, initial_cov: np.ndarray | None = None
     ) -> None:

@@ -147,6 +147,15 @@ class RivalTracker:
             self._scans.append((np.asarray(odom, dtype=float).copy(), np.asarray(wall_points, dtype=float)))
             self._added += 1
 
+    @property
+    def scans_added(self) -> int:
+        """How many scans have been kept since the tracker was made (a counter that never goes back)."""
+        return self._added
+
+    def newest_scan(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The newest kept scan: the odometry at which it was seen and its wall points (robot frame)."""
+        return self._scans[-1] if self._scans else None
+
     def move(self, odom_then: np.ndarray, odom_now: np.ndarray) -> None:
         """Carry the rivals by the odometry since ``odom_then``."""
         if len(self.rivals):

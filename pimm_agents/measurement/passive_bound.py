@@ -1,0 +1,80 @@
+"""How soon could any localizer that only watches have known where it was? A bound for ``time_to_localized_s``.
+
+Along a trial, a tracker of its own keeps every wall scan PIMM weighs (never dropped) and, once it holds
+``settle_scans`` of them, scores the *true* pose against the map's twins of it (twins.py), each fitted to the kept
+scans as the rival check fits its rivals. The first time every twin trails the truth by ``log_ratio`` (the margin
+at which the rival check calls a candidate no rival) is the time a perfect rival check, offered the right place,
+could have called it localized: on a route that shows nothing that tells the twins apart until late, no
+passive localizer can be right and sure earlier, and only driving elsewhere (active localization) helps.
+
+It uses the truth, so it measures a route, not a localizer; it shares PIMM's wall points and scan model, so it is
+the bound for localizers that see the walls as PIMM does. ``python evaluate.py passive-bound WORLD SCENARIO``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pimm_env.geometry import wrap_angle
+
+
+@dataclass(frozen=True)
+class PassiveBound:
+    world: str
+    scenario: str
+    seed: int
+    #: the first time (s from the start) the truth led every twin by ``log_ratio``; None: never in the trial
+    bound_s: float | None
+    #: PIMM's ``time_to_localized_s`` in the same trial (the first time it was localized and right)
+    pimm_s: float | None
+
+
+def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
+    """The bound of one trial (see the module docstring), beside PIMM's first right ``localized`` time."""
+    from pimm_agents.experiments.runner import run_shared
+    from pimm_agents.pimm.rivals import FINE_STEP, RivalTracker
+    from pimm_agents.pimm.twins import MapTwins
+    from pimm_agents.scoring.trial import TrialSpec
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.world.files import load_world
+
+    occupancy = load_derived_maps(load_world(world)).occupancy
+    state: dict[str, Any] = {"tracker": None, "added": 0, "bound": None, "t0": None, "right": None}
+
+    def watch(localizers: list[Any], obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        theirs = localizers[0].filter.rivals  # PIMM's rival tracker: the wall scans it weighs
+        t = float(obs["time"][0])
+        state["t0"] = t if state["t0"] is None else state["t0"]
+        truth = np.asarray(info["true_pose"], dtype=float)
+        estimate = localizers[0].last_estimate
+        if state["right"] is None and estimate is not None and estimate.status == "localized":
+            if np.hypot(estimate.x - truth[0], estimate.y - truth[1]) < 1.0 and abs(
+                wrap_angle(estimate.theta - truth[2])
+            ) < np.radians(10.0):
+                state["right"] = t - state["t0"]
+        if state["tracker"] is None:
+            state["tracker"] = RivalTracker(theirs.field, theirs.free, theirs.temperature, theirs.config)
+            state["twins"] = MapTwins(occupancy, theirs.config.twins)
+        newest = theirs.newest_scan()
+        if theirs.scans_added == state["added"] or newest is None:
+            return
+        state["added"] = theirs.scans_added
+        ours: RivalTracker = state["tracker"]
+        odom, points = newest
+        ours.add_scan(odom, points)
+        if state["bound"] is not None or not ours.settled:
+            return
+        twins = state["twins"].of(truth)
+        if len(twins):
+            history = ours.stack(odom)
+            twins = ours.refine(ours.refine(twins, ours.recent(odom), rounds=3), history, rounds=1, steps=FINE_STEP)
+            scores = ours.evidence(np.vstack([truth[None], twins]), history)
+            if np.any(scores[1:] - scores[0] > -ours.config.log_ratio):
+                return
+        state["bound"] = t - state["t0"]
+
+    run_shared([TrialSpec(scenario, "pimm", 0, seed, world=world)], watch)
+    return PassiveBound(str(world), scenario, seed, state["bound"], state["right"])
