@@ -13,6 +13,7 @@ the bound for localizers that see the walls as PIMM does. ``python evaluate.py p
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,7 +45,7 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
     occupancy = load_derived_maps(load_world(world)).occupancy
     state: dict[str, Any] = {"tracker": None, "added": 0, "bound": None, "t0": None, "right": None}
 
-    def watch(localizers: list[Any], obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+    def watch(localizers: Sequence[Any], obs: dict[str, Any], info: dict[str, Any]) -> None:
         theirs = localizers[0].filter.rivals  # PIMM's rival tracker: the wall scans it weighs
         t = float(obs["time"][0])
         state["t0"] = t if state["t0"] is None else state["t0"]
