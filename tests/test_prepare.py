@@ -32,3 +32,22 @@ def test_routes_keep_their_clearance_from_a_table_below_the_maps_cut(tmp_path):
             samples = a + np.linspace(0, 1, 50)[:, None] * (b - a)
             r, c, valid = occupancy.grid.cells_of(samples)
             assert valid.all() and from_table[r, c].min() >= config.clearance_m - config.step_m
+
+
+def test_describe_warns_when_the_corner_map_is_thin():
+    from pathlib import Path
+
+    from pimm_agents.preparation.prepare import Preparation, describe
+
+    thin = Preparation(
+        "w",
+        Path("maps/w"),
+        corners=3,
+        free_m2=400.0,
+        fingerprints=10,
+        scenarios=["route_1"],
+        routes_written=False,
+        seconds={"maps": 0.1},
+    )
+    assert describe(thin).startswith("warning: 3 corners over 400 m^2 (0.8 per 100 m^2")
+    assert "warning" not in describe(Preparation("w", Path("maps/w"), 40, 400.0, 10, ["route_1"], False, {}))
