@@ -1,0 +1,79 @@
+"""pimm/ActiveLocalization-v0: spaces, checkers, determinism, the forward guard and the belief features."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import pimm_env  # noqa: F401  (registers the envs)
+from pimm_agents.active.env import ActiveConfig, belief_features, scan_sectors, weight_near
+from pimm_agents.active.primitives import blocked_ahead
+from pimm_agents.localizer import Hypothesis, PoseEstimate
+from pimm_env.errors import EnvError
+
+
+def _estimate(*hypotheses: tuple[float, float, float, float], status: str = "ambiguous") -> PoseEstimate:
+    hs = tuple(Hypothesis(x, y, t, w, np.diag([0.04, 0.04, 0.01])) for x, y, t, w in hypotheses)
+    x, y, t, _ = hypotheses[0]
+    return PoseEstimate(x, y, t, np.diag([0.04, 0.04, 0.01]), status=status, hypotheses=hs)
+
+
+def test_belief_features_are_relative_to_the_estimate_and_bounded():
+    est = _estimate((2.0, 1.0, np.pi / 2, 0.7), (2.0, 4.0, np.pi / 2, 0.3), (100.0, 1.0, 0.0, 0.0))
+    f = belief_features(est, k=4, max_offset=30.0)
+    assert f.shape == (4, 6) and np.all(np.abs(f) <= 1.0)
+    assert f[0, :2] == pytest.approx([0.0, 0.0]) and f[0, 4] == pytest.approx(0.7)
+    # 3 m along +y of the map is straight ahead of an estimate facing +y
+    assert f[1, :2] == pytest.approx([3.0 / 30.0, 0.0], abs=1e-6) and f[1, 4] == pytest.approx(0.3)
+    assert f[2, 0] == pytest.approx(0.0, abs=1e-6) and f[2, 1] == pytest.approx(-1.0)  # 98 m off: clipped
+    assert not f[3].any()  # fewer hypotheses than K: zero rows
+    assert not belief_features(None, 4, 30.0).any()
+
+
+def test_weight_near_the_truth():
+    est = _estimate((0.0, 0.0, 0.0, 0.75), (5.0, 0.0, 0.0, 0.25))
+    assert weight_near(est, np.array([5.2, 0.1, 0.05])) == pytest.approx(0.25)
+    assert weight_near(est, np.array([0.0, 0.0, np.pi])) == 0.0
+
+
+def test_scan_sectors_keep_the_nearest_return():
+    scan = np.full(360, 20.0)
+    scan[100] = 1.0
+    sectors = scan_sectors(scan, 60, 20.0)
+    assert sectors.shape == (60,) and sectors[16] == pytest.approx(0.05) and sectors[0] == 1.0
+
+
+def test_the_forward_guard_looks_ahead_only():
+    bearings = np.radians(np.arange(360) - 180.0)
+    scan = np.full(360, 10.0)
+    scan[180 + 90] = 0.2  # something at the robot's left
+    assert not blocked_ahead(scan, bearings)
+    scan[180 + 10] = 0.3  # something 10 deg off straight ahead
+    assert blocked_ahead(scan, bearings)
+
+
+def test_config_values_are_checked():
+    with pytest.raises(EnvError, match="hypotheses"):
+        ActiveConfig(hypotheses=0)
+
+
+@pytest.mark.expensive
+def test_the_env_passes_both_checkers_and_repeats_per_seed():
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = gym.make("pimm/ActiveLocalization-v0", world="iilab", localizer="amcl")
+    check_env(env.unwrapped, skip_render_check=True)
+    sb3_check_env(env.unwrapped, warn=False)
+    runs = []
+    for _ in range(2):
+        obs, _ = env.reset(seed=7)
+        trace = [obs["hypotheses"].copy()]
+        for action in (0, 1, 0, 2):
+            obs, reward, *_ = env.step(action)
+            trace += [obs["hypotheses"].copy(), obs["scan"].copy(), np.array([reward])]
+        runs.append(trace)
+    for a, b in zip(*runs, strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(EnvError, match="action must be one of 0..2"):
+        env.step(5)
+    env.close()
