@@ -24,6 +24,8 @@ app.add_typer(convert_app, name="convert")
 WORLD = typer.Option("iilab", help="world name or world file")
 OUT = typer.Option(Path("results"), help="where the timestamped results folder goes")
 JSON = typer.Option(False, "--json", help="print one JSON object")
+#: the policy ``--policy trained`` means (``python -m training policy --out`` writes it)
+SHIPPED_POLICY = "maps/policies/active_ppo.zip"
 PARAMS = typer.Option(None, "--params", help="params file: one section per localizer name")
 SETTINGS = typer.Option([], "--set", help="NAME.KEY=VALUE, e.g. amcl.max_particles=500")
 SENSORS = typer.Option("thesis", help="LiDAR presets, comma-separated (thesis, hokuyo-utm30lx, ...), or a .yaml")
@@ -296,6 +298,30 @@ def perception(
     typer.echo(json.dumps(result) if json_out else text)
 
 
+@command(app)
+def active(
+    world: str = WORLD,
+    policy: list[str] = typer.Option(
+        ["route", "random", "greedy"], "--policy", help="route, random, greedy, trained or a policy's .zip"
+    ),
+    trials: int = typer.Option(1, min=1, help="episodes per route start and policy"),
+    seed: int = typer.Option(0, help="seed of the first trial (then seed + 1, ...)"),
+    localizer: str = typer.Option("pimm", help="the localizer in the loop"),
+    limit_s: float = typer.Option(
+        60.0, min=1.0, help="an episode's time limit (s): success is a right localized by then"
+    ),
+    json_out: bool = JSON,
+) -> None:
+    """Policies that drive to localize, on the same episodes: success, time to a right localized, distance,
+    collisions and false-localized time ([environment](docs/environment.md#active-localization))."""
+    from pimm_agents.active.evaluation import evaluate_active
+    from pimm_agents.results.tables import format_active
+
+    chosen = [SHIPPED_POLICY if name == "trained" else name for name in policy]
+    result = evaluate_active(world, chosen, trials, seed, localizer, limit_s)
+    typer.echo(json.dumps({"policies": result["policies"]}) if json_out else format_active(result["policies"]))
+
+
 @command(app, "passive-bound")
 def passive_bound_command(
     world: str = typer.Argument(..., help="a world name or world file"),
@@ -382,7 +408,7 @@ def world_prepare(
 
 
 #: Options that take several values after one flag (``--scenarios a b c``), as the docs write them.
-LIST_OPTIONS = ("--scenarios", "--localizers")
+LIST_OPTIONS = ("--scenarios", "--localizers", "--policy")
 
 
 def expand_list_options(argv: list[str]) -> list[str]:

@@ -77,3 +77,43 @@ def test_the_env_passes_both_checkers_and_repeats_per_seed():
     with pytest.raises(EnvError, match="action must be one of 0..2"):
         env.step(5)
     env.close()
+
+
+def test_evaluate_active_prints_the_policies_figures():
+    import json
+
+    from typer.testing import CliRunner
+
+    import evaluate
+
+    args = ["active", "--localizer", "amcl", "--policy", "random", "--policy", "greedy", "--limit-s", "3", "--json"]
+    result = CliRunner().invoke(evaluate.app, args)
+    assert result.exit_code == 0, result.output
+    policies = json.loads(result.output)["policies"]
+    assert set(policies) == {"random", "greedy"}
+    for row in policies.values():
+        assert set(row) == {
+            "episodes",
+            "success_rate",
+            "median_time_s",
+            "p90_time_s",
+            "distance_m",
+            "collisions",
+            "false_localized_s",
+        }
+        assert row["episodes"] == 3 and 0.0 <= row["success_rate"] <= 1.0  # the iiLab's three routes' starts
+    bad = CliRunner().invoke(evaluate.app, ["active", "--policy", "clever", "--localizer", "amcl", "--limit-s", "1"])
+    assert bad.exit_code != 0 and "policy 'clever'" in bad.output
+
+
+@pytest.mark.expensive
+def test_policy_training_repeats_per_seed(tmp_path):
+    import torch
+    from stable_baselines3 import PPO
+
+    from training.policy import train_policy
+
+    paths = [train_policy(["iilab"], 32, tmp_path / f"p{k}.zip", seed=3, localizer="amcl") for k in range(2)]
+    a, b = (PPO.load(str(p), device="cpu").policy.state_dict() for p in paths)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert (tmp_path / "p0_log" / "progress.csv").is_file() and (tmp_path / "p0.json").is_file()

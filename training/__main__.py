@@ -267,6 +267,36 @@ def heldout(
         typer.echo(f"\n{done} trial(s) per route:\n{table}")
 
 
+@command_line.command(app)
+def policy(
+    world: list[str] = typer.Option([], "--world", help="worlds to train in (default: the policy training seeds)"),
+    algo: str = typer.Option("ppo", help="the stable-baselines3 algorithm (ppo)"),
+    steps: int = typer.Option(20_000, min=1, help="environment steps (motion primitives) in all"),
+    seed: int = typer.Option(0, help="seed of the policy, the envs and their episodes"),
+    localizer: str = typer.Option("pimm", help="the localizer in the loop"),
+    workers: int = typer.Option(1, min=1, help="envs, each in a worker process when more than one"),
+    worlds_dir: Path = typer.Option(Path("build/worlds"), "--worlds", help="folder of the generated worlds"),
+    out: Path = typer.Option(Path("build/policies/active_ppo.zip"), help="the policy's .zip (record beside it)"),
+) -> None:
+    """Train an active-localization policy (pimm/ActiveLocalization-v0) with stable-baselines3."""
+    from pimm_agents.preparation.prepare import prepare_world
+    from training.buildings import POLICY_TRAINING_SEEDS, write_building
+    from training.heldout import needs_preparing
+    from training.policy import train_policy
+
+    chosen = list(world)
+    if not chosen:
+        for building in POLICY_TRAINING_SEEDS:
+            world_file = worlds_dir / f"gen-{building}" / "world.yaml"
+            if not world_file.is_file():
+                write_building(building, worlds_dir)
+            if needs_preparing(world_file):
+                prepare_world(world_file, progress=False)
+            chosen.append(str(world_file))
+    path = train_policy(chosen, steps, out, seed, localizer, workers, algo)
+    typer.echo(f"wrote {path} and {path.with_suffix('.json')} (training log: {path.with_suffix('')}_log/)")
+
+
 def _seed_list(text: str) -> list[int]:
     try:
         if "-" in text:

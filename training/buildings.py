@@ -48,6 +48,9 @@ LOOKALIKE_DEVELOPMENT_SEEDS = tuple(range(940, 948)) + tuple(range(960, 968)) + 
 #: Look-alike buildings no training, tuning or fingerprint choice may use or look at (fixed 2026-11-25, before
 #: any run on them).
 LOOKALIKE_HELD_OUT_SEEDS = tuple(range(980, 988))
+#: where active-localization policies are trained: training buildings and look-alike development buildings
+#: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
+POLICY_TRAINING_SEEDS = TRAINING_SEEDS[:8] + LOOKALIKE_DEVELOPMENT_SEEDS[:16]
 LOOKALIKE_FAMILIES = ("periodic", "mirror")
 #: Door width in the look-alike families (m): wide enough for the route planner's 0.5 m clearance, so routes
 #: go into the rooms rather than only up and down one corridor.

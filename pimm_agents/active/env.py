@@ -171,6 +171,14 @@ class ActiveLocalizationEnv(gym.Env):
         self._held_since: float | None = None
         self._rewarded = False
         self._near = 0.0
+        self._false_s = 0.0  # seconds reported localized while wrong, this episode
+        self._first_right: float | None = None  # episode time of the first right localized
+        self._travelled0 = 0.0
+
+    @property
+    def scan_range(self) -> float:
+        """The 2D LiDAR's maximum range (m): the ``scan`` observation's 1.0."""
+        return self._max_range
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -194,6 +202,8 @@ class ActiveLocalizationEnv(gym.Env):
         self._obs, self._truth = obs, np.asarray(info["true_pose"], dtype=float)
         self._start_time = self.sim.sim_time
         self._held_since, self._rewarded = None, False
+        self._false_s, self._first_right = 0.0, None
+        self._travelled0 = float(info["travelled"])
         self._near = weight_near(self._estimate, self._truth)
         return self._observation(np.zeros(3)), self._info(info)
 
@@ -216,6 +226,7 @@ class ActiveLocalizationEnv(gym.Env):
                 false_s += dt
             if localized and right(pose, self._truth):
                 self._held_since = self.sim.sim_time if self._held_since is None else self._held_since
+                self._first_right = self._elapsed() if self._first_right is None else self._first_right
             else:
                 self._held_since = None
             collided = collided or bool(info["collision"])
@@ -227,6 +238,7 @@ class ActiveLocalizationEnv(gym.Env):
         near = weight_near(self._estimate, self._truth) if self._estimate is not None else 0.0
         reward = c.progress * (near - self._near) - c.time * primitive.duration - c.false_localized * false_s
         self._near = near
+        self._false_s += false_s
         if self._held_since is not None and not self._rewarded:
             reward += c.localized_bonus
             self._rewarded = True
@@ -235,7 +247,7 @@ class ActiveLocalizationEnv(gym.Env):
         terminated = collided or self._held_long_enough()
         truncated = not terminated and self._elapsed() >= c.time_limit_s
         delta = relative_motion(odom_start, np.asarray(obs["odom"], dtype=float))
-        sim_info = info if info is not None else {"true_pose": self._truth, "collision": False}
+        sim_info = info if info is not None else {"true_pose": self._truth, "collision": False, "travelled": None}
         return self._observation(delta), float(reward), bool(terminated), bool(truncated), self._info(sim_info)
 
     def close(self) -> None:
@@ -269,4 +281,7 @@ class ActiveLocalizationEnv(gym.Env):
             "estimate": None if estimate is None else np.array([estimate.x, estimate.y, estimate.theta]),
             "elapsed_s": self._elapsed(),
             "right_localized": self._held_since is not None,
+            "first_right_localized_s": self._first_right,
+            "false_localized_s": self._false_s,
+            "distance_m": self.sim.robot.travelled - self._travelled0,
         }

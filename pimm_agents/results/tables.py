@@ -149,6 +149,21 @@ def format_rollouts(rollouts: dict[str, dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def format_active(policies: dict[str, dict[str, Any]]) -> str:
+    """``evaluate.py active``: per policy, success, time to a right localized, distance, collisions."""
+    lines = [
+        f"{'policy':<10}{'episodes':>9}{'success %':>10}{'median s':>9}{'p90 s':>8}{'dist. m':>9}{'collisions':>11}"
+        f"{'false loc. s':>13}"
+    ]
+    for name, row in policies.items():
+        lines.append(
+            f"{name:<10}{row['episodes']:>9}{100 * row['success_rate']:>10.0f}{cell(row['median_time_s'], '.1f'):>9}"
+            f"{cell(row['p90_time_s'], '.1f'):>8}{row['distance_m']:>9.1f}{row['collisions']:>11}"
+            f"{row['false_localized_s']:>13.1f}"
+        )
+    return "\n".join(lines)
+
+
 def format_run(outcome: Any) -> str:
     """``evaluate.py run``: the start, the thesis's tables, the stage timings, the trials' count and time, and
     where the results went (``outcome``: an ``experiments.experiment.Outcome``)."""

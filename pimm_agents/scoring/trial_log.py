@@ -68,3 +68,20 @@ class TrialLog:
             None if self.status is None else self.status[start:],
             None if self.cov_xy is None else self.cov_xy[start:],
         )
+
+    def until(self, seconds: float) -> TrialLog:
+        """The rows of the first ``seconds`` of the log (from its first row's time)."""
+        end = int(np.searchsorted(self.time - self.time[0], seconds, side="right")) if len(self.time) else 0
+        return TrialLog(
+            self.time[:end],
+            self.estimate_time[:end],
+            self.true[:end],
+            self.estimate[:end],
+            self.cov[:end],
+            self.kidnap_index if self.kidnap_index is not None and self.kidnap_index < end else None,
+            self.timings[:end],
+            self.corners[self.corners[:, 0] < end],
+            (),
+            None if self.status is None else self.status[:end],
+            None if self.cov_xy is None else self.cov_xy[:end],
+        )

@@ -1,0 +1,123 @@
+"""``evaluate.py active``: policies compared on the same episodes of the active-localization env.
+
+Every policy starts from the same poses: each generated route's start (``route_1`` ... of the world's
+scenarios), ``trials`` times with seeds ``seed``, ``seed + 1``, ...; the episode's clock and the localizer start
+there with nothing known. ``route`` drives the route itself (its waypoints, as ``run`` does) and is scored on
+the same terms; the others drive the env's primitives. Per policy: success (a right ``localized`` within the
+time limit), the median and 90th percentile of the time to it (an episode without one counts as never), the
+distance driven, collisions and the seconds reported ``localized`` while wrong.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+ROUTE = "route"
+
+
+@dataclass(frozen=True)
+class Episode:
+    policy: str
+    scenario: str
+    seed: int
+    first_right_s: float | None
+    distance_m: float
+    collided: bool
+    false_localized_s: float
+
+
+def run_policy_episode(env: Any, policy: Any, start: np.ndarray, seed: int, scenario: str) -> Episode:
+    """One episode of a primitive policy from ``start``."""
+    policy.reset(seed)
+    obs, info = env.reset(seed=seed, options={"pose": start})
+    collided = False
+    while True:
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        collided = collided or info["collision"]
+        if terminated or truncated:
+            break
+    return Episode(
+        policy.name,
+        scenario,
+        seed,
+        info["first_right_localized_s"],
+        info["distance_m"],
+        collided,
+        info["false_localized_s"],
+    )
+
+
+def run_route_episode(world: str, localizer: str, scenario: str, seed: int, limit_s: float) -> Episode:
+    """The route baseline: the scenario driven along its waypoints, scored over its first ``limit_s``."""
+    from pimm_agents.experiments.runner import run_trial
+    from pimm_agents.scoring.honesty import honesty_metrics
+    from pimm_agents.scoring.trial import TrialSpec
+
+    result = run_trial(TrialSpec(scenario, localizer, 0, seed, world=world))
+    clipped = result.log.until(limit_s)
+    honesty = honesty_metrics(clipped, None)
+    steps = np.diff(clipped.true[:, :2], axis=0)
+    distance = float(np.sum(np.hypot(steps[:, 0], steps[:, 1])))
+    return Episode(
+        ROUTE, scenario, seed, honesty.time_to_localized_s, distance, result.collided, honesty.false_localized_s
+    )
+
+
+def summarize(episodes: Sequence[Episode], limit_s: float) -> dict[str, Any]:
+    """The per-policy figures of the JSON contract."""
+    times = np.array(
+        [e.first_right_s if e.first_right_s is not None and e.first_right_s <= limit_s else np.inf for e in episodes]
+    )
+
+    def finite(value: float) -> float | None:
+        return float(value) if np.isfinite(value) else None
+
+    return {
+        "episodes": len(episodes),
+        "success_rate": float(np.mean(np.isfinite(times))) if len(times) else 0.0,
+        "median_time_s": finite(np.median(times)) if len(times) else None,
+        "p90_time_s": finite(np.percentile(times, 90, method="higher")) if len(times) else None,
+        "distance_m": float(np.mean([e.distance_m for e in episodes])) if episodes else 0.0,
+        "collisions": int(sum(e.collided for e in episodes)),
+        "false_localized_s": float(sum(e.false_localized_s for e in episodes)),
+    }
+
+
+def evaluate_active(
+    world: str, policies: Sequence[str], trials: int, seed: int, localizer: str = "pimm", limit_s: float = 60.0
+) -> dict[str, Any]:
+    """``{"policies": {NAME: summary}, "episodes": [...]}`` over the world's generated routes' starts."""
+    from dataclasses import asdict, replace
+
+    from pimm_agents.active.env import ActiveConfig, ActiveLocalizationEnv
+    from pimm_agents.active.policies import make_policy
+    from pimm_env.driving.scenarios import load_scenarios
+
+    scenarios = {n: s for n, s in load_scenarios(world).items() if s.kidnap_to is None}
+    episodes: list[Episode] = []
+    env = None
+    try:
+        for name in policies:
+            for scenario, spec in scenarios.items():
+                for trial in range(trials):
+                    if name == ROUTE:
+                        episodes.append(run_route_episode(world, localizer, scenario, seed + trial, limit_s))
+                        continue
+                    if env is None:
+                        env = ActiveLocalizationEnv(world, localizer, replace(ActiveConfig(), time_limit_s=limit_s))
+                    policy = make_policy(name, env.scan_range)
+                    episodes.append(run_policy_episode(env, policy, spec.start, seed + trial, scenario))
+    finally:
+        if env is not None:
+            env.close()
+    by_policy: dict[str, list[Episode]] = {}
+    for e in episodes:
+        by_policy.setdefault(e.policy, []).append(e)
+    return {
+        "policies": {name: summarize(eps, limit_s) for name, eps in by_policy.items()},
+        "episodes": [asdict(e) for e in episodes],
+    }

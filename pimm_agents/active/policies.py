@@ -1,0 +1,121 @@
+"""Policies for the active-localization env: the non-learned baselines, and a trained stable-baselines3 policy.
+
+Each is a callable ``policy(observation) -> action`` with ``reset(seed)`` called at the start of an episode:
+
+- ``random``: a random walk: each primitive drawn at random, forward twice as often as each turn (the env's
+  forward guard keeps it off the walls);
+- ``greedy``: explores: it drives toward the most open direction it has not yet been towards. The scan's 60
+  sectors are scored by their free range (up to 8 m), less a penalty for each time the robot has already faced
+  that way from about here (cells of 2 m in the odometry frame, 8 headings): it goes forward when the best
+  sector is ahead and turns toward it otherwise. Corridors are driven to their ends and rooms are looked into,
+  which is where look-alike places differ;
+- ``trained``: a stable-baselines3 policy loaded from a ``.zip`` (``python -m training policy`` writes one),
+  acting deterministically.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from pimm_env.geometry import wrap_angle
+
+FORWARD, LEFT, RIGHT = 0, 1, 2
+
+
+class Policy(Protocol):
+    name: str
+
+    def reset(self, seed: int | None = None) -> None: ...
+
+    def __call__(self, observation: dict[str, np.ndarray]) -> int: ...
+
+
+class RandomWalk:
+    name = "random"
+
+    def __init__(self) -> None:
+        self.rng = np.random.default_rng()
+
+    def reset(self, seed: int | None = None) -> None:
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, observation: dict[str, np.ndarray]) -> int:
+        return int(self.rng.choice([FORWARD, FORWARD, LEFT, RIGHT]))
+
+
+class Explorer:
+    """The ``greedy`` baseline (see the module docstring)."""
+
+    name = "greedy"
+    CELL_M = 2.0
+    HEADINGS = 8
+    OPEN_M = 8.0
+    SEEN_PENALTY_M = 3.0  # free range (m) a direction loses for each time it was already faced from here
+
+    def __init__(self, max_range: float = 20.0) -> None:
+        self.max_range = max_range
+        self.reset()
+
+    def reset(self, seed: int | None = None) -> None:
+        self.pose = np.zeros(3)  # dead-reckoned from the odometry increments, in the episode's own frame
+        self.faced: dict[tuple[int, int, int], int] = {}
+
+    def __call__(self, observation: dict[str, np.ndarray]) -> int:
+        dx, dy, dtheta = np.asarray(observation["odom_delta"], dtype=float) * np.array([1.0, 1.0, np.pi])
+        c, s = np.cos(self.pose[2]), np.sin(self.pose[2])
+        self.pose = np.array([self.pose[0] + c * dx - s * dy, self.pose[1] + s * dx + c * dy, self.pose[2] + dtheta])
+        scan = np.asarray(observation["scan"], dtype=float) * self.max_range
+        n = len(scan)
+        bearings = -np.pi + (np.arange(n) + 0.5) * 2 * np.pi / n  # sector centres, robot frame
+        cell = (int(np.floor(self.pose[0] / self.CELL_M)), int(np.floor(self.pose[1] / self.CELL_M)))
+        score = np.minimum(scan, self.OPEN_M)
+        for i, bearing in enumerate(bearings):
+            score[i] -= self.SEEN_PENALTY_M * self.faced.get((*cell, self._heading_bin(self.pose[2] + bearing)), 0)
+        best = float(bearings[int(np.argmax(score))])
+        self.faced[(*cell, self._heading_bin(self.pose[2]))] = (
+            self.faced.get((*cell, self._heading_bin(self.pose[2])), 0) + 1
+        )
+        if abs(best) <= np.pi / 8:
+            return FORWARD
+        return LEFT if best > 0 else RIGHT
+
+    def _heading_bin(self, heading: float) -> int:
+        return int(np.floor((wrap_angle(heading) + np.pi) / (2 * np.pi) * self.HEADINGS)) % self.HEADINGS
+
+
+class Trained:
+    """A stable-baselines3 policy from a ``.zip``, acting deterministically."""
+
+    name = "trained"
+
+    def __init__(self, path: Path) -> None:
+        from stable_baselines3 import PPO
+
+        from pimm_env.errors import MissingFileError
+
+        if not Path(path).is_file():
+            raise MissingFileError(f"policy {path} does not exist (python -m training policy writes one)")
+        self.model: Any = PPO.load(str(path), device="cpu")
+
+    def reset(self, seed: int | None = None) -> None:
+        pass
+
+    def __call__(self, observation: dict[str, np.ndarray]) -> int:
+        action, _ = self.model.predict(observation, deterministic=True)
+        return int(np.asarray(action).item())
+
+
+def make_policy(name: str, max_range: float = 20.0) -> Policy:
+    """``random``, ``greedy`` or the path of a trained policy's ``.zip``."""
+    from pimm_env.errors import EnvError
+
+    if name == "random":
+        return RandomWalk()
+    if name == "greedy":
+        return Explorer(max_range)
+    if name.endswith(".zip"):
+        return Trained(Path(name))
+    raise EnvError(f"policy {name!r}: expected random, greedy or a trained policy's .zip")
