@@ -122,3 +122,18 @@ def test_a_rival_takes_the_estimate_only_after_leading_at_switch_updates_updates
     tracker.forget()  # after a switch, the count starts again
     tracker.update(wrong, now, now[None, :])
     assert tracker.decisive() is None
+
+
+def test_fit_estimate_scores_an_estimate_a_little_off_as_its_rivals_are_scored():
+    truths = west_half_drive()
+    now = truths[-1]
+    twin = now - np.array([12.0, 0.0, 0.0])
+    off = now + np.array([0.12, -0.08, np.radians(2.0)])  # the filter's estimate, a little off the truth
+    margins = []
+    for fit in (False, True):
+        tracker = tracker_along(truths)
+        tracker.config = RivalConfig(fit_estimate=fit)
+        assert tracker.update(off, now, twin[None, :]) == 1  # exact twins: the twin stands either way
+        margins.append(float(tracker.margins[0]))
+    # unfitted, the estimate trails the fitted twin by 38 nats; fitted alike (one update's fit), by 13
+    assert margins[0] > 20.0 and margins[1] < margins[0] / 2
