@@ -221,7 +221,6 @@ def heldout(
     """
     import json
 
-    from pimm_agents.preparation.prepare import prepare_world
     from pimm_agents.results.markdown import provenance_here
     from training.buildings import (
         DEVELOPMENT_SEEDS,
@@ -229,9 +228,8 @@ def heldout(
         LOCALIZER_HELD_OUT_SEEDS,
         LOOKALIKE_DEVELOPMENT_SEEDS,
         LOOKALIKE_HELD_OUT_SEEDS,
-        write_building,
     )
-    from training.heldout import building_row, format_table, measure_building, needs_preparing, summarize
+    from training.heldout import building_row, format_table, measure_building, summarize
 
     chosen = _seed_list(seeds)
     held_out = LOCALIZER_HELD_OUT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS
@@ -246,11 +244,7 @@ def heldout(
         )
     out.mkdir(parents=True, exist_ok=True)
     for seed in chosen:
-        world_file = worlds / f"gen-{seed}" / "world.yaml"
-        if not world_file.is_file():
-            write_building(seed, worlds)
-        if needs_preparing(world_file):
-            prepare_world(world_file, progress=False)
+        _ready_building(seed, worlds)
     for done in range(1, trials + 1):
         results, rows = {}, {}
         for seed in chosen:
@@ -279,22 +273,26 @@ def policy(
     out: Path = typer.Option(Path("build/policies/active_ppo.zip"), help="the policy's .zip (record beside it)"),
 ) -> None:
     """Train an active-localization policy (pimm/ActiveLocalization-v0) with stable-baselines3."""
-    from pimm_agents.preparation.prepare import prepare_world
-    from training.buildings import POLICY_TRAINING_SEEDS, write_building
-    from training.heldout import needs_preparing
+    from training.buildings import POLICY_TRAINING_SEEDS
     from training.policy import train_policy
 
-    chosen = list(world)
-    if not chosen:
-        for building in POLICY_TRAINING_SEEDS:
-            world_file = worlds_dir / f"gen-{building}" / "world.yaml"
-            if not world_file.is_file():
-                write_building(building, worlds_dir)
-            if needs_preparing(world_file):
-                prepare_world(world_file, progress=False)
-            chosen.append(str(world_file))
+    chosen = list(world) or [str(_ready_building(building, worlds_dir)) for building in POLICY_TRAINING_SEEDS]
     path = train_policy(chosen, steps, out, seed, localizer, workers, algo)
     typer.echo(f"wrote {path} and {path.with_suffix('.json')} (training log: {path.with_suffix('')}_log/)")
+
+
+def _ready_building(seed: int, worlds: Path) -> Path:
+    """The world file of generated building ``seed`` under ``worlds``, written and prepared if need be."""
+    from pimm_agents.preparation.prepare import prepare_world
+    from training.buildings import write_building
+    from training.heldout import needs_preparing
+
+    world_file = worlds / f"gen-{seed}" / "world.yaml"
+    if not world_file.is_file():
+        write_building(seed, worlds)
+    if needs_preparing(world_file):
+        prepare_world(world_file, progress=False)
+    return world_file
 
 
 def _seed_list(text: str) -> list[int]:

@@ -182,13 +182,10 @@ def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
         reader = FieldReader(path)
         areas = {str(k): reader.polygon(v, f"areas.{k}") for k, v in areas_raw.items()}
     else:
-        floors = [
-            e.shape.vertices[:, :2] for e in elements if e.semantic == SemanticClass.FLOOR and isinstance(e.shape, Mesh)
-        ]
-        if not floors:
+        extent = _floor_extent(elements)
+        if extent is None:
             raise WorldFileError(path, "areas", "no areas given and no floor object to take them from")
-        pts = np.concatenate(floors)
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        lo, hi = extent
         areas = {"all": np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])}
     name = data.get("name") or Path(path).parent.name
     return World(name=str(name), elements=elements, areas=areas, floor_z=floor_z, source=Path(path))
@@ -202,13 +199,21 @@ def _added_ceiling(elements: list[Element], floor_z: float, height: Any, path: P
         raise WorldFileError(path, "ceiling_height", f"expected a height in metres, got {height!r}") from None
     if not 0.5 <= height <= 50.0:
         raise WorldFileError(path, "ceiling_height", f"expected a height between 0.5 and 50 m, got {height}")
+    extent = _floor_extent(elements)
+    if extent is None:
+        raise WorldFileError(path, "ceiling_height", "the world has no floor object to lay the ceiling over")
+    lo, hi = extent
+    center = ((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, floor_z + height + 0.05)
+    half = ((hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, 0.05)
+    return Element("added_ceiling", SemanticClass.CEILING, Box(center, half), False)
+
+
+def _floor_extent(elements: list[Element]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The lower and upper (x, y) corners of the floor meshes' extent; None without a floor mesh."""
     floors = [
         e.shape.vertices[:, :2] for e in elements if e.semantic == SemanticClass.FLOOR and isinstance(e.shape, Mesh)
     ]
     if not floors:
-        raise WorldFileError(path, "ceiling_height", "the world has no floor object to lay the ceiling over")
+        return None
     pts = np.concatenate(floors)
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    center = ((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, floor_z + height + 0.05)
-    half = ((hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, 0.05)
-    return Element("added_ceiling", SemanticClass.CEILING, Box(center, half), False)
+    return pts.min(axis=0), pts.max(axis=0)
