@@ -163,12 +163,13 @@ class RivalTracker:
 
     def move(self, odom_then: np.ndarray, odom_now: np.ndarray) -> None:
         """Carry the rivals by the odometry since ``odom_then``."""
+        motion = relative_motion(odom_then, odom_now)
         if len(self.rivals):
-            self.rivals = carried(self.rivals, relative_motion(odom_then, odom_now))
+            self.rivals = carried(self.rivals, motion)
         if self._leader is not None:
-            self._leader = carried(self._leader[None, :], relative_motion(odom_then, odom_now))[0]
+            self._leader = carried(self._leader[None, :], motion)[0]
         if self._anchor is not None:
-            self._anchor = carried(self._anchor[None, :], relative_motion(odom_then, odom_now))[0]
+            self._anchor = carried(self._anchor[None, :], motion)[0]
 
     def stack(self, odom_now: np.ndarray, last: int | None = None) -> _Stack:
         """The kept scans (the ``last`` newest) as one array of points, each with its scan's motion from now."""
@@ -304,13 +305,14 @@ class RivalTracker:
         # place a degree off in heading would carry back metres off along 15 m of history and lose a rival
         history = self.stack(odom_now)
         refined = self.refine(refined, history, rounds=1, steps=FINE_STEP)
-        anchor = self._fit_estimate(estimate, recent, history) if c.fit_estimate else estimate
-        scores = self.evidence(np.vstack([estimate[None, :], anchor[None, :], refined]), history)
-        margins = scores[2:] - max(scores[0], scores[1])
+        # the estimate as the filter left it, and (fit_estimate) its place fitted as the rivals are: scored once each
+        places = [estimate, self._fit_estimate(estimate, recent, history)] if c.fit_estimate else [estimate]
+        scores = self.evidence(np.vstack([*places, refined]), history)
+        margins = scores[len(places) :] - scores[: len(places)].max()
         unique: list[int] = []
         limits = np.where(np.arange(len(refined)) < kept, c.drop_log_ratio, c.log_ratio)
         for i in np.argsort(-margins):
-            if margins[i] <= -limits[i] or self._known(refined[i], [estimate, anchor]):
+            if margins[i] <= -limits[i] or self._known(refined[i], places):
                 continue
             if not self._known(refined[i], [refined[j] for j in unique]):
                 unique.append(int(i))
