@@ -3,6 +3,7 @@ import pytest
 
 from pimm_agents.measurement.perception_quality import retrieval_errors
 from pimm_agents.perception.fingerprint_map import FingerprintConfig, FingerprintMap
+from pimm_agents.perception.records import FINGERPRINTS, write_record
 
 
 def line_map(n: int = 20, dim: int = 8) -> FingerprintMap:
@@ -36,8 +37,8 @@ def test_spread_check_drops_contradictory_suggestions():
 def test_save_and_load_round_trip(tmp_path):
     fmap = line_map()
     path = tmp_path / "fingerprints.npz"
-    fmap.save(path, {"spacing_m": "1.0"})
-    again = FingerprintMap.load(path)
+    fmap.save(path, "ab" * 32, {"spacing_m": "1.0"})
+    again = FingerprintMap.load(path, weights_sha256="ab" * 32)
     assert np.array_equal(again.descriptors, fmap.descriptors) and np.array_equal(again.positions, fmap.positions)
     assert again.query(fmap.descriptors[3]).positions[0].tolist() == [3.0, 0.0]
 
@@ -52,9 +53,11 @@ def test_bad_maps_and_queries_are_named(tmp_path):
         FingerprintMap.load(tmp_path / "missing.npz")
     broken = tmp_path / "broken.npz"
     broken.write_bytes(b"not a zip file")
-    with pytest.raises(ValueError, match="broken.npz"):
+    write_record(broken, FINGERPRINTS, "pimm-fingerprints/1")  # recorded as it is: the reading itself must fail
+    with pytest.raises(ValueError, match="broken.npz: not a readable fingerprint map"):
         FingerprintMap.load(broken)
     np.savez(tmp_path / "partial.npz", format="pimm-fingerprints/1", descriptors=np.ones((3, 2)))
+    write_record(tmp_path / "partial.npz", FINGERPRINTS, "pimm-fingerprints/1")
     with pytest.raises(ValueError, match=r"lacks field\(s\) \['positions', 'headings'\]"):
         FingerprintMap.load(tmp_path / "partial.npz")
     with pytest.raises(ValueError, match="positions"):
@@ -77,11 +80,47 @@ def test_retrieval_errors_by_hand():
 def test_a_truncated_fingerprint_map_is_named(tmp_path):
     from pathlib import Path
 
-    from pimm_agents.perception.fingerprint_map import FingerprintMap
-
     source = Path(__file__).resolve().parents[1] / "maps" / "iilab" / "fingerprints.npz"
     for keep in (5000, source.stat().st_size - 100):
         cut = tmp_path / f"cut{keep}.npz"
         cut.write_bytes(source.read_bytes()[:keep])
+        cut.with_suffix(".json").write_bytes(source.with_suffix(".json").read_bytes())
+        with pytest.raises(ValueError, match=f"cut{keep}.npz: SHA-256 .* differs from cut{keep}.json"):
+            FingerprintMap.load(cut)
+        write_record(cut, FINGERPRINTS, "pimm-fingerprints/1")  # even recorded as cut, it cannot be read
         with pytest.raises(ValueError, match=f"cut{keep}.npz: .*damaged or truncated"):
             FingerprintMap.load(cut)
+
+
+def test_a_map_without_a_matching_record_is_refused(tmp_path):
+    """The two holes a bad-input campaign found: a map rescaled and stored as int64 loaded without a word, and
+    nothing tied a map to the weights that made it."""
+    fmap = line_map()
+    path = tmp_path / "fingerprints.npz"
+    fmap.save(path, "ab" * 32)
+    with pytest.raises(ValueError, match=r"made with weights abababab.*, the segmenter runs cdcdcdcd"):
+        FingerprintMap.load(path, weights_sha256="cd" * 32)
+    scaled = tmp_path / "scaled.npz"
+    arrays = {"descriptors": (fmap.descriptors * 100).astype(np.int64), "positions": fmap.positions}
+    np.savez(scaled, format="pimm-fingerprints/1", headings=fmap.headings, **arrays)
+    with pytest.raises(ValueError, match=r"scaled.npz: no record scaled.json beside it"):
+        FingerprintMap.load(scaled)
+    path.with_suffix(".json").rename(scaled.with_suffix(".json"))  # another file's record
+    with pytest.raises(ValueError, match=r"scaled.npz: SHA-256 .* differs from scaled.json"):
+        FingerprintMap.load(scaled)
+    write_record(scaled, FINGERPRINTS, "pimm-fingerprints/1", dtype="int64", shape=[20, 8], weights_sha256="ab" * 32)
+    with pytest.raises(ValueError, match=r"scaled.npz: descriptors stored as int64, the record says int64; .* float32"):
+        FingerprintMap.load(scaled)
+    np.savez(
+        scaled,
+        format="pimm-fingerprints/1",
+        headings=fmap.headings,
+        descriptors=fmap.descriptors * 100,
+        positions=fmap.positions,
+    )
+    write_record(scaled, FINGERPRINTS, "pimm-fingerprints/1", dtype="float32", shape=[20, 8], weights_sha256="ab" * 32)
+    with pytest.raises(ValueError, match=r"scaled.npz: descriptor lengths 100-100, expected 1"):
+        FingerprintMap.load(scaled)
+    write_record(scaled, FINGERPRINTS, "pimm-fingerprints/1", dtype="float32", shape=[21, 8], weights_sha256="ab" * 32)
+    with pytest.raises(ValueError, match=r"scaled.npz: descriptors of shape \(20, 8\), the record says \[21, 8\]"):
+        FingerprintMap.load(scaled)

@@ -56,12 +56,13 @@ def test_fingerprint_map_finds_its_own_positions(perception):
 
 def test_descriptor_size_mismatch_is_named(tmp_path, monkeypatch, perception):
     segmenter, fmap = perception
-    small = FingerprintMap(fmap.descriptors[:, :4], fmap.positions, fmap.headings)
+    cut = fmap.descriptors[:, :4] / np.linalg.norm(fmap.descriptors[:, :4], axis=1, keepdims=True)
+    small = FingerprintMap(cut, fmap.positions, fmap.headings)
     with pytest.raises(ValueError, match="query descriptor has"):
         small.query(segmenter.segment(*_one_scan()).descriptor)
     import pimm_agents.perception.files as pm
 
-    small.save(tmp_path / "fingerprints.npz")
+    small.save(tmp_path / "fingerprints.npz", segmenter.weights_sha256)
     monkeypatch.setattr(pm, "fingerprint_path", lambda world: tmp_path / "fingerprints.npz")
     with pytest.raises(ValueError, match="4 dimensions"):
         pm.load_perception("iilab")

@@ -106,23 +106,63 @@ def test_segmenter_rejects_empty_and_all_nan_clouds(checkpoint):
 
 
 def test_checkpoint_round_trip_and_errors(tmp_path, checkpoint):
+    from pimm_agents.perception.records import WEIGHTS, write_record
+
     model, record = load_checkpoint(checkpoint)
-    assert record == {"command": "test"} and model.config == SMALL and not model.training
+    assert record["command"] == "test" and len(record["sha256"]) == 64
+    assert model.config == SMALL and not model.training
     with pytest.raises(FileNotFoundError, match="nothing.pt"):
         load_checkpoint(tmp_path / "nothing.pt")
     corrupt = tmp_path / "corrupt.pt"
     corrupt.write_bytes(checkpoint.read_bytes()[:200])
+    write_record(corrupt, WEIGHTS, "pimm-pointnet/1")  # recorded as it is: the reading itself must fail
     with pytest.raises(ValueError, match="corrupt.pt: not a readable"):
         load_checkpoint(corrupt)
     other = tmp_path / "other.pt"
     torch.save({"weights": torch.zeros(3)}, other)
+    write_record(other, WEIGHTS, "pimm-pointnet/1")
     with pytest.raises(ValueError, match="format None"):
         load_checkpoint(other)
     data = torch.load(checkpoint, weights_only=True)
     data["config"]["descriptor_dim"] = 7
     torch.save(data, tmp_path / "mismatch.pt")
+    write_record(tmp_path / "mismatch.pt", WEIGHTS, "pimm-pointnet/1")
     with pytest.raises(ValueError, match="do not fit"):
         load_checkpoint(tmp_path / "mismatch.pt")
+
+
+def test_weights_without_a_matching_record_are_refused(tmp_path, checkpoint):
+    import json
+
+    from pimm_agents.perception.records import WEIGHTS, write_record
+
+    record = json.loads(checkpoint.with_suffix(".json").read_text())
+    assert record["kind"] == "pointnet-weights" and record["dtype"] == "float32"
+    assert record["parameters"] == sum(p.numel() for p in PointNetSegmenter(SMALL).parameters())
+    bare = tmp_path / "bare.pt"
+    bare.write_bytes(checkpoint.read_bytes())
+    with pytest.raises(ValueError, match=r"bare.pt: no record bare.json beside it"):
+        load_checkpoint(bare)
+    bare.with_suffix(".json").write_text("{not json")
+    with pytest.raises(ValueError, match=r"bare.json: not a JSON record"):
+        load_checkpoint(bare)
+    data = torch.load(checkpoint, weights_only=True)
+    data["state_dict"] = {k: v.double() for k, v in data["state_dict"].items()}
+    wide = tmp_path / "wide.pt"
+    torch.save(data, wide)
+    write_record(wide, WEIGHTS, "pimm-pointnet/1", dtype="float32", parameters=record["parameters"])
+    with pytest.raises(ValueError, match=r"wide.pt: tensor .* is torch.float64, the record says float32"):
+        load_checkpoint(wide)
+    fewer = tmp_path / "fewer.pt"
+    fewer.write_bytes(checkpoint.read_bytes())
+    write_record(fewer, WEIGHTS, "pimm-pointnet/1", parameters=record["parameters"] + 1)
+    with pytest.raises(ValueError, match=r"fewer.pt: \d+ parameters, the record fewer.json says"):
+        load_checkpoint(fewer)
+    other_kind = tmp_path / "kind.pt"
+    other_kind.write_bytes(checkpoint.read_bytes())
+    write_record(other_kind, "fingerprint-map", "pimm-pointnet/1")
+    with pytest.raises(ValueError, match=r"kind.json: kind is 'fingerprint-map', expected 'pointnet-weights'"):
+        load_checkpoint(other_kind)
 
 
 def test_fused_inference_matches_the_trained_module():
@@ -148,7 +188,7 @@ def test_a_damaged_checkpoint_is_caught_by_its_checksum(tmp_path):
     import shutil
 
     from pimm_agents.perception.files import SHIPPED_WEIGHTS
-    from pimm_agents.perception.pointnet import file_sha256
+    from pimm_agents.perception.records import file_sha256
 
     record = json.loads(SHIPPED_WEIGHTS.with_suffix(".json").read_text())
     assert record["sha256"] == file_sha256(SHIPPED_WEIGHTS)  # the shipped record holds the weights' checksum
@@ -161,6 +201,9 @@ def test_a_damaged_checkpoint_is_caught_by_its_checksum(tmp_path):
     data[start : start + 4096] = bytes(b ^ 0xFF for b in data[start : start + 4096])  # 4 KB of flipped bytes
     copy.write_bytes(bytes(data))
     with pytest.raises(ValueError, match=r"pointnet.pt: SHA-256 .* differs from .*pointnet.json"):
+        load_checkpoint(copy)
+    copy.with_suffix(".json").unlink()  # the same damage with no record beside it: refused too
+    with pytest.raises(ValueError, match=r"pointnet.pt: no record pointnet.json beside it"):
         load_checkpoint(copy)
 
 

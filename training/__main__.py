@@ -73,7 +73,7 @@ def train(
     import numpy as np
 
     from pimm_agents.perception.files import own_checkpoint_path
-    from pimm_agents.perception.pointnet import PointNetConfig, file_sha256, load_checkpoint, save_checkpoint
+    from pimm_agents.perception.pointnet import PointNetConfig, load_checkpoint, save_checkpoint
     from training.dataset import load, pool, split
     from training.train import TrainConfig, describe
     from training.train import train as fit
@@ -113,9 +113,7 @@ def train(
         **describe(config, network, model),
         "history": history,
     }
-    save_checkpoint(model, target, record)
-    record["sha256"] = file_sha256(target)  # verified on every load
-    target.with_suffix(".json").write_text(json.dumps(record, indent=1) + "\n")
+    record = save_checkpoint(model, target, record)  # its record, checked on every load, goes beside it
     size = target.stat().st_size / 1e6
     typer.echo(f"wrote {target} ({size:.2f} MB, {record['parameters']} parameters)")
 
@@ -167,7 +165,7 @@ def fingerprints(
     segmenter = Segmenter(checkpoint_path(world))
     fmap = build_fingerprint_map(world, segmenter, spacing, seed, workers=workers, backend=backend, address=address)
     target = fingerprint_path(world)
-    fmap.save(target, {"spacing_m": str(spacing), "seed": str(seed)})
+    fmap.save(target, segmenter.weights_sha256, {"spacing_m": str(spacing), "seed": str(seed)})
     typer.echo(f"wrote {target} ({len(fmap)} positions, {fmap.dim}-d descriptors)")
 
 

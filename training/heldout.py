@@ -21,14 +21,14 @@ HELD_S = 5.0
 
 
 def needs_preparing(world_file: Path) -> bool:
-    """True unless the world's fingerprint map is newer than its world file and the weights it uses."""
-    from pimm_agents.perception.files import checkpoint_path, fingerprint_path
+    """True unless the world's fingerprint map is newer than its world file and recorded as made with the
+    weights it uses."""
+    from pimm_agents.perception.files import fingerprint_path, fingerprints_match_weights
 
     fingerprints, scenarios = fingerprint_path(str(world_file)), world_file.parent / "scenarios.yaml"
     if not fingerprints.is_file() or not scenarios.is_file():
         return True
-    made = fingerprints.stat().st_mtime
-    return made < world_file.stat().st_mtime or made < checkpoint_path(str(world_file)).stat().st_mtime
+    return fingerprints.stat().st_mtime < world_file.stat().st_mtime or not fingerprints_match_weights(str(world_file))
 
 
 def measure_building(

@@ -18,10 +18,12 @@ import torch
 from torch import nn
 
 from pimm_agents.perception.point_features import CONTEXT_OFFSETS, FEATURES, NUM_FEATURES
+from pimm_agents.perception.records import WEIGHTS, read_record, record_path, write_record
 from pimm_env.errors import MissingFileError, PerceptionError
 from pimm_env.world.semantics import CLASS_NAMES
 
 CHECKPOINT_FORMAT = "pimm-pointnet/1"
+WEIGHTS_DTYPE = "float32"
 #: Rough scale of each input feature, so that the first layer sees numbers near 1.
 FEATURE_SCALE = {
     "height": 4.0,
@@ -177,8 +179,9 @@ def parameter_count(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters())
 
 
-def save_checkpoint(model: PointNetSegmenter, path: Path, training: dict[str, Any]) -> None:
-    """Weights, the network's config and how they were made (command, data, per-epoch metrics)."""
+def save_checkpoint(model: PointNetSegmenter, path: Path, training: dict[str, Any]) -> dict[str, Any]:
+    """Weights, the network's config and how they were made (command, data, per-epoch metrics), and the
+    file's record beside it (``records.py``: checksum, format, dtype and parameter count); returns the record."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     torch.save(
@@ -192,31 +195,18 @@ def save_checkpoint(model: PointNetSegmenter, path: Path, training: dict[str, An
         },
         path,
     )
+    shape = {"dtype": WEIGHTS_DTYPE, "parameters": parameter_count(model)}
+    return write_record(path, WEIGHTS, CHECKPOINT_FORMAT, **{**training, **shape})
 
 
-def file_sha256(path: Path) -> str:
-    import hashlib
-
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
-def verify_checksum(path: Path) -> None:
-    """Compare the checkpoint's SHA-256 with the one its ``.json`` record holds (where it holds one): a file
-    damaged on disk or in transfer may still load, and then labels scans badly without a word."""
-    import json
-
-    record = Path(path).with_suffix(".json")
-    if not record.is_file():
-        return
-    try:
-        expected = json.loads(record.read_text()).get("sha256")
-    except (json.JSONDecodeError, AttributeError):
-        raise PerceptionError(f"{record}: not a JSON record of the checkpoint") from None
-    if expected is not None and file_sha256(path) != expected:
-        raise PerceptionError(
-            f"{path}: SHA-256 {file_sha256(path)[:16]}... differs from {record}'s {str(expected)[:16]}...: the file is "
-            "damaged (or was replaced without its record); restore it or retrain"
-        )
+def _check_dtype(path: Path, state: dict[str, Any], record: dict[str, Any], remake: str) -> None:
+    """Every weight of the dtype the record names (batch norms' integer step counters aside)."""
+    dtype = record.get("dtype", WEIGHTS_DTYPE)
+    for name, value in state.items():
+        counter = name.endswith("num_batches_tracked")
+        if not isinstance(value, torch.Tensor) or (not counter and str(value.dtype) != f"torch.{dtype}"):
+            found = value.dtype if isinstance(value, torch.Tensor) else type(value).__name__
+            raise PerceptionError(f"{path}: tensor {name!r} is {found}, the record says {dtype}; {remake}")
 
 
 def load_checkpoint(path: Path) -> tuple[PointNetSegmenter, dict[str, Any]]:
@@ -226,7 +216,8 @@ def load_checkpoint(path: Path) -> tuple[PointNetSegmenter, dict[str, Any]]:
         raise MissingFileError(
             f"{path}: no PointNet checkpoint; train one with `python -m training rebuild --world <world>`"
         )
-    verify_checksum(path)
+    remake = "restore the file with its record, or retrain (`python -m training train`)"
+    record = read_record(path, WEIGHTS, CHECKPOINT_FORMAT, remake)
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as err:  # torch raises many types for a damaged file
@@ -240,10 +231,16 @@ def load_checkpoint(path: Path) -> tuple[PointNetSegmenter, dict[str, Any]]:
         )
     if list(data.get("classes", [])) != list(CLASS_NAMES):
         raise PerceptionError(f"{path}: checkpoint classes {data.get('classes')} differ from {CLASS_NAMES}")
+    _check_dtype(path, data.get("state_dict", {}), record, remake)
     model = PointNetSegmenter(PointNetConfig.from_dict(data["config"]))
     try:
         model.load_state_dict(data["state_dict"])
     except RuntimeError as err:
         raise PerceptionError(f"{path}: weights do not fit the network described by its config ({err})") from None
+    if "parameters" in record and record["parameters"] != parameter_count(model):
+        raise PerceptionError(
+            f"{path}: {parameter_count(model)} parameters, the record {record_path(path).name} says "
+            f"{record['parameters']}; {remake}"
+        )
     model.eval()
-    return model, data.get("training", {})
+    return model, {**data.get("training", {}), "sha256": record["sha256"]}

@@ -94,6 +94,11 @@ class Segmenter:
         self.threads = ThreadChooser()
 
     @property
+    def weights_sha256(self) -> str:
+        """The checksum of the weights, which a fingerprint map made with them records."""
+        return str(self.training["sha256"])
+
+    @property
     def descriptor_dim(self) -> int:
         return self.model.config.descriptor_dim
 

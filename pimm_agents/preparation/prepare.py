@@ -55,8 +55,10 @@ def prepare_world(
     seconds["routes"] = time.perf_counter() - start
     start = time.perf_counter()
     weights = checkpoint_path(loaded)
-    fmap = build_fingerprint_map(loaded, Segmenter(weights), spacing, seed, progress=progress)
-    fmap.save(fingerprint_path(loaded), {"spacing_m": str(spacing), "seed": str(seed), "weights": str(weights)})
+    segmenter = Segmenter(weights)
+    fmap = build_fingerprint_map(loaded, segmenter, spacing, seed, progress=progress)
+    provenance = {"spacing_m": str(spacing), "seed": str(seed), "weights": str(weights)}
+    fmap.save(fingerprint_path(loaded), segmenter.weights_sha256, provenance)
     seconds["fingerprints"] = time.perf_counter() - start
     occupancy = maps.occupancy
     return Preparation(
