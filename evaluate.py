@@ -299,6 +299,39 @@ def perception(
 
 
 @command(app)
+def segment(
+    file: Path = typer.Argument(
+        ..., help="a scan: .pcd (ascii, binary, binary_compressed), .ply, .las/.laz, .npy, KITTI .bin"
+    ),
+    sensor_height: float | None = typer.Option(None, help="the sensor's height above the floor, m (default: measured)"),
+    sensors: str | None = typer.Option(
+        None, help="a sensors .yaml or preset whose lidar3d mount gives height and tilt"
+    ),
+    world: str = WORLD,
+    weights: Path | None = typer.Option(None, help="network weights (default: the ones --world uses)"),
+    reference: bool = typer.Option(False, "--reference", help="also score against the scan's plane-fit reference"),
+    drop_invalid: bool = typer.Option(False, "--drop-invalid", help="leave out NaN points of an unorganized cloud"),
+    out: Path = OUT,
+    json_out: bool = JSON,
+) -> None:
+    """Classes and corners of one scan from any LiDAR, written with pictures (docs/perception.md#your-own-scans)."""
+    from pimm_agents.experiments.experiment import new_folder
+    from pimm_agents.measurement.cloud_file import segment_file
+    from pimm_agents.perception.files import checkpoint_path
+    from pimm_agents.results.tables import format_segment
+    from pimm_env.sim.sensors import sensor_layouts
+
+    tilt = None
+    if sensors is not None:
+        mount = sensor_layouts(sensors)[0]
+        sensor_height = mount.height if sensor_height is None else sensor_height
+        tilt = (mount.mount_roll_deg, mount.mount_pitch_deg)
+    folder = new_folder(out, f"segment_{file.stem}")
+    record = segment_file(file, weights or checkpoint_path(world), folder, sensor_height, tilt, drop_invalid, reference)
+    typer.echo(json.dumps(record) if json_out else "\n".join(format_segment(record)))
+
+
+@command(app)
 def active(
     world: str = WORLD,
     policy: list[str] = typer.Option(

@@ -13,6 +13,7 @@ class                  raised for
 ``WorldError``         world files, meshes, occupancy and corner maps, scenarios and routes
 ``EnvError``           the simulator's and env's settings: sensors, faults, movers, reset options, actions
 ``BagError``           rosbags and their messages
+``CloudFileError``     point cloud files: PCD, PLY, LAS/LAZ, ``.npy``, KITTI ``.bin``
 ``ParamsError``        params files and ``--set`` settings
 ``LocalizerError``     building a localizer: unknown names, config values, maps it cannot use
 ``ObservationError``   a localizer's input: missing keys, wrong shapes, non-finite values
@@ -70,6 +71,10 @@ class EnvError(PimmError, ValueError):
 
 class BagError(PimmError, ValueError):
     """A bag or one of its messages is unusable; the message names the topic and the message's index."""
+
+
+class CloudFileError(PimmError, ValueError):
+    """A point cloud file is unusable; the message names the file, the field or row, and what to give."""
 
 
 class ParamsError(PimmError, ValueError):

@@ -107,6 +107,34 @@ def format_perception(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def format_segment(record: dict[str, Any]) -> list[str]:
+    """What ``evaluate.py segment`` found in one scan, and (with ``--reference``) how it scores."""
+    how = "measured from the floor" if record["height_measured"] else "given"
+    lines = [
+        f"{record['file']}: {record['returns']} returns of {record['points']} points"
+        + (f" ({record['left_out']} without a return left out)" if record["left_out"] else ""),
+        f"  sensor {record['sensor_height_m']:.3f} m above the floor ({how}), tilted {record['tilt_deg']:.1f} deg; "
+        f"{100 * record['in_network_view']:.0f} % of the returns inside the network's vertical field",
+        "  classes: " + ", ".join(f"{k} {100 * v:.1f} %" for k, v in record["shares"].items()),
+        f"  corners: {len(record['corners'])}"
+        + "".join(f"\n    x {c['x']:7.3f}  y {c['y']:7.3f}  heading {c['theta']:6.3f} rad" for c in record["corners"]),
+    ]
+    if "reference" in record:
+        ref = record["reference"]
+        lines.append(
+            "  against the plane-fit reference: IoU "
+            + ", ".join(f"{k} {cell(v)}" for k, v in ref["iou"].items())
+            + f"; mean {cell(ref['mean_iou'])}"
+        )
+        found = ref["corners"]
+        lines.append(
+            f"  room corners: {found['matched']} of the reference's {found['reference']} found within 0.2 m, "
+            f"{found['unmatched_found']} found that match none"
+        )
+    lines.append(f"  written to {record['out']} (labels.npy, labelled.ply, corners.json, views.png)")
+    return lines
+
+
 def format_scores(scored: list[Any], groups: dict[str, dict[str, Any]]) -> str:
     """``evaluate.py score``: a line per log, then the thesis's metrics per group."""
     lines = []

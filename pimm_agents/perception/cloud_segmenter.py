@@ -1,0 +1,118 @@
+"""Any scan through the segmenter: a cloud from a file or a sensor the network was not trained on.
+
+``segment_cloud(points, segmenter)`` takes the returns of one scan in the sensor's frame, organized or not,
+from any LiDAR, and gives every point a class, the scan's descriptor and its corners:
+
+1. the floor is found (``floor.py``): the scan is levelled on it, and the mount height is measured, unless the
+   height and the mount's roll and pitch are given;
+2. the network reads the scan in the layout it was trained on: each of its rays takes the nearest return by
+   elevation and azimuth (``network_layout_cells``), the scan's heights moved so that the sensor sits at the
+   trained mount height;
+3. every return takes the class of its ray's chosen return (the nearest one in that ray's cell);
+4. corners are detected on the levelled returns (``corners/detector.py``), in the level sensor frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, detect_corners
+from pimm_agents.perception.floor import Floor, FloorConfig, estimate_floor
+from pimm_agents.perception.segmenter import Segmenter
+from pimm_env.errors import PerceptionError
+from pimm_env.sim.lidar import Lidar3DConfig, azimuths_3d, elevations_3d
+from pimm_env.world.semantics import SemanticClass
+
+
+@dataclass(frozen=True)
+class CloudSegmentation:
+    labels: np.ndarray  # (N,) class per return, as given
+    descriptor: np.ndarray
+    level_points: np.ndarray  # (N, 3) the returns in the level sensor frame
+    sensor_height: float  # m above the floor: given, or measured
+    height_measured: bool
+    tilt_deg: float  # how far the sensor leaned from level (0 when no floor was found and a height was given)
+    corners: FeatureList
+    in_view: float  # share of the returns inside the network's vertical field
+
+
+def mount_leveling(roll_deg: float, pitch_deg: float) -> np.ndarray:
+    """The rotation from the sensor's frame to the level frame for a mount of this roll and pitch."""
+    roll, pitch = np.radians(roll_deg), np.radians(pitch_deg)
+    rx = np.array([[1, 0, 0], [0, np.cos(roll), -np.sin(roll)], [0, np.sin(roll), np.cos(roll)]])
+    ry = np.array([[np.cos(pitch), 0, np.sin(pitch)], [0, 1, 0], [-np.sin(pitch), 0, np.cos(pitch)]])
+    return ry @ rx
+
+
+def network_layout_cells(level: np.ndarray, layout: Lidar3DConfig) -> tuple[np.ndarray, np.ndarray]:
+    """For each return, its ray (cell) of ``layout``, and whether it lies within the layout's vertical field.
+
+    Returns outside the field go to the nearest ring, so that each has a cell and a class."""
+    horizontal = np.hypot(level[:, 0], level[:, 1])
+    elevation = np.arctan2(level[:, 2], horizontal)
+    azimuth = np.arctan2(level[:, 1], level[:, 0])
+    rings = elevations_3d(layout)
+    spacing = (rings[-1] - rings[0]) / max(1, layout.layers - 1)
+    ring = np.clip(np.round((elevation - rings[0]) / spacing), 0, layout.layers - 1).astype(np.int64)
+    inside = np.abs(elevation - rings[ring]) <= spacing / 2 + 1e-9
+    step = 2 * np.pi / layout.points_per_layer
+    column = np.round((azimuth - azimuths_3d(layout)[0]) / step).astype(np.int64) % layout.points_per_layer
+    return ring * layout.points_per_layer + column, inside
+
+
+def segment_cloud(
+    points: np.ndarray,
+    segmenter: Segmenter,
+    sensor_height: float | None = None,
+    roll_pitch_deg: tuple[float, float] | None = None,
+    corners: CornerDetectorConfig | None = None,
+    floor: FloorConfig = FloorConfig(),
+    seed: int = 0,
+) -> CloudSegmentation:
+    """Classes, descriptor and corners of one scan's returns ``points`` (N, 3, sensor frame, finite).
+
+    ``roll_pitch_deg``: the mount's roll and pitch (deg, as a URDF joint's), which level the scan instead of its
+    floor."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(points) == 0 or not np.isfinite(points).all():
+        raise PerceptionError("segment_cloud takes the scan's returns: a non-empty (N, 3) array of finite points")
+    found: Floor | None
+    try:
+        found = estimate_floor(points, floor, seed)
+    except PerceptionError:
+        if sensor_height is None:
+            raise
+        found = None  # the height is given; the scan is taken as level
+    if roll_pitch_deg is not None:
+        leveling = mount_leveling(*roll_pitch_deg)
+    else:
+        leveling = found.leveling if found is not None else np.eye(3)
+    level = points @ leveling.T
+    height = float(sensor_height if sensor_height is not None else found.height)  # type: ignore[union-attr]
+    if not 0.0 < height < 10.0:
+        raise PerceptionError(f"sensor height {height:.3f} m: give the sensor's height above the floor in metres")
+    layout = replace(Lidar3DConfig(), layers=segmenter.layers, points_per_layer=segmenter.points_per_layer)
+    cell, inside = network_layout_cells(level, layout)
+    order = np.argsort(-np.linalg.norm(level, axis=1), kind="stable")  # far first: the nearest return wins
+    chosen = np.full(layout.num_points, -1, dtype=np.int64)
+    chosen[cell[order]] = order
+    mask = chosen >= 0
+    cloud = np.zeros((layout.num_points, 3), dtype=np.float32)
+    cloud[mask] = level[chosen[mask]]
+    cloud[mask, 2] += height - layout.height  # the network's trained mount height
+    result = segmenter.segment(cloud, mask)
+    labels = result.labels[cell].astype(np.int8)
+    structural = np.isin(labels, (int(SemanticClass.WALL), int(SemanticClass.CEILING)))
+    features = detect_corners(level[structural], labels[structural], config=corners, seed=seed)
+    return CloudSegmentation(
+        labels=labels,
+        descriptor=result.descriptor,
+        level_points=level,
+        sensor_height=height,
+        height_measured=sensor_height is None,
+        tilt_deg=float(np.degrees(np.arccos(np.clip(leveling[2, 2], -1.0, 1.0)))),
+        corners=features,
+        in_view=float(np.mean(inside)),
+    )

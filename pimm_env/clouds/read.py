@@ -1,0 +1,178 @@
+"""One 3D scan from a file, whatever wrote it: ``read_cloud(path) -> CloudFile``.
+
+=================  ======================================================================================
+suffix             read as
+=================  ======================================================================================
+``.pcd``           PCL's format, ``ascii``, ``binary`` or ``binary_compressed`` (``pcd.py``); ``VIEWPOINT``
+                   applied, so the points are in the sensor's frame
+``.ply``           the vertices' x, y, z (Open3D)
+``.las``, ``.laz`` the points' scaled x, y, z (laspy, with lazrs for LAZ)
+``.npy``           an (N, >= 3) array (x, y, z first) or an organized (rows, columns, >= 3) one
+``.bin``           KITTI's Velodyne scans: float32 x, y, z, reflectance per point
+=================  ======================================================================================
+
+A point with a NaN or infinite coordinate, or at the origin, is no return. In an organized cloud (a PCD of
+HEIGHT > 1, a 3-d ``.npy``) that is how a sensor marks a ray that saw nothing, and such points are left out and
+counted; in an unorganized cloud it is damage, and an error names the first such row unless ``drop_invalid``
+says to leave them out (counted the same way). A ``ring`` field (PCD, ``.npy`` of an organized cloud: its
+row) is kept. Nothing else about the layout is assumed: the points may come from any LiDAR.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pimm_env.errors import CloudFileError, MissingFileError
+
+SUFFIXES = (".pcd", ".ply", ".las", ".laz", ".npy", ".bin")
+
+
+@dataclass(frozen=True)
+class CloudFile:
+    """A scan's returns in the sensor's frame, and what the file said about its layout."""
+
+    points: np.ndarray  # (N, 3) float32, finite, none at the origin
+    source: str
+    organized: tuple[int, int] | None  # (rows, columns) of an organized file
+    ring: np.ndarray | None  # (N,) the ring (row) of each point, where the file has one
+    rows: np.ndarray  # (N,) each return's row in the file
+    total: int  # points in the file, returns or not
+    left_out: int  # points that were no return (NaN, infinite or at the origin)
+
+
+def read_cloud(path: Path | str, drop_invalid: bool = False) -> CloudFile:
+    """The returns of the scan in ``path``; an unusable file is a ``CloudFileError`` naming it and what is wrong."""
+    path = Path(path)
+    if not path.is_file():
+        raise MissingFileError(f"{path}: no such point cloud file")
+    suffix = path.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise CloudFileError(f"{path}: unknown point cloud suffix {suffix!r}; give one of {', '.join(SUFFIXES)}")
+    reader = {".pcd": _pcd, ".ply": _ply, ".las": _las, ".laz": _las, ".npy": _npy, ".bin": _kitti}[suffix]
+    xyz, ring, organized = reader(path)
+    return _returns(path, np.asarray(xyz, dtype=np.float64), ring, organized, drop_invalid)
+
+
+def _returns(
+    path: Path, xyz: np.ndarray, ring: np.ndarray | None, organized: tuple[int, int] | None, drop_invalid: bool
+) -> CloudFile:
+    if len(xyz) == 0:
+        raise CloudFileError(f"{path}: the cloud has no points")
+    finite = np.isfinite(xyz).all(axis=1)
+    good = finite & np.any(xyz != 0, axis=1)
+    if organized is None and not finite.all() and not drop_invalid:
+        first = int(np.flatnonzero(~finite)[0])
+        raise CloudFileError(
+            f"{path}: {int((~finite).sum())} of {len(xyz)} points have NaN or infinite coordinates (first: row "
+            f"{first}); an unorganized cloud has no rays without returns: repair the file, or pass --drop-invalid "
+            "to leave them out"
+        )
+    if not good.any():
+        raise CloudFileError(f"{path}: none of its {len(xyz)} points is a return (all NaN, infinite or at the origin)")
+    return CloudFile(
+        points=xyz[good].astype(np.float32),
+        source=str(path),
+        organized=organized,
+        ring=None if ring is None else np.asarray(ring)[good].astype(np.int32),
+        rows=np.flatnonzero(good),
+        total=len(xyz),
+        left_out=int((~good).sum()),
+    )
+
+
+def _pcd(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | None]:
+    from pimm_env.clouds.pcd import read_pcd
+
+    header, rows = read_pcd(path)
+    missing = [name for name in "xyz" if name not in header.fields]
+    if missing:
+        raise CloudFileError(f"{path}: no {'/'.join(missing)} field (fields: {', '.join(header.fields)})")
+    xyz = np.column_stack([rows[name].astype(np.float64) for name in "xyz"])
+    xyz = _from_viewpoint(xyz, header.viewpoint)
+    organized = (header.height, header.width) if header.height > 1 else None
+    ring = rows["ring"] if "ring" in header.fields else None
+    if ring is None and organized is not None:
+        ring = np.repeat(np.arange(header.height), header.width)
+    return xyz, ring, organized
+
+
+def _from_viewpoint(xyz: np.ndarray, viewpoint: tuple[float, ...]) -> np.ndarray:
+    """Points given in a frame where the sensor sits at ``viewpoint`` (t, q w x y z), moved into the sensor's."""
+    t = np.asarray(viewpoint[:3])
+    w, x, y, z = viewpoint[3:]
+    norm = np.sqrt(w * w + x * x + y * y + z * z) or 1.0
+    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    rotation = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    if np.allclose(rotation, np.eye(3)) and not t.any():
+        return xyz
+    return (xyz - t) @ rotation
+
+
+def _ply(path: Path) -> tuple[np.ndarray, None, None]:
+    import open3d as o3d
+
+    with _quiet_open3d():
+        cloud = o3d.t.io.read_point_cloud(path, remove_nan_points=False, remove_infinite_points=False)
+    if "positions" not in cloud.point:
+        raise CloudFileError(f"{path}: no vertices with x, y, z could be read (not a PLY point set, or damaged)")
+    return cloud.point.positions.numpy(), None, None
+
+
+class _quiet_open3d:
+    """Open3D's reader prints its warnings; the error we raise says what went wrong instead."""
+
+    def __enter__(self) -> None:
+        import open3d as o3d
+
+        self.level = o3d.utility.get_verbosity_level()
+        o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
+
+    def __exit__(self, *exc: object) -> None:
+        import open3d as o3d
+
+        o3d.utility.set_verbosity_level(self.level)
+
+
+def _las(path: Path) -> tuple[np.ndarray, None, None]:
+    import laspy
+
+    try:
+        las = laspy.read(str(path))
+    except (laspy.errors.LaspyException, OSError, ValueError) as error:
+        raise CloudFileError(f"{path}: not a readable LAS/LAZ file ({error})") from None
+    return np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)]), None, None
+
+
+def _npy(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | None]:
+    try:
+        array = np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError) as error:
+        raise CloudFileError(f"{path}: not a readable .npy array ({error})") from None
+    if array.dtype.kind not in "fiu":
+        raise CloudFileError(f"{path}: array of {array.dtype}; give numbers (x, y, z first)")
+    if array.ndim == 3 and array.shape[2] >= 3:
+        rows, columns = array.shape[:2]
+        return array[..., :3].reshape(-1, 3), np.repeat(np.arange(rows), columns), (rows, columns)
+    if array.ndim != 2 or array.shape[1] < 3:
+        raise CloudFileError(
+            f"{path}: array of shape {array.shape}; give (N, 3+) points or an organized (rows, columns, 3+) scan"
+        )
+    return array[:, :3], None, None
+
+
+def _kitti(path: Path) -> tuple[np.ndarray, None, None]:
+    size = path.stat().st_size
+    if size % 16:
+        raise CloudFileError(
+            f"{path}: {size} bytes is not a whole number of KITTI points (float32 x, y, z, reflectance: 16 bytes each)"
+        )
+    return np.fromfile(path, dtype="<f4").reshape(-1, 4)[:, :3], None, None

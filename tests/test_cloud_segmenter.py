@@ -1,0 +1,88 @@
+"""Any scan through the segmenter: the mount height measured from the floor, a tilted or unorganized scan of
+another LiDAR, and the ``segment`` command on a file."""
+
+import json
+
+import numpy as np
+import pytest
+
+from pimm_agents.perception.files import SHIPPED_WEIGHTS
+from pimm_agents.perception.floor import estimate_floor, rotation_onto_z
+from pimm_env.envs.iilab_env import IILabEnv
+from pimm_env.envs.sim_config import SimConfig
+from pimm_env.sim.lidar import Lidar3DConfig
+
+
+def simulated_scan(lidar: Lidar3DConfig, seed: int = 0):
+    env = IILabEnv(config=SimConfig(lidar3d=lidar))
+    obs, _ = env.reset(seed=seed)
+    obs, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+    env.close()
+    keep = obs["cloud_mask"].astype(bool)
+    return obs["cloud"][keep].astype(np.float64), info["labels"][keep]
+
+
+@pytest.mark.parametrize("height", [0.5, 1.2])
+def test_the_measured_mount_height_agrees_with_the_given_one_within_5_cm(height):
+    points, _ = simulated_scan(Lidar3DConfig(height=height))
+    floor = estimate_floor(points)
+    assert floor.height == pytest.approx(height, abs=0.05)
+    assert floor.tilt_deg < 1.0
+
+
+def test_a_leaning_sensor_is_levelled_on_the_floor():
+    points, _ = simulated_scan(Lidar3DConfig())
+    lean = rotation_onto_z(np.array([np.sin(np.radians(4)), 0.0, np.cos(np.radians(4))])).T  # 4 deg of pitch
+    floor = estimate_floor(points @ lean.T)
+    assert floor.tilt_deg == pytest.approx(4.0, abs=0.3)
+    assert floor.height == pytest.approx(0.5, abs=0.05)
+
+
+def test_a_scan_without_floor_below_the_sensor_asks_for_the_height():
+    from pimm_env.errors import PerceptionError
+
+    with pytest.raises(PerceptionError, match="--sensor-height"):
+        estimate_floor(np.random.default_rng(0).uniform(0, 3, (500, 3)))
+
+
+def _accuracy(labels, truth):
+    return float(np.mean(labels == truth))
+
+
+def test_an_unorganized_scan_gets_the_classes_of_an_organized_one():
+    """The thesis LiDAR's scan handed over as a bare point set (no rings), shuffled, with the height measured."""
+    from pimm_agents.perception.cloud_segmenter import segment_cloud
+    from pimm_agents.perception.segmenter import Segmenter
+
+    segmenter = Segmenter(SHIPPED_WEIGHTS)
+    rng = np.random.default_rng(0)
+    for lidar in (Lidar3DConfig(),):
+        points, truth = simulated_scan(lidar, seed=2)
+        order = rng.permutation(len(points))
+        result = segment_cloud(points[order], segmenter)
+        assert result.height_measured and result.sensor_height == pytest.approx(0.5, abs=0.05)
+        assert _accuracy(result.labels, truth[order]) > 0.8, lidar.layers
+
+
+def test_segment_writes_labels_corners_and_pictures(tmp_path):
+    import open3d as o3d
+    from typer.testing import CliRunner
+
+    import evaluate
+
+    points, _ = simulated_scan(Lidar3DConfig(height=0.9))
+    path = tmp_path / "scan.pcd"
+    o3d.io.write_point_cloud(str(path), o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)), compressed=True)
+    result = CliRunner().invoke(evaluate.app, ["segment", str(path), "--out", str(tmp_path / "out"), "--json"])
+    assert result.exit_code == 0, result.output
+    record = json.loads(result.output)
+    assert record["sensor_height_m"] == pytest.approx(0.9, abs=0.05) and record["height_measured"]
+    assert sum(record["shares"].values()) == pytest.approx(1.0, abs=1e-3) and record["shares"]["wall"] > 0.1
+    folder = tmp_path / "out"
+    (written,) = list(folder.iterdir())
+    labels = np.load(written / "labels.npy")
+    assert labels.shape == (len(points),) and set(np.unique(labels)) <= {0, 1, 2, 3}
+    for name in ("labelled.ply", "corners.json", "views.png", "segment.json"):
+        assert (written / name).stat().st_size > 0, name
+    given = CliRunner().invoke(evaluate.app, ["segment", str(path), "--sensor-height", "0.9", "--out", str(folder)])
+    assert given.exit_code == 0 and "0.900 m above the floor (given)" in given.output
