@@ -161,18 +161,25 @@ def map_command(
     """A map_server map from a bag's scans laid at its true poses (it flatters a localizer replaying that bag)."""
     from pimm_env.bags.layout import layouts_from_bag
     from pimm_env.bags.read import BagTopics
-    from pimm_env.mapping.from_scans import ScanMapConfig, map_from_bag
+    from pimm_env.mapping.from_scans import SPARSE_SCAN_SPACING_M, ScanMapConfig, map_from_bag, scan_spacing_m
     from pimm_env.mapping.occupancy import save_map_server
 
     topics = BagTopics(odom=odom_topic, scan=scan_topic, points=None, truth=truth_topic, events=None)
     _, lidar2d = layouts_from_bag(from_bag, scan_topic, None)
-    occupancy = map_from_bag(from_bag, topics, lidar2d, ScanMapConfig(resolution=resolution))
+    occupancy, poses = map_from_bag(from_bag, topics, lidar2d, ScanMapConfig(resolution=resolution))
     out.parent.mkdir(parents=True, exist_ok=True)
     save_map_server(occupancy, out)
     rows, cols = occupancy.grid.shape
+    spacing = scan_spacing_m(poses)
+    kind = (
+        "a sparse log: replay it with --params docs/params/amcl-sparse-logs.yaml (docs/benchmarks.md)"
+        if spacing > SPARSE_SCAN_SPACING_M
+        else "a dense log: nav2's defaults fit it"
+    )
     typer.echo(
         f"wrote {out} ({cols} x {rows} cells of {resolution} m, {int(occupancy.occupied.sum())} occupied): built"
-        f" from the bag's own scans, it flatters a localizer replaying {from_bag}"
+        f" from the bag's own scans, it flatters a localizer replaying {from_bag}\n"
+        f"{len(poses)} scans, {spacing:.2f} m apart on average: {kind}"
     )
 
 

@@ -29,3 +29,13 @@ def test_walls_are_occupied_the_room_free_and_beyond_the_walls_unknown():
     assert not occupancy.free[rows[4], cols[4]] and not occupancy.occupied[rows[4], cols[4]]  # beyond: unknown
     with pytest.raises(BagError, match="no scan with a true pose"):
         map_from_scans(np.zeros((0, 3)), [], bearings, 80.0, ScanMapConfig())
+
+
+def test_scan_spacing_tells_a_sparse_log_from_a_dense_one():
+    from pimm_env.mapping.from_scans import SPARSE_SCAN_SPACING_M, scan_spacing_m
+
+    dense = np.column_stack([np.arange(0, 10, 0.1), np.zeros(100), np.zeros(100)])
+    sparse = np.column_stack([np.arange(0, 10, 0.8), np.zeros(13), np.zeros(13)])
+    assert scan_spacing_m(dense) == pytest.approx(0.1) and 0.1 < SPARSE_SCAN_SPACING_M
+    assert scan_spacing_m(sparse) == pytest.approx(0.8) and 0.8 > SPARSE_SCAN_SPACING_M
+    assert scan_spacing_m(dense[:1]) == 0.0

@@ -31,7 +31,9 @@ def test_presets_lay_out_the_beams_as_their_datasheets():
     assert len(thesis) == 360 and np.degrees(thesis[[0, -1]]) == pytest.approx([-180, 179])
     lidar3d, lidar2d = sensor_layouts("sick-lms200")
     assert lidar2d.beams == 181 and lidar3d.layers == 40  # a 2D preset keeps the thesis's 3D LiDAR
-    with pytest.raises(ValueError, match="unknown sensor preset 'velodyne'; valid: hokuyo-utm30lx, os0-64, sick"):
+    with pytest.raises(
+        ValueError, match="unknown sensor preset 'velodyne'; valid: hokuyo-utm30lx, os0-64, os1-128, sick"
+    ):
         sensor_layouts("velodyne")
     with pytest.raises(ValueError, match="angle_min_deg < angle_max_deg"):
         replace(LIDAR_2D["thesis"], angle_min_deg=10.0, angle_max_deg=-10.0)

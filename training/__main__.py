@@ -13,6 +13,7 @@ import json
 import shlex
 import sys
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -60,8 +61,33 @@ def dataset(
 
 
 @command_line.command(app)
+def clouds(
+    worlds: list[str] = typer.Option(..., "--world", help="world name or file; repeat for several"),
+    per_world: int = typer.Option(200, min=1, help="scans of each world"),
+    seed: int = typer.Option(0, help="seed of every draw (poses, LiDARs, mounts, noise)"),
+    out: Path = typer.Option(..., help="the .npz to write"),
+) -> None:
+    """Labelled scans of many LiDARs, mounts and conditions for the layout-free network
+    (training/cloud_dataset.py)."""
+    from training.buildings import HELD_OUT_SEEDS, LOCALIZER_HELD_OUT_SEEDS, LOOKALIKE_HELD_OUT_SEEDS
+    from training.cloud_dataset import generate, save
+
+    held = {f"gen-{s}" for s in (*HELD_OUT_SEEDS, *LOCALIZER_HELD_OUT_SEEDS, *LOOKALIKE_HELD_OUT_SEEDS)}
+    for world in worlds:
+        _prepare(world)
+        if Path(world).parent.name in held or world in held:
+            raise typer.BadParameter(f"{world} is a held-out building: never train on it", param_hint="--world")
+    made = generate(worlds, per_world, seed)
+    save(made, out)
+    typer.echo(f"wrote {out}: {len(made)} scans, {len(made.points)} voxel points")
+
+
+@command_line.command(app)
 def train(
     worlds: list[str] = typer.Option(["iilab"], "--world", help="world name or file; repeat to pool several"),
+    cloud_sets: list[Path] = typer.Option(
+        [], "--clouds", help="train the layout-free network on these cloud datasets (`clouds`) instead"
+    ),
     epochs: int = typer.Option(40, min=1),
     points: int = typer.Option(2048, min=64, help="points per scan the network looks at"),
     seed: int = typer.Option(0),
@@ -74,18 +100,29 @@ def train(
 
     from pimm_agents.perception.files import own_checkpoint_path
     from pimm_agents.perception.pointnet import PointNetConfig, load_checkpoint, save_checkpoint
+    from training import cloud_dataset
     from training.dataset import load, pool, split
     from training.train import TrainConfig, describe
     from training.train import train as fit
 
-    if out is None and len(worlds) > 1:
+    if out is None and (len(worlds) > 1 or cloud_sets):
         raise typer.BadParameter("pooling several worlds: say where the weights go", param_hint="--out")
-    paths = [_dataset_paths(world)[0] for world in worlds]
-    scans = pool([load(path) for path in paths])
-    main_path = paths[0]
-    train_set, test_set = split(scans, 0.8, np.random.default_rng(seed))
     config = TrainConfig(epochs=epochs, seed=seed, learning_rate=learning_rate)
-    network = PointNetConfig(points=points)
+    scans: Any
+    if cloud_sets:
+        paths = list(cloud_sets)
+        scans = cloud_dataset.pool([cloud_dataset.load(path) for path in paths])
+        order = np.random.default_rng(seed).permutation(len(scans))
+        cut = round(0.8 * len(scans))
+        train_set, test_set = scans.subset(np.sort(order[:cut])), scans.subset(np.sort(order[cut:]))
+        network = PointNetConfig(points=points, inputs="cloud", context_offsets=())
+        worlds = sorted(set(str(w) for w in scans.worlds))
+    else:
+        paths = [_dataset_paths(world)[0] for world in worlds]
+        scans = pool([load(path) for path in paths])
+        train_set, test_set = split(scans, 0.8, np.random.default_rng(seed))
+        network = PointNetConfig(points=points)
+    main_path = paths[0]
     initial = load_checkpoint(init)[0] if init is not None else None
     if initial is not None:
         network = initial.config
@@ -318,6 +355,7 @@ def rebuild(
     dataset(world=world, scans=scans, validation=validation, seed=seed, workers=1, backend="local", address=None)
     train(
         worlds=[world],
+        cloud_sets=[],
         epochs=epochs,
         points=PointNetConfig().points,
         seed=seed,

@@ -26,6 +26,7 @@ from pimm_agents.perception.segmenter import strided_sample
 from pimm_env.errors import PerceptionError
 from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
 from pimm_env.world.semantics import CLASS_NAMES
+from training.cloud_dataset import CloudSet
 from training.dataset import ScanSet
 
 
@@ -94,6 +95,40 @@ class ScanSampler:
         return torch.from_numpy(np.stack(feats)), torch.from_numpy(np.stack(labels).astype(np.int64))
 
 
+class CloudSampler:
+    """Network inputs for scans of a :class:`CloudSet` (layout-free features, ``cloud_features.py``). A sample
+    with a non-zero ``offset`` is also jittered as the floor fit errs at run time: the height by up to 3 cm,
+    the levelling by up to 0.5 deg."""
+
+    def __init__(self, clouds: CloudSet, network: PointNetConfig) -> None:
+        if network.inputs != "cloud":
+            raise PerceptionError(f"a cloud dataset trains a network of 'cloud' inputs, not {network.inputs!r}")
+        self.scans = clouds
+        self.network = network
+
+    def sample(self, i: int, offset: int) -> tuple[np.ndarray, np.ndarray]:
+        from pimm_agents.perception.cloud_features import cloud_features
+        from pimm_agents.perception.floor import rotation_onto_z
+
+        points, labels = self.scans.scan(i)
+        height = float(self.scans.heights[i])
+        if offset:
+            rng = np.random.default_rng(offset)
+            height += rng.uniform(-0.03, 0.03)
+            lean = np.radians(0.5) * rng.uniform(-1, 1, 2)
+            points = points @ rotation_onto_z(np.array([lean[0], lean[1], 1.0])).T
+        thinned = cloud_features(points, height, self.network.points, offset=offset)
+        return thinned.features.T.astype(np.float32), labels[thinned.chosen]
+
+    def batch(self, indices: np.ndarray, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+        feats, labels = zip(*(self.sample(int(i), int(rng.integers(1, 1 << 16))) for i in indices), strict=True)
+        return torch.from_numpy(np.stack(feats)), torch.from_numpy(np.stack(labels).astype(np.int64))
+
+
+def make_sampler(scans: ScanSet | CloudSet, network: PointNetConfig) -> ScanSampler | CloudSampler:
+    return CloudSampler(scans, network) if isinstance(scans, CloudSet) else ScanSampler(scans, network)
+
+
 def pair_batches(positions: np.ndarray, pairs: int, radius: float, rng: np.random.Generator) -> list[np.ndarray]:
     """One epoch of batches, each of ``pairs`` anchors and for each a scan within ``radius`` (or itself)."""
     tree = cKDTree(positions)
@@ -109,7 +144,7 @@ def pair_batches(positions: np.ndarray, pairs: int, radius: float, rng: np.rando
     return batches
 
 
-def evaluate_segmentation(model: PointNetSegmenter, sampler: ScanSampler, batch: int = 32) -> np.ndarray:
+def evaluate_segmentation(model: PointNetSegmenter, sampler: ScanSampler | CloudSampler, batch: int = 32) -> np.ndarray:
     """Per-class IoU over the network's sampled points of every scan in ``sampler`` (offset 0)."""
     model.eval()
     predicted, truth = [], []
@@ -124,8 +159,8 @@ def evaluate_segmentation(model: PointNetSegmenter, sampler: ScanSampler, batch:
 
 
 def train(
-    train_set: ScanSet,
-    validation_set: ScanSet,
+    train_set: ScanSet | CloudSet,
+    validation_set: ScanSet | CloudSet,
     config: TrainConfig = TrainConfig(),
     network: PointNetConfig = PointNetConfig(),
     on_epoch: Callable[[dict], None] | None = None,
@@ -146,8 +181,8 @@ def train(
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
     step = max(1, config.epochs // config.lr_decay_times)
     scheduler = torch.optim.lr_scheduler.StepLR(optimizer, step_size=step, gamma=config.lr_decay)
-    sampler = ScanSampler(train_set, network)
-    val_sampler = ScanSampler(validation_set, network)
+    sampler = make_sampler(train_set, network)
+    val_sampler = make_sampler(validation_set, network)
     positions = train_set.poses[:, :2]
     history = []
     for epoch in range(1, config.epochs + 1):

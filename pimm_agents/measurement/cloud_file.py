@@ -28,13 +28,12 @@ def segment_file(
     reference: bool = False,
     seed: int = 0,
 ) -> dict[str, Any]:
-    from pimm_agents.perception.cloud_segmenter import segment_cloud
-    from pimm_agents.perception.segmenter import Segmenter
+    from pimm_agents.perception.cloud_segmenter import load_segmenter, segment_cloud
     from pimm_agents.results.cloud_figures import draw_labelled_cloud
     from pimm_env.clouds.read import read_cloud
 
     cloud = read_cloud(path, drop_invalid)
-    result = segment_cloud(cloud.points, Segmenter(weights), sensor_height, roll_pitch_deg, seed=seed)
+    result = segment_cloud(cloud.points, load_segmenter(weights), sensor_height, roll_pitch_deg, seed=seed)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     labels = np.full(cloud.total, -1, dtype=np.int8)

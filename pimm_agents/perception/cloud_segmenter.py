@@ -1,28 +1,36 @@
-"""Any scan through the segmenter: a cloud from a file or a sensor the network was not trained on.
+"""Any scan through the segmenter: a cloud from a file or from a sensor of any layout.
 
 ``segment_cloud(points, segmenter)`` takes the returns of one scan in the sensor's frame, organized or not,
 from any LiDAR, and gives every point a class, the scan's descriptor and its corners:
 
 1. the floor is found (``floor.py``): the scan is levelled on it, and the mount height is measured, unless the
    height and the mount's roll and pitch are given;
-2. the network reads the scan in the layout it was trained on: each of its rays takes the nearest return by
-   elevation and azimuth (``network_layout_cells``), the scan's heights moved so that the sensor sits at the
-   trained mount height;
-3. every return takes the class of its ray's chosen return (the nearest one in that ray's cell);
-4. corners are detected on the levelled returns (``corners/detector.py``), in the level sensor frame.
+2. a layout-free network (:class:`CloudSegmenter`, weights of ``cloud`` inputs) reads the levelled points
+   themselves: their voxels' features (``cloud_features.py``) with the height above the floor; every voxel
+   takes the class of the nearest voxel the network looked at, every return its voxel's class;
+   a grid network (:class:`Segmenter`, ``grid`` inputs, trained on one layout) reads the scan in its layout
+   instead: each of its rays takes the nearest return by elevation and azimuth (``network_layout_cells``),
+   heights moved so that the sensor sits at the trained mount height, and each return takes its ray's class;
+3. corners are detected on the levelled returns (``corners/detector.py``), in the level sensor frame.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
+import torch
 
 from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, detect_corners
+from pimm_agents.perception.cloud_features import CloudFeatureConfig, cloud_features
 from pimm_agents.perception.floor import Floor, FloorConfig, estimate_floor
+from pimm_agents.perception.pointnet import FusedPointNet, load_checkpoint
 from pimm_agents.perception.segmenter import Segmenter
+from pimm_agents.perception.threads import ThreadChooser
 from pimm_env.errors import PerceptionError
-from pimm_env.sim.lidar import Lidar3DConfig, azimuths_3d, elevations_3d
+from pimm_env.sim.lidar import Lidar3DConfig, azimuths_3d, elevations_3d, mount_rotation
 from pimm_env.world.semantics import SemanticClass
 
 
@@ -40,10 +48,7 @@ class CloudSegmentation:
 
 def mount_leveling(roll_deg: float, pitch_deg: float) -> np.ndarray:
     """The rotation from the sensor's frame to the level frame for a mount of this roll and pitch."""
-    roll, pitch = np.radians(roll_deg), np.radians(pitch_deg)
-    rx = np.array([[1, 0, 0], [0, np.cos(roll), -np.sin(roll)], [0, np.sin(roll), np.cos(roll)]])
-    ry = np.array([[np.cos(pitch), 0, np.sin(pitch)], [0, 1, 0], [-np.sin(pitch), 0, np.cos(pitch)]])
-    return ry @ rx
+    return mount_rotation(Lidar3DConfig(mount_roll_deg=roll_deg, mount_pitch_deg=pitch_deg))
 
 
 def network_layout_cells(level: np.ndarray, layout: Lidar3DConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -62,9 +67,55 @@ def network_layout_cells(level: np.ndarray, layout: Lidar3DConfig) -> tuple[np.n
     return ring * layout.points_per_layer + column, inside
 
 
+class CloudSegmenter:
+    """A network of ``cloud`` inputs on any point set: ``segment_points(level, height) -> (classes, descriptor)``."""
+
+    def __init__(self, checkpoint: Path, features: CloudFeatureConfig = CloudFeatureConfig()) -> None:
+        self.model, self.training = load_checkpoint(checkpoint)
+        if self.model.config.inputs != "cloud":
+            raise PerceptionError(f"{checkpoint}: weights of {self.model.config.inputs!r} inputs; use Segmenter")
+        self.network = FusedPointNet(self.model)
+        self.checkpoint = Path(checkpoint)
+        self.features = features
+        self.threads = ThreadChooser()
+
+    @property
+    def weights_sha256(self) -> str:
+        return str(self.training["sha256"])
+
+    @property
+    def descriptor_dim(self) -> int:
+        return self.model.config.descriptor_dim
+
+    def segment_points(self, level: np.ndarray, height: float) -> tuple[np.ndarray, np.ndarray]:
+        """Classes (int8, one per return) and the unit descriptor of returns ``level`` (N, 3, level sensor frame)
+        from a sensor ``height`` m above the floor."""
+        from scipy.spatial import cKDTree
+
+        thinned = cloud_features(level, height, self.model.config.points, self.features)
+        self.threads.before()
+        start = time.perf_counter()
+        with torch.inference_mode():
+            net = self.network
+            local = net.local_features(torch.from_numpy(thinned.features))
+            glob = net.global_feature(local)
+            classes = net.logits(local, glob).argmax(dim=1).numpy().astype(np.int8)
+            descriptor = net.descriptor_of(glob).numpy().astype(np.float32)
+        self.threads.after(time.perf_counter() - start)
+        seen = thinned.chosen[: min(len(thinned.points), len(thinned.chosen))]
+        _, nearest = cKDTree(thinned.points[seen]).query(thinned.points)
+        return classes[: len(seen)][nearest][thinned.voxel_of], descriptor
+
+
+def load_segmenter(checkpoint: Path) -> Segmenter | CloudSegmenter:
+    """The segmenter that fits the weights: layout-free for ``cloud`` inputs, the grid network otherwise."""
+    model, _ = load_checkpoint(checkpoint)
+    return CloudSegmenter(checkpoint) if model.config.inputs == "cloud" else Segmenter(checkpoint)
+
+
 def segment_cloud(
     points: np.ndarray,
-    segmenter: Segmenter,
+    segmenter: Segmenter | CloudSegmenter,
     sensor_height: float | None = None,
     roll_pitch_deg: tuple[float, float] | None = None,
     corners: CornerDetectorConfig | None = None,
@@ -93,6 +144,26 @@ def segment_cloud(
     height = float(sensor_height if sensor_height is not None else found.height)  # type: ignore[union-attr]
     if not 0.0 < height < 10.0:
         raise PerceptionError(f"sensor height {height:.3f} m: give the sensor's height above the floor in metres")
+    if isinstance(segmenter, CloudSegmenter):
+        labels, descriptor = segmenter.segment_points(level, height)
+        in_view = 1.0
+    else:
+        labels, descriptor, in_view = _through_grid(level, height, segmenter)
+    structural = np.isin(labels, (int(SemanticClass.WALL), int(SemanticClass.CEILING)))
+    features = detect_corners(level[structural], labels[structural], config=corners, seed=seed)
+    return CloudSegmentation(
+        labels=labels,
+        descriptor=descriptor,
+        level_points=level,
+        sensor_height=height,
+        height_measured=sensor_height is None,
+        tilt_deg=float(np.degrees(np.arccos(np.clip(leveling[2, 2], -1.0, 1.0)))),
+        corners=features,
+        in_view=in_view,
+    )
+
+
+def _through_grid(level: np.ndarray, height: float, segmenter: Segmenter) -> tuple[np.ndarray, np.ndarray, float]:
     layout = replace(Lidar3DConfig(), layers=segmenter.layers, points_per_layer=segmenter.points_per_layer)
     cell, inside = network_layout_cells(level, layout)
     order = np.argsort(-np.linalg.norm(level, axis=1), kind="stable")  # far first: the nearest return wins
@@ -103,16 +174,4 @@ def segment_cloud(
     cloud[mask] = level[chosen[mask]]
     cloud[mask, 2] += height - layout.height  # the network's trained mount height
     result = segmenter.segment(cloud, mask)
-    labels = result.labels[cell].astype(np.int8)
-    structural = np.isin(labels, (int(SemanticClass.WALL), int(SemanticClass.CEILING)))
-    features = detect_corners(level[structural], labels[structural], config=corners, seed=seed)
-    return CloudSegmentation(
-        labels=labels,
-        descriptor=result.descriptor,
-        level_points=level,
-        sensor_height=height,
-        height_measured=sensor_height is None,
-        tilt_deg=float(np.degrees(np.arccos(np.clip(leveling[2, 2], -1.0, 1.0)))),
-        corners=features,
-        in_view=float(np.mean(inside)),
-    )
+    return result.labels[cell].astype(np.int8), result.descriptor, float(np.mean(inside))

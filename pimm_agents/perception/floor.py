@@ -1,10 +1,8 @@
 """The floor under a scan: how high the sensor sits above it and how far the sensor leans, from the scan alone.
 
-A scan's floor is the lowest large level plane below the sensor (desk tops and seats are level too, but
-higher). RANSAC planes are taken one after another from the returns below the sensor (Open3D's
-``segment_plane``, seeded); of those within ``max_tilt_deg`` of level and holding at least ``min_share`` of the
-largest one's points, the lowest is the floor. Its distance from the sensor is the mount height; its normal
-gives the rotation that levels the scan (the sensor's roll and pitch).
+A scan's floor is the lowest well-filled level surface below the sensor (desk tops and seats are level too,
+but higher; see :func:`estimate_floor`). Its distance from the sensor is the mount height; its normal gives the
+rotation that levels the scan (the sensor's roll and pitch).
 """
 
 from __future__ import annotations
@@ -20,14 +18,13 @@ from pimm_env.errors import PerceptionError
 class FloorConfig:
     """Ours; sized for indoor scans with the sensor 0.2-1.8 m up and leaning at most a few degrees."""
 
-    voxel_m: float = 0.05  # the returns are thinned to one per voxel first
-    distance_m: float = 0.03  # a RANSAC inlier lies this close to the plane
-    max_planes: int = 6
-    max_tilt_deg: float = 15.0  # a floor candidate's normal within this of the sensor's z
-    min_share: float = 0.3  # of the largest level plane's inliers
+    distance_m: float = 0.03  # an inlier lies this close to the plane
+    hypotheses: int = 400
+    score_points: int = 3000  # hypotheses are scored on at most this many of the candidate returns
+    max_tilt_deg: float = 7.0  # a level hypothesis's normal within this of the sensor's z (the mount leans up to 5 deg)
+    min_share: float = 0.1  # the floor's height bin holds at least this share of the fullest bin's returns
     min_inliers: int = 50
     below_m: float = 0.1  # candidates: returns at least this far below the sensor
-    iterations: int = 200
 
 
 @dataclass(frozen=True)
@@ -59,41 +56,56 @@ def rotation_onto_z(normal: np.ndarray) -> np.ndarray:
 
 
 def estimate_floor(points: np.ndarray, config: FloorConfig = FloorConfig(), seed: int = 0) -> Floor:
-    """The floor under the scan ``points`` (N, 3, sensor frame); an error says when none can be found."""
-    import open3d as o3d
+    """The floor under the scan ``points`` (N, 3, sensor frame); an error says when none can be found.
 
+    Two steps. Up: RANSAC of level planes only (through three random returns, the normal within
+    ``max_tilt_deg`` of the sensor's z, scored on up to ``score_points`` returns); the best plane, floor or
+    ceiling, refitted by least squares, gives the direction of up, which every level surface shares. Floor:
+    the heights of the returns below the sensor along that direction, in 2 cm bins; the lowest height that
+    holds at least ``min_share`` of the fullest bin's returns (and ``min_inliers``) is the floor, refitted to
+    its returns. Desk tops and seats are level too, but above it. A scan that sees no floor (a narrow field
+    mounted high in a small room) finds a desk top instead: give the height then."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    below = points[np.isfinite(points).all(axis=1) & (points[:, 2] < -config.below_m)]
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(below)).voxel_down_sample(config.voxel_m)
-    remaining = np.asarray(cloud.points)
-    if len(remaining) < config.min_inliers:
+    points = points[np.isfinite(points).all(axis=1)]
+    rng = np.random.default_rng(seed)
+    below = points[points[:, 2] < -config.below_m]
+    if len(below) < config.min_inliers:
         raise PerceptionError(
-            f"only {len(remaining)} returns lie below the sensor: no floor to measure the mount height from; "
+            f"only {len(below)} returns lie below the sensor: no floor to measure the mount height from; "
             "give the sensor's height above the floor (--sensor-height)"
         )
-    o3d.utility.random.seed(seed)
-    level: list[tuple[float, np.ndarray, int]] = []
-    for _ in range(config.max_planes):
-        if len(remaining) < config.min_inliers:
-            break
-        part = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(remaining))
-        model, inliers = part.segment_plane(config.distance_m, 3, config.iterations)
-        if len(inliers) < config.min_inliers:
-            break
-        normal, offset = np.asarray(model[:3], dtype=float), float(model[3])
-        scale = float(np.linalg.norm(normal))
-        normal, offset = normal / scale, offset / scale
-        if normal[2] < 0:
-            normal, offset = -normal, -offset
-        if np.degrees(np.arccos(min(1.0, normal[2]))) <= config.max_tilt_deg and offset > 0:
-            level.append((offset, normal, len(inliers)))  # n . p + offset = 0: the sensor is offset above it
-        remaining = np.delete(remaining, inliers, axis=0)
-    if not level:
-        raise PerceptionError(
-            "no level plane below the sensor: cannot find the floor; give the sensor's height (--sensor-height)"
-        )
-    largest = max(count for _, _, count in level)
-    offset, normal, count = max(
-        (plane for plane in level if plane[2] >= config.min_share * largest), key=lambda p: p[0]
-    )
-    return Floor(height=offset, normal=normal, inliers=count)
+    up = _up(points, config, rng)
+    heights = below @ up
+    bins = np.floor((heights - heights.min()) / 0.02).astype(np.int64)
+    counts = np.bincount(bins)
+    counts = counts + np.concatenate([[0], counts[:-1]]) + np.concatenate([counts[1:], [0]])  # 6 cm windows
+    enough = np.flatnonzero((counts >= config.min_share * counts.max()) & (counts >= config.min_inliers))
+    if len(enough) == 0:
+        raise PerceptionError("no level surface below the sensor: cannot find the floor; give --sensor-height")
+    level = heights.min() + 0.02 * (enough[0] + 0.5)
+    inliers = below[np.abs(heights - level) <= config.distance_m]
+    centre = inliers.mean(axis=0)
+    fitted = np.linalg.svd(inliers - centre, full_matrices=False)[2][2]
+    fitted = fitted if fitted[2] > 0 else -fitted
+    if np.degrees(np.arccos(min(1.0, float(fitted @ up)))) > 2.0:  # too few or too narrow to tilt on its own
+        fitted = up
+    return Floor(height=float(-(centre @ fitted)), normal=fitted, inliers=len(inliers))
+
+
+def _up(points: np.ndarray, config: FloorConfig, rng: np.random.Generator) -> np.ndarray:
+    """The normal of the scan's best-supported level plane, refitted to its inliers."""
+    scored = points[rng.choice(len(points), min(len(points), config.score_points), replace=False)]
+    a, b, c = (scored[rng.integers(0, len(scored), config.hypotheses)] for _ in range(3))
+    normal = np.cross(b - a, c - a)
+    length = np.linalg.norm(normal, axis=1)
+    normal = normal / np.maximum(length, 1e-12)[:, None]
+    normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
+    level = (length > 1e-9) & (normal[:, 2] >= np.cos(np.radians(config.max_tilt_deg)))
+    if not level.any():
+        raise PerceptionError("no level surface in the scan: cannot find the floor; give --sensor-height")
+    normal, offset = normal[level], -np.einsum("ij,ij->i", normal[level], a[level])
+    counts = (np.abs(scored @ normal.T + offset) <= config.distance_m).sum(axis=0)
+    best = int(np.argmax(counts))
+    inliers = points[np.abs(points @ normal[best] + offset[best]) <= config.distance_m]
+    fitted = np.linalg.svd(inliers - inliers.mean(axis=0), full_matrices=False)[2][2]
+    return fitted if fitted[2] > 0 else -fitted

@@ -17,12 +17,14 @@ from typing import Any
 import torch
 from torch import nn
 
+from pimm_agents.perception.cloud_features import CLOUD_FEATURE_SCALE, CLOUD_FEATURES, CLOUD_NUM_FEATURES
 from pimm_agents.perception.point_features import CONTEXT_OFFSETS, FEATURES, NUM_FEATURES
 from pimm_agents.perception.records import WEIGHTS, read_record, record_path, write_record
 from pimm_env.errors import MissingFileError, PerceptionError
 from pimm_env.world.semantics import CLASS_NAMES
 
 CHECKPOINT_FORMAT = "pimm-pointnet/1"
+INPUT_KINDS = ("grid", "cloud")
 WEIGHTS_DTYPE = "float32"
 #: Rough scale of each input feature, so that the first layer sees numbers near 1.
 FEATURE_SCALE = {
@@ -49,10 +51,28 @@ class PointNetConfig:
     descriptor_dim: int = 128
     num_classes: int = len(CLASS_NAMES)
     context_offsets: tuple[tuple[int, int], ...] = CONTEXT_OFFSETS
+    #: "grid": the organized scan's features and grid context (``point_features.py``); "cloud": the
+    #: layout-free features of any point set (``cloud_features.py``; context_offsets unused)
+    inputs: str = "grid"
+
+    def __post_init__(self) -> None:
+        if self.inputs not in INPUT_KINDS:
+            raise PerceptionError(f"PointNetConfig.inputs {self.inputs!r}: valid kinds are {INPUT_KINDS}")
 
     @property
     def input_channels(self) -> int:
+        if self.inputs == "cloud":
+            return CLOUD_NUM_FEATURES
         return NUM_FEATURES * (1 + len(self.context_offsets))
+
+    @property
+    def feature_names(self) -> tuple[str, ...]:
+        return CLOUD_FEATURES if self.inputs == "cloud" else FEATURES
+
+    def feature_scales(self) -> list[float]:
+        if self.inputs == "cloud":
+            return list(CLOUD_FEATURE_SCALE)
+        return [FEATURE_SCALE[name] for name in FEATURES] * (1 + len(self.context_offsets))
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PointNetConfig:
@@ -84,7 +104,7 @@ class PointNetSegmenter(nn.Module):
     def __init__(self, config: PointNetConfig = PointNetConfig()) -> None:
         super().__init__()
         self.config = config
-        scale = torch.tensor([1.0 / FEATURE_SCALE[name] for name in FEATURES] * (1 + len(config.context_offsets)))
+        scale = torch.tensor([1.0 / v for v in config.feature_scales()])
         self.register_buffer("feature_scale", scale.view(1, -1, 1))
         self.local = _mlp([config.input_channels, *config.local_widths])
         self.globe = _mlp([config.local_widths[-1], *config.global_widths])
@@ -188,7 +208,7 @@ def save_checkpoint(model: PointNetSegmenter, path: Path, training: dict[str, An
         {
             "format": CHECKPOINT_FORMAT,
             "config": asdict(model.config),
-            "features": list(FEATURES),
+            "features": list(model.config.feature_names),
             "classes": list(CLASS_NAMES),
             "state_dict": model.state_dict(),
             "training": training,
@@ -225,14 +245,16 @@ def load_checkpoint(path: Path) -> tuple[PointNetSegmenter, dict[str, Any]]:
     if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
         found = data.get("format") if isinstance(data, dict) else type(data).__name__
         raise PerceptionError(f"{path}: checkpoint format {found!r}, expected {CHECKPOINT_FORMAT!r}")
-    if list(data.get("features", [])) != list(FEATURES):
+    config = PointNetConfig.from_dict(data["config"])
+    if list(data.get("features", [])) != list(config.feature_names):
         raise PerceptionError(
-            f"{path}: checkpoint was trained on features {data.get('features')}, this code makes {FEATURES}"
+            f"{path}: checkpoint was trained on features {data.get('features')}, this code makes "
+            f"{config.feature_names} for {config.inputs!r} inputs"
         )
     if list(data.get("classes", [])) != list(CLASS_NAMES):
         raise PerceptionError(f"{path}: checkpoint classes {data.get('classes')} differ from {CLASS_NAMES}")
     _check_dtype(path, data.get("state_dict", {}), record, remake)
-    model = PointNetSegmenter(PointNetConfig.from_dict(data["config"]))
+    model = PointNetSegmenter(config)
     try:
         model.load_state_dict(data["state_dict"])
     except RuntimeError as err:

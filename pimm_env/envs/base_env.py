@@ -18,6 +18,7 @@ from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.derived_maps import DerivedMaps, load_derived_maps
 from pimm_env.mapping.occupancy import body_obstacles
 from pimm_env.sim.lidar import (
+    Lidar3DConfig,
     azimuths_3d,
     beam_bearings_2d,
     directions_3d,
@@ -289,6 +290,24 @@ class LidarRobotEnv(gym.Env):
         if self.movers is None:
             return ranges, labels
         return self.movers.occlude(origin, directions, ranges, labels, l3.max_range, self.world.floor_z)
+
+    def cast_sensor_rays(self, directions: np.ndarray, mount: Lidar3DConfig) -> tuple[np.ndarray, np.ndarray]:
+        """Ranges (``inf``: no return within ``mount.max_range``) and labels of rays along ``directions`` (N, 3,
+        unit, the sensor's frame) from a sensor mounted as ``mount`` on the robot at its current pose, walkers
+        and unmapped furniture included: a scan of any LiDAR layout or pattern (training data for other
+        sensors). No noise is added."""
+        if not hasattr(self.caster, "cast_directions"):
+            raise EnvError(f"ray caster {self.config.ray_caster!r} casts no arbitrary rays; use embree or bullet")
+        x, y, theta = self.robot.pose
+        c, s = np.cos(theta), np.sin(theta)
+        origin = np.array([x + c * mount.mount_x - s * mount.mount_y, y + s * mount.mount_x + c * mount.mount_y, 0.0])
+        origin[2] = self.world.floor_z + mount.height
+        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ mount_rotation(mount)
+        world_directions = np.asarray(directions, dtype=float) @ turn.T
+        ranges, labels = self.caster.cast_directions(origin, world_directions, mount.max_range)  # type: ignore[attr-defined]
+        if self.movers is None:
+            return ranges, labels
+        return self.movers.occlude(origin, world_directions, ranges, labels, mount.max_range, self.world.floor_z)
 
     def _sense(self) -> None:
         """Take the scans that are due at the current time."""

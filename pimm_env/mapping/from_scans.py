@@ -67,8 +67,20 @@ def _count(grid: GridSpec, points: np.ndarray) -> np.ndarray:
     return flat.reshape(grid.shape)
 
 
-def map_from_bag(bag: Path, topics, lidar2d, config: ScanMapConfig | None = None) -> OccupancyGrid:
-    """The map of a bag's scans at its true poses (every step with a fresh scan and a truth)."""
+#: scans farther apart than this (m driven between scans, on average) make a sparse log
+SPARSE_SCAN_SPACING_M = 0.5
+
+
+def scan_spacing_m(poses: np.ndarray) -> float:
+    """The mean distance driven between consecutive scans taken at ``poses`` (K, >= 2)."""
+    if len(poses) < 2:
+        return 0.0
+    steps = np.linalg.norm(np.diff(np.asarray(poses)[:, :2], axis=0), axis=1)
+    return float(steps.sum() / (len(poses) - 1))
+
+
+def map_from_bag(bag: Path, topics, lidar2d, config: ScanMapConfig | None = None) -> tuple[OccupancyGrid, np.ndarray]:
+    """The map of a bag's scans at its true poses (every step with a fresh scan and a truth), and those poses."""
     from pimm_env.bags.read import read_steps
     from pimm_env.envs.sim_config import SimConfig
     from pimm_env.sim.lidar import beam_bearings_2d
@@ -81,6 +93,6 @@ def map_from_bag(bag: Path, topics, lidar2d, config: ScanMapConfig | None = None
             scans.append(np.where(scan >= lidar2d.max_range, np.inf, scan))
     if not poses:
         raise BagError(f"{bag}: no scan arrived with a true pose ({topics.truth}): nothing to build a map from")
-    return map_from_scans(
-        np.array(poses), scans, beam_bearings_2d(lidar2d), lidar2d.max_range, config or ScanMapConfig()
-    )
+    taken = np.array(poses)
+    occupancy = map_from_scans(taken, scans, beam_bearings_2d(lidar2d), lidar2d.max_range, config or ScanMapConfig())
+    return occupancy, taken

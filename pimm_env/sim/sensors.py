@@ -38,6 +38,8 @@ LIDAR_3D: dict[str, Lidar3DConfig] = {
     "os0-64": Lidar3DConfig(layers=64, points_per_layer=1024, vertical_fov_deg=90.0, max_range=35.0),
     # Velodyne VLP-16: 16 rings over 30 deg (+-15), 0.2 deg at 10 Hz (1 800 columns), 100 m.
     "vlp-16": Lidar3DConfig(layers=16, points_per_layer=1800, vertical_fov_deg=30.0, max_range=100.0),
+    # Ouster OS1-128: 128 rings over 45 deg (+-22.5), 1024 columns, 90 m (at 10 % reflectivity: 45 m).
+    "os1-128": Lidar3DConfig(layers=128, points_per_layer=1024, vertical_fov_deg=45.0, max_range=90.0),
 }
 
 
