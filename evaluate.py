@@ -305,6 +305,25 @@ def perception(
     typer.echo(json.dumps(result) if json_out else text)
 
 
+@command(app, "perception-table")
+def perception_table_command(
+    weights: Path | None = typer.Option(None, help="network weights (default: the shipped ones)"),
+    scans: list[Path] = typer.Option([], "--scan", help="a real scan to score against its plane-fit reference"),
+    worlds: list[str] = typer.Option([], "--world", help="a world to segment fresh simulated scans of"),
+    layouts_world: str | None = typer.Option(None, help="a world to segment every LiDAR layout in"),
+    count: int = typer.Option(20, "--scans-per-world", min=1, help="fresh scans per world and layout"),
+    seed: int = typer.Option(1, help="seed of the scan poses (keep it apart from training seeds)"),
+    json_out: bool = JSON,
+) -> None:
+    """One network's segmentation on real scans, worlds and every LiDAR layout (docs/perception.md)."""
+    from pimm_agents.measurement.perception_table import perception_table
+    from pimm_agents.perception.files import SHIPPED_WEIGHTS
+    from pimm_agents.results.markdown import perception_table_markdown
+
+    table = perception_table(weights or SHIPPED_WEIGHTS, scans, worlds, layouts_world, count, seed)
+    typer.echo(json.dumps(table) if json_out else perception_table_markdown(table, _command_line()))
+
+
 @command(app)
 def segment(
     file: Path = typer.Argument(

@@ -74,9 +74,10 @@ def clouds(
 
     held = {f"gen-{s}" for s in (*HELD_OUT_SEEDS, *LOCALIZER_HELD_OUT_SEEDS, *LOOKALIKE_HELD_OUT_SEEDS)}
     for world in worlds:
-        _prepare(world)
         if Path(world).parent.name in held or world in held:
             raise typer.BadParameter(f"{world} is a held-out building: never train on it", param_hint="--world")
+    for world in worlds:
+        _prepare(world)
     made = generate(worlds, per_world, seed)
     save(made, out)
     typer.echo(f"wrote {out}: {len(made)} scans, {len(made.points)} voxel points")

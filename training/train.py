@@ -118,7 +118,11 @@ class CloudSampler:
             lean = np.radians(0.5) * rng.uniform(-1, 1, 2)
             points = points @ rotation_onto_z(np.array([lean[0], lean[1], 1.0])).T
         thinned = cloud_features(points, height, self.network.points, offset=offset)
-        return thinned.features.T.astype(np.float32), labels[thinned.chosen]
+        # the stored points are voxels already, but stored as float16 a few cross into a neighbour voxel and
+        # merge: each voxel takes its stored points' label (the last), as voxel_of says, never by position
+        voxel_labels = np.empty(len(thinned.points), dtype=labels.dtype)
+        voxel_labels[thinned.voxel_of] = labels
+        return thinned.features.T.astype(np.float32), voxel_labels[thinned.chosen]
 
     def batch(self, indices: np.ndarray, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor]:
         feats, labels = zip(*(self.sample(int(i), int(rng.integers(1, 1 << 16))) for i in indices), strict=True)

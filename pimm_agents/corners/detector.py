@@ -57,6 +57,9 @@ class CornerDetectorConfig:
     # of two faces that end either side of a doorway meet in the gap, up to max_corner_distance (2 m) from
     # either; in office rows those phantoms were half the features seen while driving. 0: no test.
     max_wall_gap: float = 0.5
+    # ours: the gap allowed grows by this much per metre from the sensor to the corner, as the returns (and
+    # the 2 500 kept of them) thin out with range; 0: the same gap at any range
+    wall_gap_per_m: float = 0.0
     max_points_per_class: int = 2500  # random subsample for speed; 0 keeps all
     min_position_std: float = 0.02  # m: a floor on the derived position uncertainty
     min_orientation_std: float = np.radians(1.0)
@@ -71,6 +74,7 @@ class CornerDetectorConfig:
             "through_points",
             "through_band",
             "max_wall_gap",
+            "wall_gap_per_m",
             "max_points_per_class",
             "min_position_std",
             "min_orientation_std",
@@ -151,7 +155,8 @@ def _corner(a: Plane, b: Plane, ceiling: Plane, config: CornerDetectorConfig) ->
     gaps = [p.nearest_distance(corner) for p in (a, b, ceiling)]
     if max(gaps) > config.max_corner_distance:
         return None
-    if config.max_wall_gap > 0 and max(_floor_gap(p, corner) for p in (a, b)) > config.max_wall_gap:
+    allowed = config.max_wall_gap + config.wall_gap_per_m * float(np.hypot(corner[0], corner[1]))
+    if config.max_wall_gap > 0 and max(_floor_gap(p, corner) for p in (a, b)) > allowed:
         return None
     if not all(_ends_at(p, corner, config) for p in (a, b)):
         return None

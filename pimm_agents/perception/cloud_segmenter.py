@@ -7,7 +7,7 @@ from any LiDAR, and gives every point a class, the scan's descriptor and its cor
    height and the mount's roll and pitch are given;
 2. a layout-free network (:class:`CloudSegmenter`, weights of ``cloud`` inputs) reads the levelled points
    themselves: their voxels' features (``cloud_features.py``) with the height above the floor; every voxel
-   takes the class of the nearest voxel the network looked at, every return its voxel's class;
+   takes the class of the nearest voxel the network looked at in voxel order, every return its voxel's class;
    a grid network (:class:`Segmenter`, ``grid`` inputs, trained on one layout) reads the scan in its layout
    instead: each of its rays takes the nearest return by elevation and azimuth (``network_layout_cells``),
    heights moved so that the sensor sits at the trained mount height, and each return takes its ray's class;
@@ -27,7 +27,7 @@ from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, dete
 from pimm_agents.perception.cloud_features import CloudFeatureConfig, cloud_features
 from pimm_agents.perception.floor import Floor, FloorConfig, estimate_floor
 from pimm_agents.perception.pointnet import FusedPointNet, load_checkpoint
-from pimm_agents.perception.segmenter import Segmenter
+from pimm_agents.perception.segmenter import Segmenter, nearest_sampled
 from pimm_agents.perception.threads import ThreadChooser
 from pimm_env.errors import PerceptionError
 from pimm_env.sim.lidar import Lidar3DConfig, azimuths_3d, elevations_3d, mount_rotation
@@ -90,8 +90,6 @@ class CloudSegmenter:
     def segment_points(self, level: np.ndarray, height: float) -> tuple[np.ndarray, np.ndarray]:
         """Classes (int8, one per return) and the unit descriptor of returns ``level`` (N, 3, level sensor frame)
         from a sensor ``height`` m above the floor."""
-        from scipy.spatial import cKDTree
-
         thinned = cloud_features(level, height, self.model.config.points, self.features)
         self.threads.before()
         start = time.perf_counter()
@@ -102,9 +100,10 @@ class CloudSegmenter:
             classes = net.logits(local, glob).argmax(dim=1).numpy().astype(np.int8)
             descriptor = net.descriptor_of(glob).numpy().astype(np.float32)
         self.threads.after(time.perf_counter() - start)
-        seen = thinned.chosen[: min(len(thinned.points), len(thinned.chosen))]
-        _, nearest = cKDTree(thinned.points[seen]).query(thinned.points)
-        return classes[: len(seen)][nearest][thinned.voxel_of], descriptor
+        # every voxel takes the class of the nearest looked-at voxel in voxel order (x, then y, then z: mostly
+        # its neighbour in the same column), every return its voxel's
+        per_voxel = classes[nearest_sampled(len(thinned.points), thinned.chosen)]
+        return per_voxel[thinned.voxel_of], descriptor
 
 
 def load_segmenter(checkpoint: Path) -> Segmenter | CloudSegmenter:

@@ -159,3 +159,45 @@ def bench_markdown(figures: dict[str, float], command: str) -> str:
     lines = [provenance_here(command), "", "| figure | median |", "|---|---:|"]
     lines += [f"| `{key}` | {value:.3f} |" for key, value in figures.items()]
     return "\n".join(lines) + "\n"
+
+
+def perception_table_markdown(table: dict[str, Any], command: str) -> str:
+    """``evaluate.py perception-table``: real scans, worlds and LiDAR layouts as Markdown tables."""
+    classes = ("wall", "ceiling", "floor", "clutter")
+    lines = [provenance_here(command), "", f"Weights: `{table['weights']}`.", ""]
+
+    def row(name: str, scores: dict[str, Any], extra: str = "") -> str:
+        ious = " | ".join(cell(scores["iou"].get(k)) for k in classes)
+        return f"| {name} | {ious} | **{cell(scores.get('mean_iou', scores.get('miou')))}** |{extra}"
+
+    header = "| IoU | " + " | ".join(classes) + " | mean |"
+    if table["real_scans"]:
+        lines += [header + " room corners within 0.2 m |", "|---|" + "---:|" * 5 + "---:|"]
+        for path, scores in table["real_scans"].items():
+            found = scores["corners"]
+            lines.append(
+                row(
+                    f"`{Path(path).name}` (plane-fit reference)",
+                    scores,
+                    f" {found['matched']} of {found['reference']} |",
+                )
+            )
+        lines.append("")
+    if table["worlds"]:
+        lines += [header, "|---|" + "---:|" * 5]
+        for world, scores in table["worlds"].items():
+            lines.append(
+                row(
+                    f"{Path(world).parent.name if world.endswith('.yaml') else world} ({scores['scans']} scans)", scores
+                )
+            )
+        lines.append("")
+    if "layouts" in table:
+        layouts = table["layouts"]
+        lines += [f"Every layout in {layouts['world']} ({table['scans_per_world']} scans each), mean IoU:", ""]
+        lines += ["| layout @ mount | height measured | height given | height error m |", "|---|---:|---:|---:|"]
+        for key, measured in layouts["measured"].items():
+            given = layouts["given"][key]
+            lines.append(f"| {key} | {measured['miou']:.3f} | {given['miou']:.3f} | {measured['height_error_m']:.3f} |")
+        lines.append("")
+    return "\n".join(lines)
