@@ -56,7 +56,8 @@ def test_voxels_hold_the_mean_of_their_returns():
 def test_cloud_weights_round_trip_and_segment_any_point_set(tmp_path):
     import torch
 
-    from pimm_agents.perception.cloud_segmenter import CloudSegmenter, load_segmenter, segment_cloud
+    from pimm_agents.perception.cloud_segmenter import segment_cloud
+    from pimm_agents.perception.segmenter import CloudSegmenter, load_segmenter
 
     torch.manual_seed(0)
     path = tmp_path / "cloud.pt"
@@ -119,3 +120,40 @@ def test_a_held_out_building_cannot_be_made_into_training_clouds(tmp_path):
         app, ["clouds", "--world", "build/worlds/gen-915/world.yaml", "--out", str(tmp_path / "c.npz")]
     )
     assert result.exit_code == 2 and "gen-915/world.yaml is a held-out" in " ".join(result.output.split())
+
+
+def test_pimm_with_cloud_weights_reads_another_lidar_as_it_is(tmp_path):
+    """No resampling into a grid: a 16-ring scan goes to the layout-free network, told the mount height."""
+    import torch
+
+    from pimm_agents.perception.fingerprint_map import FingerprintMap
+    from pimm_agents.perception.segmenter import CloudSegmenter
+    from pimm_agents.pimm.localizer import PimmConfig, PimmLocalizer
+    from pimm_env.envs.iilab_env import IILabEnv
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.sim.sensors import LIDAR_3D
+    from pimm_env.world.files import load_world
+
+    torch.manual_seed(0)
+    path = tmp_path / "cloud.pt"
+    save_checkpoint(PointNetSegmenter(TINY).eval(), path, {"command": "test"})
+    segmenter = CloudSegmenter(path)
+    maps = ensure_derived_maps(load_world("iilab"))
+    rng = np.random.default_rng(0)
+    descriptors = rng.normal(size=(20, TINY.descriptor_dim)).astype(np.float32)
+    descriptors /= np.linalg.norm(descriptors, axis=1, keepdims=True)
+    fingerprints = FingerprintMap(descriptors, rng.uniform(-20, 0, (20, 2)))
+    lidar = LIDAR_3D["vlp-16"]
+    pimm = PimmLocalizer(maps.occupancy, maps.corners, segmenter, fingerprints, PimmConfig(), lidar3d=lidar)
+    assert pimm.resample is None and segmenter.sensor_height == lidar.height
+    env = IILabEnv(sensors="vlp-16")
+    obs, _ = env.reset(seed=0)
+    pimm.reset(seed=0)
+    perceived = 0
+    for _ in range(60):
+        estimate = pimm.update(obs)
+        assert np.isfinite(estimate.pose).all()
+        perceived += "segmentation" in estimate.timings
+        obs, *_ = env.step(np.array([0.3, 0.0], dtype=np.float32))
+    env.close()
+    assert perceived >= 2

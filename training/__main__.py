@@ -195,12 +195,12 @@ def fingerprints(
 ) -> None:
     """Descriptors of scans on a grid of free positions, saved as the world's fingerprint map."""
     from pimm_agents.perception.files import checkpoint_path, fingerprint_path
-    from pimm_agents.perception.segmenter import Segmenter
+    from pimm_agents.perception.segmenter import load_segmenter
     from pimm_agents.preparation.fingerprints import build_fingerprint_map
 
     _check_backend(backend, address)
     _prepare(world)
-    segmenter = Segmenter(checkpoint_path(world))
+    segmenter = load_segmenter(checkpoint_path(world))
     fmap = build_fingerprint_map(world, segmenter, spacing, seed, workers=workers, backend=backend, address=address)
     target = fingerprint_path(world)
     fmap.save(target, segmenter.weights_sha256, {"spacing_m": str(spacing), "seed": str(seed)})

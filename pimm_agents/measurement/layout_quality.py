@@ -45,7 +45,8 @@ def measure_layouts(
     given_height: bool = False,
 ) -> dict[str, Any]:
     """Per layout and mount height: IoU over all returns, and the measured height's median error."""
-    from pimm_agents.perception.cloud_segmenter import load_segmenter, segment_cloud
+    from pimm_agents.perception.cloud_segmenter import segment_cloud
+    from pimm_agents.perception.segmenter import load_segmenter
     from pimm_env.envs.iilab_env import IILabEnv
     from pimm_env.envs.sim_config import SimConfig
     from pimm_env.mapping.derived_maps import ensure_derived_maps

@@ -12,7 +12,7 @@ import numpy as np
 
 from pimm_agents.measurement.corner_quality import FreshScan, corner_stats
 from pimm_agents.perception.fingerprint_map import FingerprintMap, Retrieval
-from pimm_agents.perception.segmenter import Segmenter
+from pimm_agents.perception.segmenter import CloudSegmenter, Segmenter
 from pimm_agents.results.figures import plot_perception
 from pimm_env.errors import ResultsError
 from pimm_env.mapping.corner_map import CornerMap
@@ -78,7 +78,7 @@ def _corner_dict(stats) -> dict[str, float | None]:
 def perception_report(
     scans: list[FreshScan],
     corners: CornerMap,
-    segmenter: Segmenter | None = None,
+    segmenter: Segmenter | CloudSegmenter | None = None,
     fingerprints: FingerprintMap | None = None,
     figure: Path | None = None,
     occupancy: OccupancyGrid | None = None,
@@ -122,7 +122,7 @@ def measure_world(
     world's own network and fingerprint map; ``warn`` hears which parts are left out because a file is missing."""
     from pimm_agents.measurement.corner_quality import collect_scans
     from pimm_agents.perception.files import checkpoint_path, fingerprint_path, load_perception
-    from pimm_agents.perception.segmenter import Segmenter
+    from pimm_agents.perception.segmenter import load_segmenter
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
 
@@ -133,7 +133,7 @@ def measure_world(
         warn(f"{checkpoint_path(loaded)} is missing: only the corner detector on true labels is measured")
     elif not fingerprint_path(loaded).exists():
         warn(f"{fingerprint_path(loaded)} is missing (python evaluate.py world prepare {world}): no retrieval")
-        segmenter = Segmenter(checkpoint_path(loaded))
+        segmenter = load_segmenter(checkpoint_path(loaded))
     else:
         segmenter, fingerprints = load_perception(loaded)
     collected = collect_scans(world, scans, seed)

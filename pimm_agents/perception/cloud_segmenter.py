@@ -16,19 +16,13 @@ from any LiDAR, and gives every point a class, the scan's descriptor and its cor
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
-import torch
 
 from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, detect_corners
-from pimm_agents.perception.cloud_features import CloudFeatureConfig, cloud_features
 from pimm_agents.perception.floor import Floor, FloorConfig, estimate_floor
-from pimm_agents.perception.pointnet import FusedPointNet, load_checkpoint
-from pimm_agents.perception.segmenter import Segmenter, nearest_sampled
-from pimm_agents.perception.threads import ThreadChooser
+from pimm_agents.perception.segmenter import CloudSegmenter, Segmenter
 from pimm_env.errors import PerceptionError
 from pimm_env.sim.lidar import Lidar3DConfig, azimuths_3d, elevations_3d, mount_rotation
 from pimm_env.world.semantics import SemanticClass
@@ -65,51 +59,6 @@ def network_layout_cells(level: np.ndarray, layout: Lidar3DConfig) -> tuple[np.n
     step = 2 * np.pi / layout.points_per_layer
     column = np.round((azimuth - azimuths_3d(layout)[0]) / step).astype(np.int64) % layout.points_per_layer
     return ring * layout.points_per_layer + column, inside
-
-
-class CloudSegmenter:
-    """A network of ``cloud`` inputs on any point set: ``segment_points(level, height) -> (classes, descriptor)``."""
-
-    def __init__(self, checkpoint: Path, features: CloudFeatureConfig = CloudFeatureConfig()) -> None:
-        self.model, self.training = load_checkpoint(checkpoint)
-        if self.model.config.inputs != "cloud":
-            raise PerceptionError(f"{checkpoint}: weights of {self.model.config.inputs!r} inputs; use Segmenter")
-        self.network = FusedPointNet(self.model)
-        self.checkpoint = Path(checkpoint)
-        self.features = features
-        self.threads = ThreadChooser()
-
-    @property
-    def weights_sha256(self) -> str:
-        return str(self.training["sha256"])
-
-    @property
-    def descriptor_dim(self) -> int:
-        return self.model.config.descriptor_dim
-
-    def segment_points(self, level: np.ndarray, height: float) -> tuple[np.ndarray, np.ndarray]:
-        """Classes (int8, one per return) and the unit descriptor of returns ``level`` (N, 3, level sensor frame)
-        from a sensor ``height`` m above the floor."""
-        thinned = cloud_features(level, height, self.model.config.points, self.features)
-        self.threads.before()
-        start = time.perf_counter()
-        with torch.inference_mode():
-            net = self.network
-            local = net.local_features(torch.from_numpy(thinned.features))
-            glob = net.global_feature(local)
-            classes = net.logits(local, glob).argmax(dim=1).numpy().astype(np.int8)
-            descriptor = net.descriptor_of(glob).numpy().astype(np.float32)
-        self.threads.after(time.perf_counter() - start)
-        # every voxel takes the class of the nearest looked-at voxel in voxel order (x, then y, then z: mostly
-        # its neighbour in the same column), every return its voxel's
-        per_voxel = classes[nearest_sampled(len(thinned.points), thinned.chosen)]
-        return per_voxel[thinned.voxel_of], descriptor
-
-
-def load_segmenter(checkpoint: Path) -> Segmenter | CloudSegmenter:
-    """The segmenter that fits the weights: layout-free for ``cloud`` inputs, the grid network otherwise."""
-    model, _ = load_checkpoint(checkpoint)
-    return CloudSegmenter(checkpoint) if model.config.inputs == "cloud" else Segmenter(checkpoint)
 
 
 def segment_cloud(

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from pimm_agents.perception.fingerprint_map import FingerprintConfig, FingerprintMap
 from pimm_agents.perception.records import record_path
-from pimm_agents.perception.segmenter import Segmenter
+from pimm_agents.perception.segmenter import CloudSegmenter, Segmenter, load_segmenter
 from pimm_env.errors import PerceptionError
 from pimm_env.world.files import World, load_world, world_dir
 
@@ -61,9 +61,10 @@ def fingerprints_match_weights(world: str | World) -> bool:
 
 def load_perception(
     world: str | World, fingerprints: FingerprintConfig = FingerprintConfig()
-) -> tuple[Segmenter, FingerprintMap]:
-    """The world's segmenter and fingerprint map; their descriptor sizes must agree."""
-    segmenter = Segmenter(checkpoint_path(world))
+) -> tuple[Segmenter | CloudSegmenter, FingerprintMap]:
+    """The world's segmenter (of either kind of weights) and fingerprint map; their descriptor sizes must
+    agree."""
+    segmenter = load_segmenter(checkpoint_path(world))
     fmap = FingerprintMap.load(fingerprint_path(world), fingerprints, segmenter.weights_sha256)
     if fmap.dim != segmenter.descriptor_dim:
         raise PerceptionError(

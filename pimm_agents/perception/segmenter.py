@@ -1,5 +1,9 @@
 """Segmentation and place descriptor of one 3D scan with the trained PointNet, on the CPU.
 
+Two segmenters, one per kind of weights (``load_segmenter`` picks): :class:`Segmenter` for a network of
+``grid`` inputs, trained on one organized layout, and :class:`CloudSegmenter` for one of ``cloud`` inputs,
+which reads the returns of any LiDAR. The rest of this docstring is the grid segmenter's.
+
 The network looks at a fixed number of the scan's points, every k-th return in scan order (the thesis's
 "partial segmentation" future work); every other return takes the class of the nearest of those in scan order,
 which is almost always its neighbour in the same layer.
@@ -14,10 +18,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from pimm_agents.perception.cloud_features import CloudFeatureConfig, cloud_features
 from pimm_agents.perception.point_features import point_features, valid_returns, with_context
 from pimm_agents.perception.pointnet import FusedPointNet, PointNetSegmenter, load_checkpoint
 from pimm_agents.perception.threads import ThreadChooser
-from pimm_env.errors import ObservationError
+from pimm_env.errors import ObservationError, PerceptionError
 
 
 def strided_sample(valid_index: np.ndarray, count: int, offset: int = 0) -> np.ndarray:
@@ -143,3 +148,65 @@ class Segmenter:
                 "boundaries": 1000 * (done - inferred),
             },
         )
+
+
+class CloudSegmenter:
+    """A network of ``cloud`` inputs (``cloud_features.py``) on the returns of any LiDAR, organized or not:
+    ``segment_points(level, height)`` for a levelled point set, ``segment(cloud, mask)`` as :class:`Segmenter`
+    for a scan in the robot's level frame at the sensor, ``sensor_height`` m above the floor."""
+
+    def __init__(
+        self, checkpoint: Path, sensor_height: float = 0.5, features: CloudFeatureConfig = CloudFeatureConfig()
+    ) -> None:
+        self.model, self.training = load_checkpoint(checkpoint)
+        if self.model.config.inputs != "cloud":
+            raise PerceptionError(f"{checkpoint}: weights of {self.model.config.inputs!r} inputs; use Segmenter")
+        self.network = FusedPointNet(self.model)
+        self.checkpoint = Path(checkpoint)
+        self.features = features
+        #: the sensor's height above the floor (m) for :meth:`segment`; the localizer sets its LiDAR's
+        self.sensor_height = sensor_height
+        self.threads = ThreadChooser()
+
+    @property
+    def weights_sha256(self) -> str:
+        return str(self.training["sha256"])
+
+    @property
+    def descriptor_dim(self) -> int:
+        return self.model.config.descriptor_dim
+
+    def segment(self, cloud: np.ndarray, mask: np.ndarray) -> Segmentation:
+        """Classes of every point of ``cloud`` (-1 where no return) and the scan's descriptor."""
+        start = time.perf_counter()
+        valid = valid_returns(np.asarray(cloud), mask)
+        if not valid.any():
+            raise ObservationError("cannot segment a scan with no finite returns (empty or all-NaN cloud)")
+        classes, descriptor = self.segment_points(np.asarray(cloud, dtype=np.float64)[valid], self.sensor_height)
+        labels = np.full(len(valid), -1, dtype=np.int8)
+        labels[valid] = classes
+        return Segmentation(labels, descriptor, {"network": 1000 * (time.perf_counter() - start)})
+
+    def segment_points(self, level: np.ndarray, height: float) -> tuple[np.ndarray, np.ndarray]:
+        """Classes (int8, one per return) and the unit descriptor of returns ``level`` (N, 3, level sensor frame)
+        from a sensor ``height`` m above the floor."""
+        thinned = cloud_features(level, height, self.model.config.points, self.features)
+        self.threads.before()
+        start = time.perf_counter()
+        with torch.inference_mode():
+            net = self.network
+            local = net.local_features(torch.from_numpy(thinned.features))
+            glob = net.global_feature(local)
+            classes = net.logits(local, glob).argmax(dim=1).numpy().astype(np.int8)
+            descriptor = net.descriptor_of(glob).numpy().astype(np.float32)
+        self.threads.after(time.perf_counter() - start)
+        # every voxel takes the class of the nearest looked-at voxel in voxel order (x, then y, then z: mostly
+        # its neighbour in the same column), every return its voxel's
+        per_voxel = classes[nearest_sampled(len(thinned.points), thinned.chosen)]
+        return per_voxel[thinned.voxel_of], descriptor
+
+
+def load_segmenter(checkpoint: Path, sensor_height: float = 0.5) -> Segmenter | CloudSegmenter:
+    """The segmenter that fits the weights: layout-free for ``cloud`` inputs, the grid network otherwise."""
+    model, _ = load_checkpoint(checkpoint)
+    return CloudSegmenter(checkpoint, sensor_height) if model.config.inputs == "cloud" else Segmenter(checkpoint)

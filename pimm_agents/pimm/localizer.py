@@ -24,7 +24,7 @@ from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFi
 from pimm_agents.perception.fingerprint_map import FingerprintMap
 from pimm_agents.perception.point_features import valid_returns
 from pimm_agents.perception.resample import LayoutResampler
-from pimm_agents.perception.segmenter import Segmenter
+from pimm_agents.perception.segmenter import CloudSegmenter, Segmenter
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.pimm.rivals import RivalConfig
 from pimm_env.errors import LocalizerError
@@ -183,19 +183,24 @@ class PimmLocalizer:
         self,
         occupancy: OccupancyGrid,
         corners: CornerMap,
-        segmenter: Segmenter,
+        segmenter: Segmenter | CloudSegmenter,
         fingerprints: FingerprintMap,
         config: PimmConfig = PimmConfig(),
         name: str = "pimm",
         lidar3d: Lidar3DConfig | None = None,
     ) -> None:
         self.name = name
-        network_layout = Lidar3DConfig(layers=segmenter.layers, points_per_layer=segmenter.points_per_layer)
-        self.lidar3d = lidar3d or network_layout
-        same = (self.lidar3d.layers, self.lidar3d.points_per_layer, self.lidar3d.vertical_fov_deg) == (
-            network_layout.layers, network_layout.points_per_layer, network_layout.vertical_fov_deg,
-        )  # fmt: skip
-        self.resample = None if same else LayoutResampler(self.lidar3d, network_layout)
+        self.resample = None
+        if isinstance(segmenter, CloudSegmenter):  # any layout as it is, the height above the floor told
+            self.lidar3d = lidar3d or Lidar3DConfig()
+            segmenter.sensor_height = self.lidar3d.height
+        else:
+            network_layout = Lidar3DConfig(layers=segmenter.layers, points_per_layer=segmenter.points_per_layer)
+            self.lidar3d = lidar3d or network_layout
+            same = (self.lidar3d.layers, self.lidar3d.points_per_layer, self.lidar3d.vertical_fov_deg) == (
+                network_layout.layers, network_layout.points_per_layer, network_layout.vertical_fov_deg,
+            )  # fmt: skip
+            self.resample = None if same else LayoutResampler(self.lidar3d, network_layout)
         self.config = config
         self.segmenter = segmenter
         self.fingerprints = fingerprints
@@ -245,8 +250,11 @@ class PimmLocalizer:
 
         from tqdm import tqdm
 
-        layers, per_layer = self.segmenter.layers, self.segmenter.points_per_layer
-        directions = directions_3d(Lidar3DConfig(layers=layers, points_per_layer=per_layer)).astype(np.float32)
+        if isinstance(self.segmenter, CloudSegmenter):
+            directions = directions_3d(self.lidar3d).astype(np.float32)
+        else:
+            layout = Lidar3DConfig(layers=self.segmenter.layers, points_per_layer=self.segmenter.points_per_layer)
+            directions = directions_3d(layout).astype(np.float32)
         quiet = multiprocessing.current_process().name != "MainProcess" or not sys.stderr.isatty()
         with tqdm(total=1, desc=f"{self.name}: warm-up (torch, Open3D)", leave=False, disable=quiet) as bar:
             self.perceive(5.0 * directions, np.ones(len(directions), dtype=bool), 0.0, {})

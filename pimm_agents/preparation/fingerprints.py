@@ -7,14 +7,14 @@ from typing import Any
 import numpy as np
 
 from pimm_agents.perception.fingerprint_map import FingerprintMap
-from pimm_agents.perception.segmenter import Segmenter
+from pimm_agents.perception.segmenter import CloudSegmenter, Segmenter
 from pimm_env.errors import PerceptionError
 from pimm_env.world.model import World
 
 
 def build_fingerprint_map(
     world: str | World,
-    segmenter: Segmenter,
+    segmenter: Segmenter | CloudSegmenter,
     spacing: float = 0.5,
     seed: int = 0,
     progress: bool = True,
@@ -50,7 +50,7 @@ def build_fingerprint_map(
     return FingerprintMap(np.vstack(parts), positions, headings, source=f"fingerprint map of {name}")
 
 
-def _descriptors(job: tuple[Any, Segmenter, np.ndarray, np.ndarray, bool]) -> np.ndarray:
+def _descriptors(job: tuple[Any, Segmenter | CloudSegmenter, np.ndarray, np.ndarray, bool]) -> np.ndarray:
     """The descriptors of scans taken at ``poses`` with these noise seeds (one job of the map)."""
     from tqdm import tqdm
 

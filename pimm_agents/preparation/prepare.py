@@ -34,7 +34,7 @@ def prepare_world(
 ) -> Preparation:
     """Rebuild everything a world needs to be localized in (see the module docstring)."""
     from pimm_agents.perception.files import checkpoint_path, fingerprint_path
-    from pimm_agents.perception.segmenter import Segmenter
+    from pimm_agents.perception.segmenter import load_segmenter
     from pimm_agents.preparation.fingerprints import build_fingerprint_map
     from pimm_env.driving.routes import plan_routes, scenarios_document
     from pimm_env.driving.scenarios import load_scenarios, scenarios_path
@@ -55,7 +55,7 @@ def prepare_world(
     seconds["routes"] = time.perf_counter() - start
     start = time.perf_counter()
     weights = checkpoint_path(loaded)
-    segmenter = Segmenter(weights)
+    segmenter = load_segmenter(weights)  # the simulated thesis LiDAR: 0.5 m up
     fmap = build_fingerprint_map(loaded, segmenter, spacing, seed, progress=progress)
     provenance = {"spacing_m": str(spacing), "seed": str(seed), "weights": str(weights)}
     fmap.save(fingerprint_path(loaded), segmenter.weights_sha256, provenance)
