@@ -56,8 +56,8 @@ def test_voxels_hold_the_mean_of_their_returns():
 def test_cloud_weights_round_trip_and_segment_any_point_set(tmp_path):
     import torch
 
-    from pimm_agents.perception.cloud_segmenter import segment_cloud
     from pimm_agents.perception.segmenter import CloudSegmenter, load_segmenter
+    from pimm_agents.scans.segment import segment_cloud
 
     torch.manual_seed(0)
     path = tmp_path / "cloud.pt"

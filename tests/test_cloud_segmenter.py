@@ -51,8 +51,8 @@ def _accuracy(labels, truth):
 
 def test_an_unorganized_scan_gets_the_classes_of_an_organized_one():
     """The thesis LiDAR's scan handed over as a bare point set (no rings), shuffled, with the height measured."""
-    from pimm_agents.perception.cloud_segmenter import segment_cloud
     from pimm_agents.perception.segmenter import Segmenter
+    from pimm_agents.scans.segment import segment_cloud
 
     segmenter = Segmenter(SHIPPED_WEIGHTS)
     rng = np.random.default_rng(0)

@@ -24,7 +24,7 @@ import numpy as np
 
 from pimm_agents.perception.cloud_features import CloudFeatureConfig, voxelize
 from pimm_env.errors import PerceptionError
-from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, mount_rotation
+from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, mount_rotation, non_repetitive_directions
 from pimm_env.sim.sensors import LIDAR_3D
 
 FORMAT = "pimm-clouds/1"
@@ -82,30 +82,6 @@ class CloudSet:
             self.poses[index],
             self.worlds[index],
         )
-
-
-def non_repetitive_directions(count: int, rng: np.random.Generator) -> np.ndarray:
-    """A Mid-360-like scan: ``count`` rays over 360 deg of azimuth and -7..52 deg of elevation, a new
-    quasi-random (Halton 2, 3) set each scan, as a non-repetitive pattern never repeats its rays."""
-    start = int(rng.integers(0, 1 << 20))
-    index = np.arange(start, start + count)
-    azimuth = 2 * np.pi * _halton(index, 2) - np.pi
-    low, high = np.sin(np.radians(-7.0)), np.sin(np.radians(52.0))
-    elevation = np.arcsin(low + (high - low) * _halton(index, 3))  # even over the sphere's band
-    return np.column_stack(
-        [np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)]
-    )
-
-
-def _halton(index: np.ndarray, base: int) -> np.ndarray:
-    result = np.zeros(len(index))
-    fraction = 1.0 / base
-    i = index.copy()
-    while np.any(i > 0):
-        result += fraction * (i % base)
-        i //= base
-        fraction /= base
-    return result
 
 
 def random_scan(

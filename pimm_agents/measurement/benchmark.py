@@ -238,7 +238,8 @@ def measurement_update_ms(filt: FeatureFilter, features: np.ndarray, repeats: in
 
 def perception_benchmarks(repeats: int) -> dict[str, float]:
     """Segmentation + descriptor of one scan, and one fingerprint-map query, with the shipped iilab files."""
-    from pimm_agents.perception.files import load_perception
+    from pimm_agents.perception.files import SHIPPED_CLOUD_WEIGHTS, load_perception
+    from pimm_agents.perception.segmenter import CloudSegmenter
     from pimm_env.envs.iilab_env import IILabEnv
 
     segmenter, fingerprints = load_perception("iilab")
@@ -247,10 +248,14 @@ def perception_benchmarks(repeats: int) -> dict[str, float]:
     env.close()
     cloud, mask = obs["cloud"], obs["cloud_mask"]
     descriptor = segmenter.segment(cloud, mask).descriptor
-    return {
+    figures = {
         "segmentation_ms": median_ms(lambda: segmenter.segment(cloud, mask), repeats),
         "fingerprint_query_ms": median_ms(lambda: fingerprints.query(descriptor), repeats),
     }
+    if SHIPPED_CLOUD_WEIGHTS.is_file():  # the layout-free network on the same scan
+        cloud_segmenter = CloudSegmenter(SHIPPED_CLOUD_WEIGHTS)
+        figures["cloud_segmentation_ms"] = median_ms(lambda: cloud_segmenter.segment(cloud, mask), repeats)
+    return figures
 
 
 def corners_benchmark(repeats: int) -> float:

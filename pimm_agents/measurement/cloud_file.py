@@ -28,9 +28,9 @@ def segment_file(
     reference: bool = False,
     seed: int = 0,
 ) -> dict[str, Any]:
-    from pimm_agents.perception.cloud_segmenter import segment_cloud
     from pimm_agents.perception.segmenter import load_segmenter
     from pimm_agents.results.cloud_figures import draw_labelled_cloud
+    from pimm_agents.scans.segment import segment_cloud
     from pimm_env.clouds.read import read_cloud
 
     cloud = read_cloud(path, drop_invalid)

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from pimm_agents.measurement.perception_quality import confusion_matrix, segmentation_scores
-from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, mount_rotation
+from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, mount_rotation, non_repetitive_directions
 from pimm_env.sim.sensors import LIDAR_3D
 
 #: the layouts measured: presets by name, and "mid-360" for a non-repetitive pattern
@@ -24,8 +24,6 @@ LAYOUT_NAMES = ("thesis", "os0-64", "vlp-16", "os1-128", "mid-360")
 
 def layout_scan(env: Any, name: str, height: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Returns (sensor frame) and true classes of one scan of layout ``name`` from the env's current pose."""
-    from training.cloud_dataset import non_repetitive_directions
-
     mount: Lidar3DConfig = replace(LIDAR_3D.get(name, replace(LIDAR_3D["thesis"], max_range=40.0)), height=height)
     directions = directions_3d(mount) if name in LIDAR_3D else non_repetitive_directions(20_000, rng)
     ranges, labels = env.cast_sensor_rays(directions, mount)
@@ -45,8 +43,8 @@ def measure_layouts(
     given_height: bool = False,
 ) -> dict[str, Any]:
     """Per layout and mount height: IoU over all returns, and the measured height's median error."""
-    from pimm_agents.perception.cloud_segmenter import segment_cloud
     from pimm_agents.perception.segmenter import load_segmenter
+    from pimm_agents.scans.segment import segment_cloud
     from pimm_env.envs.iilab_env import IILabEnv
     from pimm_env.envs.sim_config import SimConfig
     from pimm_env.mapping.derived_maps import ensure_derived_maps

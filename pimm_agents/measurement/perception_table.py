@@ -19,8 +19,8 @@ def real_scan_scores(path: Path, weights: Path, seed: int = 0) -> dict[str, Any]
     import numpy as np
 
     from pimm_agents.measurement.plane_reference import corners_found, plane_reference, score_labels
-    from pimm_agents.perception.cloud_segmenter import segment_cloud
     from pimm_agents.perception.segmenter import load_segmenter
+    from pimm_agents.scans.segment import segment_cloud
     from pimm_env.clouds.read import read_cloud
 
     cloud = read_cloud(path)

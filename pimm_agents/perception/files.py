@@ -23,6 +23,8 @@ def _world(world: str | World) -> World:
 
 
 SHIPPED_WEIGHTS = Path(__file__).resolve().parent / "weights" / "pointnet.pt"
+#: the layout-free network (``cloud`` inputs) that ``evaluate.py segment`` reads any scan with
+SHIPPED_CLOUD_WEIGHTS = Path(__file__).resolve().parent / "weights" / "pointnet-cloud.pt"
 
 
 def own_checkpoint_path(world: str | World) -> Path:

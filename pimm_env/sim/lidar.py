@@ -162,3 +162,27 @@ def to_robot_frame(points: np.ndarray, config: Lidar3DConfig) -> np.ndarray:
     turned[:, 0] += config.mount_x
     turned[:, 1] += config.mount_y
     return turned
+
+
+def non_repetitive_directions(count: int, rng: np.random.Generator) -> np.ndarray:
+    """A Mid-360-like scan: ``count`` rays over 360 deg of azimuth and -7..52 deg of elevation, a new
+    quasi-random (Halton 2, 3) set each scan, as a non-repetitive pattern never repeats its rays."""
+    start = int(rng.integers(0, 1 << 20))
+    index = np.arange(start, start + count)
+    azimuth = 2 * np.pi * _halton(index, 2) - np.pi
+    low, high = np.sin(np.radians(-7.0)), np.sin(np.radians(52.0))
+    elevation = np.arcsin(low + (high - low) * _halton(index, 3))  # even over the sphere's band
+    return np.column_stack(
+        [np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)]
+    )
+
+
+def _halton(index: np.ndarray, base: int) -> np.ndarray:
+    result = np.zeros(len(index))
+    fraction = 1.0 / base
+    i = index.copy()
+    while np.any(i > 0):
+        result += fraction * (i % base)
+        i //= base
+        fraction /= base
+    return result
