@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from scipy.spatial import cKDTree
 
 from pimm_agents.perception.cloud_features import CloudFeatureConfig, cloud_features
 from pimm_agents.perception.point_features import point_features, valid_returns, with_context
@@ -200,9 +201,11 @@ class CloudSegmenter:
             classes = net.logits(local, glob).argmax(dim=1).numpy().astype(np.int8)
             descriptor = net.descriptor_of(glob).numpy().astype(np.float32)
         self.threads.after(time.perf_counter() - start)
-        # every voxel takes the class of the nearest looked-at voxel in voxel order (x, then y, then z: mostly
-        # its neighbour in the same column), every return its voxel's
-        per_voxel = classes[nearest_sampled(len(thinned.points), thinned.chosen)]
+        # every voxel takes the class of the nearest voxel the network looked at (in space: in voxel order a
+        # floor voxel's neighbour is the ceiling above the column before), every return its voxel's
+        seen = thinned.chosen[: min(len(thinned.points), len(thinned.chosen))]
+        tree = cKDTree(thinned.points[seen], balanced_tree=False, compact_nodes=False)
+        per_voxel = classes[: len(seen)][tree.query(thinned.points)[1]]
         return per_voxel[thinned.voxel_of], descriptor
 
 
