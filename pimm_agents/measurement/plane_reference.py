@@ -40,7 +40,7 @@ class ReferenceConfig:
 
     voxel_m: float = 0.05
     distance_m: float = 0.04
-    iterations: int = 500
+    iterations: int = 2000
     max_planes: int = 40
     min_inliers: int = 50  # thinned points, of a RANSAC plane and of each of its pieces
     max_upright_nz: float = 0.1

@@ -19,12 +19,13 @@ class FloorConfig:
     """Ours; sized for indoor scans with the sensor 0.2-1.8 m up and leaning at most a few degrees."""
 
     distance_m: float = 0.03  # an inlier lies this close to the plane
-    hypotheses: int = 400
+    hypotheses: int = 1500
     score_points: int = 3000  # hypotheses are scored on at most this many of the candidate returns
     max_tilt_deg: float = 7.0  # a level hypothesis's normal within this of the sensor's z (the mount leans up to 5 deg)
     min_share: float = 0.1  # the floor's height bin holds at least this share of the fullest bin's returns
     min_inliers: int = 50
     below_m: float = 0.1  # candidates: returns at least this far below the sensor
+    refits: int = 3  # least-squares refits of the floor, each on the returns near the last
 
 
 @dataclass(frozen=True)
@@ -84,12 +85,18 @@ def estimate_floor(points: np.ndarray, config: FloorConfig = FloorConfig(), seed
         raise PerceptionError("no level surface below the sensor: cannot find the floor; give --sensor-height")
     level = heights.min() + 0.02 * (enough[0] + 0.5)
     inliers = below[np.abs(heights - level) <= config.distance_m]
-    centre = inliers.mean(axis=0)
-    fitted = np.linalg.svd(inliers - centre, full_matrices=False)[2][2]
-    fitted = fitted if fitted[2] > 0 else -fitted
-    if np.degrees(np.arccos(min(1.0, float(fitted @ up)))) > 2.0:  # too few or too narrow to tilt on its own
-        fitted = up
-    return Floor(height=float(-(centre @ fitted)), normal=fitted, inliers=len(inliers))
+    normal, centre = up, inliers.mean(axis=0)
+    for _ in range(config.refits):  # least squares, then again on the returns within reach of that plane
+        fitted = np.linalg.svd(inliers - centre, full_matrices=False)[2][2]
+        fitted = fitted if fitted[2] > 0 else -fitted
+        if np.degrees(np.arccos(min(1.0, float(fitted @ up)))) > 2.0:  # too few or too narrow to tilt alone
+            break
+        normal = fitted
+        near = below[np.abs((below - centre) @ normal) <= config.distance_m]
+        if len(near) < config.min_inliers:
+            break
+        inliers, centre = near, near.mean(axis=0)
+    return Floor(height=float(-(centre @ normal)), normal=normal, inliers=len(inliers))
 
 
 def _up(points: np.ndarray, config: FloorConfig, rng: np.random.Generator) -> np.ndarray:
