@@ -307,7 +307,7 @@ def perception(
 
 @command(app, "perception-table")
 def perception_table_command(
-    weights: Path | None = typer.Option(None, help="network weights (default: the shipped ones)"),
+    weights: Path | None = typer.Option(None, help="network weights (default: the shipped layout-free network)"),
     scans: list[Path] = typer.Option([], "--scan", help="a real scan to score against its plane-fit reference"),
     worlds: list[str] = typer.Option([], "--world", help="a world to segment fresh simulated scans of"),
     layouts_world: str | None = typer.Option(None, help="a world to segment every LiDAR layout in"),
@@ -317,10 +317,10 @@ def perception_table_command(
 ) -> None:
     """One network's segmentation on real scans, worlds and every LiDAR layout (docs/perception.md)."""
     from pimm_agents.measurement.perception_table import perception_table
-    from pimm_agents.perception.files import SHIPPED_WEIGHTS
+    from pimm_agents.perception.files import SHIPPED_CLOUD_WEIGHTS
     from pimm_agents.results.markdown import perception_table_markdown
 
-    table = perception_table(weights or SHIPPED_WEIGHTS, scans, worlds, layouts_world, count, seed)
+    table = perception_table(weights or SHIPPED_CLOUD_WEIGHTS, scans, worlds, layouts_world, count, seed)
     typer.echo(json.dumps(table) if json_out else perception_table_markdown(table, _command_line()))
 
 
@@ -333,8 +333,7 @@ def segment(
     sensors: str | None = typer.Option(
         None, help="a sensors .yaml or preset whose lidar3d mount gives height and tilt"
     ),
-    world: str = WORLD,
-    weights: Path | None = typer.Option(None, help="network weights (default: the ones --world uses)"),
+    weights: Path | None = typer.Option(None, help="network weights (default: the shipped layout-free network)"),
     reference: bool = typer.Option(False, "--reference", help="also score against the scan's plane-fit reference"),
     drop_invalid: bool = typer.Option(False, "--drop-invalid", help="leave out NaN points of an unorganized cloud"),
     out: Path = OUT,
@@ -343,7 +342,7 @@ def segment(
     """Classes and corners of one scan from any LiDAR, written with pictures (docs/perception.md#your-own-scans)."""
     from pimm_agents.experiments.experiment import new_folder
     from pimm_agents.measurement.cloud_file import segment_file
-    from pimm_agents.perception.files import checkpoint_path
+    from pimm_agents.perception.files import SHIPPED_CLOUD_WEIGHTS
     from pimm_agents.results.tables import format_segment
     from pimm_env.sim.sensors import sensor_layouts
 
@@ -353,7 +352,7 @@ def segment(
         sensor_height = mount.height if sensor_height is None else sensor_height
         tilt = (mount.mount_roll_deg, mount.mount_pitch_deg)
     folder = new_folder(out, f"segment_{file.stem}")
-    record = segment_file(file, weights or checkpoint_path(world), folder, sensor_height, tilt, drop_invalid, reference)
+    record = segment_file(file, weights or SHIPPED_CLOUD_WEIGHTS, folder, sensor_height, tilt, drop_invalid, reference)
     typer.echo(json.dumps(record) if json_out else "\n".join(format_segment(record)))
 
 

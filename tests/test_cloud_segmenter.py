@@ -49,12 +49,15 @@ def _accuracy(labels, truth):
     return float(np.mean(labels == truth))
 
 
-def test_an_unorganized_scan_gets_the_classes_of_an_organized_one():
-    """The thesis LiDAR's scan handed over as a bare point set (no rings), shuffled, with the height measured."""
-    from pimm_agents.perception.segmenter import Segmenter
+@pytest.mark.parametrize("weights", ["grid", "cloud"])
+def test_an_unorganized_scan_gets_the_classes_of_an_organized_one(weights):
+    """The thesis LiDAR's scan handed over as a bare point set (no rings), shuffled, with the height measured:
+    through the grid network's own layout, or the layout-free network."""
+    from pimm_agents.perception.files import SHIPPED_CLOUD_WEIGHTS
+    from pimm_agents.perception.segmenter import load_segmenter
     from pimm_agents.scans.segment import segment_cloud
 
-    segmenter = Segmenter(SHIPPED_WEIGHTS)
+    segmenter = load_segmenter(SHIPPED_WEIGHTS if weights == "grid" else SHIPPED_CLOUD_WEIGHTS)
     rng = np.random.default_rng(0)
     for lidar in (Lidar3DConfig(),):
         points, truth = simulated_scan(lidar, seed=2)
@@ -86,3 +89,24 @@ def test_segment_writes_labels_corners_and_pictures(tmp_path):
         assert (written / name).stat().st_size > 0, name
     given = CliRunner().invoke(evaluate.app, ["segment", str(path), "--sensor-height", "0.9", "--out", str(folder)])
     assert given.exit_code == 0 and "0.900 m above the floor (given)" in given.output
+
+
+def test_the_layout_free_network_labels_a_16_ring_scan_and_one_without_rings():
+    """One network, two LiDARs: a 16-ring spinning scan and the thesis scan, both as bare shuffled point sets;
+    on the 16-ring scan it beats the grid network read through its own layout (measured in the iiLab: 0.86
+    against 0.75 of the returns right)."""
+    from pimm_agents.perception.files import SHIPPED_CLOUD_WEIGHTS
+    from pimm_agents.perception.segmenter import load_segmenter
+    from pimm_agents.scans.segment import segment_cloud
+    from pimm_env.sim.sensors import LIDAR_3D
+
+    cloud, grid = load_segmenter(SHIPPED_CLOUD_WEIGHTS), load_segmenter(SHIPPED_WEIGHTS)
+    rng = np.random.default_rng(1)
+    right = {}
+    for name in ("vlp-16", "thesis"):
+        points, truth = simulated_scan(LIDAR_3D[name], seed=5)
+        order = rng.permutation(len(points))
+        right[name] = _accuracy(segment_cloud(points[order], cloud).labels, truth[order])
+        assert right[name] > 0.8, name
+    points, truth = simulated_scan(LIDAR_3D["vlp-16"], seed=5)
+    assert right["vlp-16"] > _accuracy(segment_cloud(points, grid).labels, truth) + 0.05

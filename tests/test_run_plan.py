@@ -69,3 +69,13 @@ def test_run_from_its_own_record_repeats_a_run_with_walkers_and_a_fault_exactly(
     assert plain.exit_code == 0, plain.output
     other = Path(json.loads(plain.output.strip().splitlines()[-1])["folder"])
     assert (other / log).read_text() != (folder / log).read_text()  # the movers and the fault did change the run
+
+
+def test_results_folders_made_in_one_second_do_not_collide(tmp_path):
+    from pimm_agents.experiments.experiment import latest_folder, new_folder
+
+    first, second = new_folder(tmp_path, "run"), new_folder(tmp_path, "run")
+    other = new_folder(tmp_path, "run_plan")
+    assert first != second and first.is_dir() and second.is_dir()
+    assert second.name.startswith(first.name) or second.name[:19] > first.name[:19]
+    assert latest_folder(tmp_path, "run") == second and latest_folder(tmp_path, "run_plan") == other

@@ -30,6 +30,7 @@ from pimm_agents.experiments.sweep import Sweep, sweep_specs
 from pimm_agents.experiments.trial_store import load_stored, save_trial
 from pimm_agents.results.folder import write_results
 from pimm_agents.scoring.trial import TrialResult, TrialSpec
+from pimm_env.errors import ExperimentError
 
 
 @dataclass(frozen=True)
@@ -60,16 +61,27 @@ class Outcome:
 
 
 def new_folder(out: Path, kind: str) -> Path:
-    """``out/YYYY-MM-DD_HH-MM-SS_KIND``, made now."""
-    folder = Path(out) / f"{datetime.now():%Y-%m-%d_%H-%M-%S}_{kind}"
-    folder.mkdir(parents=True, exist_ok=False)
-    return folder
+    """``out/YYYY-MM-DD_HH-MM-SS_KIND``, made now; a second one in the same second gets ``_2`` after it."""
+    stamp = f"{datetime.now():%Y-%m-%d_%H-%M-%S}"
+    Path(out).mkdir(parents=True, exist_ok=True)
+    for n in range(1, 1000):
+        folder = Path(out) / (f"{stamp}_{kind}" if n == 1 else f"{stamp}_{kind}_{n}")
+        try:
+            folder.mkdir(exist_ok=False)
+            return folder
+        except FileExistsError:
+            continue
+    raise ExperimentError(f"{out}: a thousand {kind} folders made in one second; give another --out")
 
 
 def latest_folder(out: Path, kind: str) -> Path | None:
-    """The newest ``*_KIND`` folder under ``out`` (timestamped names sort by time), if any."""
-    runs = sorted(p for p in Path(out).glob(f"*_{kind}") if p.is_dir())
-    return runs[-1] if runs else None
+    """The newest ``*_KIND`` (or ``*_KIND_N``) folder under ``out`` (timestamped names sort by time), if any."""
+    import re
+
+    pattern = re.compile(rf"^(\d{{4}}-\d{{2}}-\d{{2}}_\d{{2}}-\d{{2}}-\d{{2}})_{re.escape(kind)}(?:_(\d+))?$")
+    matched = ((pattern.match(p.name), p) for p in Path(out).glob(f"*_{kind}*") if p.is_dir())
+    runs = sorted((m.group(1), int(m.group(2) or 1), p) for m, p in matched if m)
+    return runs[-1][2] if runs else None
 
 
 class Experiment:
