@@ -340,7 +340,6 @@ def segment(
     json_out: bool = JSON,
 ) -> None:
     """Classes and corners of one scan from any LiDAR, written with pictures (docs/perception.md#your-own-scans)."""
-    from pimm_agents.experiments.experiment import new_folder
     from pimm_agents.measurement.cloud_file import segment_file
     from pimm_agents.perception.files import SHIPPED_CLOUD_WEIGHTS
     from pimm_agents.results.tables import format_segment
@@ -351,8 +350,7 @@ def segment(
         mount = sensor_layouts(sensors)[0]
         sensor_height = mount.height if sensor_height is None else sensor_height
         tilt = (mount.mount_roll_deg, mount.mount_pitch_deg)
-    folder = new_folder(out, f"segment_{file.stem}")
-    record = segment_file(file, weights or SHIPPED_CLOUD_WEIGHTS, folder, sensor_height, tilt, drop_invalid, reference)
+    record = segment_file(file, weights or SHIPPED_CLOUD_WEIGHTS, out, sensor_height, tilt, drop_invalid, reference)
     typer.echo(json.dumps(record) if json_out else "\n".join(format_segment(record)))
 
 

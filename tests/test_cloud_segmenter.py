@@ -89,6 +89,11 @@ def test_segment_writes_labels_corners_and_pictures(tmp_path):
         assert (written / name).stat().st_size > 0, name
     given = CliRunner().invoke(evaluate.app, ["segment", str(path), "--sensor-height", "0.9", "--out", str(folder)])
     assert given.exit_code == 0 and "0.900 m above the floor (given)" in given.output
+    bad = tmp_path / "bad.npy"
+    np.save(bad, np.full((5, 3), np.nan))
+    failed = CliRunner().invoke(evaluate.app, ["segment", str(bad), "--out", str(tmp_path / "none")])
+    assert failed.exit_code != 0 and "bad.npy" in failed.output
+    assert not (tmp_path / "none").exists() or not any((tmp_path / "none").iterdir())  # no empty results
 
 
 def test_the_layout_free_network_labels_a_16_ring_scan_and_one_without_rings():

@@ -1,7 +1,8 @@
 """``evaluate.py segment FILE``: one scan from a file, segmented, its corners found, written and drawn; with
 ``reference=True`` also scored against the plane-fit reference (``plane_reference.py``).
 
-Written to ``out``: ``labels.npy`` (int8, one class per point of the file, -1 where it held no return),
+Written to a new ``out/<time>_segment_<name>/`` (none when the file cannot be read or segmented):
+``labels.npy`` (int8, one class per point of the file, -1 where it held no return),
 ``labelled.ply`` (the returns coloured by class, in the file's frame), ``corners.json`` (level sensor frame),
 ``views.png`` (from above and from the side); with the reference also ``reference_labels.npy`` and
 ``reference.png``. Returns the record ``--json`` prints.
@@ -28,6 +29,7 @@ def segment_file(
     reference: bool = False,
     seed: int = 0,
 ) -> dict[str, Any]:
+    from pimm_agents.experiments.experiment import new_folder
     from pimm_agents.perception.segmenter import load_segmenter
     from pimm_agents.results.cloud_figures import draw_labelled_cloud
     from pimm_agents.scans.segment import segment_cloud
@@ -35,8 +37,7 @@ def segment_file(
 
     cloud = read_cloud(path, drop_invalid)
     result = segment_cloud(cloud.points, load_segmenter(weights), sensor_height, roll_pitch_deg, seed=seed)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = new_folder(out, f"segment_{Path(path).stem}")  # only once the scan was read and segmented
     labels = np.full(cloud.total, -1, dtype=np.int8)
     labels[cloud.rows] = result.labels
     np.save(out / "labels.npy", labels)
