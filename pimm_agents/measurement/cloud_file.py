@@ -65,18 +65,13 @@ def segment_file(
     }
     reference_corners = None
     if reference:
-        from pimm_agents.measurement.plane_reference import corners_found, plane_reference, score_labels
+        from pimm_agents.measurement.plane_reference import scored_against_reference
 
-        ref = plane_reference(cloud.points, seed=seed)
+        ref, record["reference"] = scored_against_reference(cloud.points, result.labels, found, seed)
         reference_labels = np.full(cloud.total, -1, dtype=np.int8)
         reference_labels[cloud.rows] = ref.labels
         np.save(out / "reference_labels.npy", reference_labels)
         reference_corners = ref.corners
-        record["reference"] = {
-            **score_labels(result.labels, ref.labels),
-            "corners": corners_found(found, ref.corners, 0.2),
-            "reference_corners": np.round(ref.corners, 3).tolist(),
-        }
         draw_labelled_cloud(
             result.level_points,
             ref.labels,

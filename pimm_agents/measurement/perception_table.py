@@ -18,20 +18,16 @@ def real_scan_scores(path: Path, weights: Path, seed: int = 0) -> dict[str, Any]
     """One real scan against its plane-fit reference: IoU per class, corners matched within 0.2 m."""
     import numpy as np
 
-    from pimm_agents.measurement.plane_reference import corners_found, plane_reference, score_labels
+    from pimm_agents.measurement.plane_reference import scored_against_reference
     from pimm_agents.perception.segmenter import load_segmenter
     from pimm_agents.scans.segment import segment_cloud
     from pimm_env.clouds.read import read_cloud
 
     cloud = read_cloud(path)
     result = segment_cloud(cloud.points, load_segmenter(weights), seed=seed)
-    reference = plane_reference(cloud.points, seed=seed)
     found = np.array([[f.x, f.y] for f in result.corners.features]).reshape(-1, 2)
-    return {
-        **score_labels(result.labels, reference.labels),
-        "corners": corners_found(found, reference.corners, 0.2),
-        "sensor_height_m": result.sensor_height,
-    }
+    _, scores = scored_against_reference(cloud.points, result.labels, found, seed)
+    return {**scores, "sensor_height_m": result.sensor_height}
 
 
 def perception_table(

@@ -213,3 +213,22 @@ def corners_found(found: np.ndarray, reference: np.ndarray, within_m: float) -> 
     matched = int(np.sum(distance.min(axis=1) <= within_m))
     unmatched = int(np.sum(distance.min(axis=0) > within_m))
     return {"reference": len(reference), "found": len(found), "matched": matched, "unmatched_found": unmatched}
+
+
+def scored_against_reference(
+    points: np.ndarray,
+    labels: np.ndarray,
+    found: np.ndarray,
+    seed: int = 0,
+    config: ReferenceConfig = ReferenceConfig(),
+) -> tuple[Reference, dict[str, object]]:
+    """The scan's plane-fit reference, and ``labels`` (one per point) and the corners ``found`` (x, y, level
+    sensor frame) scored against it: IoU per class and their mean, class shares, room corners found within
+    ``corner_match_m``."""
+    reference = plane_reference(points, config, seed)
+    scores = {
+        **score_labels(labels, reference.labels),
+        "corners": corners_found(found, reference.corners, config.corner_match_m),
+        "reference_corners": np.round(reference.corners, 3).tolist(),
+    }
+    return reference, scores

@@ -26,6 +26,7 @@ class FloorConfig:
     min_inliers: int = 50
     below_m: float = 0.1  # candidates: returns at least this far below the sensor
     refits: int = 3  # least-squares refits of the floor, each on the returns near the last
+    broad_m: float = 0.3  # a floor whose returns spread this much (std, m) both ways tilts on its own fit
 
 
 @dataclass(frozen=True)
@@ -87,9 +88,10 @@ def estimate_floor(points: np.ndarray, config: FloorConfig = FloorConfig(), seed
     inliers = below[np.abs(heights - level) <= config.distance_m]
     normal, centre = up, inliers.mean(axis=0)
     for _ in range(config.refits):  # least squares, then again on the returns within reach of that plane
-        fitted = np.linalg.svd(inliers - centre, full_matrices=False)[2][2]
-        fitted = fitted if fitted[2] > 0 else -fitted
-        if np.degrees(np.arccos(min(1.0, float(fitted @ up)))) > 2.0:  # too few or too narrow to tilt alone
+        _, spread, axes = np.linalg.svd(inliers - centre, full_matrices=False)
+        fitted = axes[2] if axes[2][2] > 0 else -axes[2]
+        broad = spread[1] / np.sqrt(len(inliers)) >= config.broad_m  # a floor, not a strip, to tilt on
+        if not broad and np.degrees(np.arccos(min(1.0, float(fitted @ up)))) > 2.0:
             break
         normal = fitted
         near = below[np.abs((below - centre) @ normal) <= config.distance_m]
@@ -100,7 +102,8 @@ def estimate_floor(points: np.ndarray, config: FloorConfig = FloorConfig(), seed
 
 
 def _up(points: np.ndarray, config: FloorConfig, rng: np.random.Generator) -> np.ndarray:
-    """The normal of the scan's best-supported level plane, refitted to its inliers."""
+    """The normal of the scan's best-supported level plane, refitted to its inliers (and to those of the refit:
+    a small dense patch, a desk top, leaves the first fit free to lean; the walls it cuts then level it)."""
     scored = points[rng.choice(len(points), min(len(points), config.score_points), replace=False)]
     a, b, c = (scored[rng.integers(0, len(scored), config.hypotheses)] for _ in range(3))
     normal = np.cross(b - a, c - a)
@@ -113,6 +116,12 @@ def _up(points: np.ndarray, config: FloorConfig, rng: np.random.Generator) -> np
     normal, offset = normal[level], -np.einsum("ij,ij->i", normal[level], a[level])
     counts = (np.abs(scored @ normal.T + offset) <= config.distance_m).sum(axis=0)
     best = int(np.argmax(counts))
-    inliers = points[np.abs(points @ normal[best] + offset[best]) <= config.distance_m]
-    fitted = np.linalg.svd(inliers - inliers.mean(axis=0), full_matrices=False)[2][2]
-    return fitted if fitted[2] > 0 else -fitted
+    normal, point = normal[best], a[level][best]
+    for _ in range(config.refits):  # least squares on the inliers, again on those of the refitted plane
+        inliers = points[np.abs((points - point) @ normal) <= config.distance_m]
+        if len(inliers) < 3:
+            break
+        point = inliers.mean(axis=0)
+        fitted = np.linalg.svd(inliers - point, full_matrices=False)[2][2]
+        normal = fitted if fitted[2] > 0 else -fitted
+    return normal

@@ -87,16 +87,18 @@ class Segmentation:
     timings_ms: dict[str, float]
 
 
-class Segmenter:
-    """Runs a trained checkpoint on scans from the env: ``segment(cloud, mask) -> Segmentation``."""
+class _Network:
+    """What both segmenters hold: the checked weights of one input kind, fused for inference, and a thread
+    count chosen by timing."""
 
-    def __init__(self, checkpoint: Path, layers: int = 40, points_per_layer: int = 360) -> None:
+    def __init__(self, checkpoint: Path, inputs: str) -> None:
         self.model: PointNetSegmenter
         self.model, self.training = load_checkpoint(checkpoint)
+        if self.model.config.inputs != inputs:
+            other = "CloudSegmenter" if self.model.config.inputs == "cloud" else "Segmenter"
+            raise PerceptionError(f"{checkpoint}: weights of {self.model.config.inputs!r} inputs; use {other}")
         self.network = FusedPointNet(self.model)
         self.checkpoint = Path(checkpoint)
-        self.layers = layers
-        self.points_per_layer = points_per_layer
         #: the network's thread count, kept to what runs faster beside whatever else the machine does
         self.threads = ThreadChooser()
 
@@ -108,6 +110,15 @@ class Segmenter:
     @property
     def descriptor_dim(self) -> int:
         return self.model.config.descriptor_dim
+
+
+class Segmenter(_Network):
+    """Runs a trained checkpoint on scans from the env: ``segment(cloud, mask) -> Segmentation``."""
+
+    def __init__(self, checkpoint: Path, layers: int = 40, points_per_layer: int = 360) -> None:
+        super().__init__(checkpoint, "grid")
+        self.layers = layers
+        self.points_per_layer = points_per_layer
 
     def segment(self, cloud: np.ndarray, mask: np.ndarray) -> Segmentation:
         start = time.perf_counter()
@@ -156,7 +167,7 @@ class Segmenter:
 BODY_RANGE_M = 0.2
 
 
-class CloudSegmenter:
+class CloudSegmenter(_Network):
     """A network of ``cloud`` inputs (``cloud_features.py``) on the returns of any LiDAR, organized or not:
     ``segment_points(level, height)`` for a levelled point set, ``segment(cloud, mask)`` as :class:`Segmenter`
     for a scan in the robot's level frame at the sensor, ``sensor_height`` m above the floor."""
@@ -164,23 +175,10 @@ class CloudSegmenter:
     def __init__(
         self, checkpoint: Path, sensor_height: float = 0.5, features: CloudFeatureConfig = CloudFeatureConfig()
     ) -> None:
-        self.model, self.training = load_checkpoint(checkpoint)
-        if self.model.config.inputs != "cloud":
-            raise PerceptionError(f"{checkpoint}: weights of {self.model.config.inputs!r} inputs; use Segmenter")
-        self.network = FusedPointNet(self.model)
-        self.checkpoint = Path(checkpoint)
+        super().__init__(checkpoint, "cloud")
         self.features = features
         #: the sensor's height above the floor (m) for :meth:`segment`; the localizer sets its LiDAR's
         self.sensor_height = sensor_height
-        self.threads = ThreadChooser()
-
-    @property
-    def weights_sha256(self) -> str:
-        return str(self.training["sha256"])
-
-    @property
-    def descriptor_dim(self) -> int:
-        return self.model.config.descriptor_dim
 
     def segment(self, cloud: np.ndarray, mask: np.ndarray) -> Segmentation:
         """Classes of every point of ``cloud`` (-1 where no return) and the scan's descriptor."""
