@@ -24,17 +24,11 @@ import numpy as np
 
 from pimm_agents.perception.cloud_features import CloudFeatureConfig, voxelize
 from pimm_env.errors import PerceptionError
-from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, mount_rotation, non_repetitive_directions
-from pimm_env.sim.sensors import LIDAR_3D
+from pimm_env.sim.lidar import Lidar3DConfig, mount_rotation
+from pimm_env.sim.sensors import LIDAR_3D, NON_REPETITIVE, scan_directions, scan_layout
 
 FORMAT = "pimm-clouds/1"
-SPINNING: dict[str, Lidar3DConfig] = {
-    "thesis": LIDAR_3D["thesis"],
-    "os0-64": LIDAR_3D["os0-64"],
-    "vlp-16": LIDAR_3D["vlp-16"],
-    "os1-128": LIDAR_3D["os1-128"],
-}
-NON_REPETITIVE = "mid-360"
+SPINNING = ("thesis", "os0-64", "vlp-16", "os1-128")
 LAYOUTS = (*SPINNING, NON_REPETITIVE)
 
 
@@ -89,7 +83,7 @@ def random_scan(
 ) -> tuple[np.ndarray, np.ndarray, float, str]:
     """One scan from the env's current pose: level voxel points, their classes, the height and the layout."""
     name = str(rng.choice(config.layouts))
-    base = SPINNING.get(name, replace(LIDAR_3D["thesis"], max_range=40.0))
+    base = scan_layout(name)
     tilt = config.tilt_deg
     mount = replace(
         base,
@@ -98,7 +92,7 @@ def random_scan(
         mount_pitch_deg=float(rng.uniform(-tilt, tilt)),
     )
     spinning = name in SPINNING
-    directions = directions_3d(mount) if spinning else non_repetitive_directions(config.non_repetitive_rays, rng)
+    directions = scan_directions(name, mount, rng, config.non_repetitive_rays)
     ranges, labels = env.cast_sensor_rays(directions, mount)  # type: ignore[attr-defined]
     hit = np.isfinite(ranges) & (ranges >= mount.min_range)
     ranges = np.where(hit, ranges + rng.normal(0.0, rng.uniform(*config.noise_m), len(ranges)), np.inf)

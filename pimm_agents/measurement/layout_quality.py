@@ -15,22 +15,20 @@ from typing import Any
 import numpy as np
 
 from pimm_agents.measurement.perception_quality import confusion_matrix, segmentation_scores
-from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, mount_rotation, non_repetitive_directions
-from pimm_env.sim.sensors import LIDAR_3D
+from pimm_env.sim.sensors import LIDAR_3D, NON_REPETITIVE, scan_directions, scan_layout
 
 #: the layouts measured: presets by name, and "mid-360" for a non-repetitive pattern
-LAYOUT_NAMES = ("thesis", "os0-64", "vlp-16", "os1-128", "mid-360")
+LAYOUT_NAMES = ("thesis", "os0-64", "vlp-16", "os1-128", NON_REPETITIVE)
 
 
 def layout_scan(env: Any, name: str, height: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Returns (sensor frame) and true classes of one scan of layout ``name`` from the env's current pose."""
-    mount: Lidar3DConfig = replace(LIDAR_3D.get(name, replace(LIDAR_3D["thesis"], max_range=40.0)), height=height)
-    directions = directions_3d(mount) if name in LIDAR_3D else non_repetitive_directions(20_000, rng)
+    mount = replace(scan_layout(name), height=height)  # level: its frame is the sensor's
+    directions = scan_directions(name, mount, rng)
     ranges, labels = env.cast_sensor_rays(directions, mount)
     hit = np.isfinite(ranges) & (ranges >= mount.min_range)
     ranges = ranges[hit] + rng.normal(0.0, 0.01, int(hit.sum()))
-    sensor = (directions[hit] * ranges[:, None]) @ mount_rotation(mount)  # the mount is level: an identity
-    return sensor, labels[hit]
+    return directions[hit] * ranges[:, None], labels[hit]
 
 
 def measure_layouts(

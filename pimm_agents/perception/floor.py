@@ -88,9 +88,8 @@ def estimate_floor(points: np.ndarray, config: FloorConfig = FloorConfig(), seed
     inliers = below[np.abs(heights - level) <= config.distance_m]
     normal, centre = up, inliers.mean(axis=0)
     for _ in range(config.refits):  # least squares, then again on the returns within reach of that plane
-        _, spread, axes = np.linalg.svd(inliers - centre, full_matrices=False)
-        fitted = axes[2] if axes[2][2] > 0 else -axes[2]
-        broad = spread[1] / np.sqrt(len(inliers)) >= config.broad_m  # a floor, not a strip, to tilt on
+        fitted, spread = _plane_fit(inliers, centre)
+        broad = spread >= config.broad_m  # a floor, not a strip, to tilt on
         if not broad and np.degrees(np.arccos(min(1.0, float(fitted @ up)))) > 2.0:
             break
         normal = fitted
@@ -99,6 +98,14 @@ def estimate_floor(points: np.ndarray, config: FloorConfig = FloorConfig(), seed
             break
         inliers, centre = near, near.mean(axis=0)
     return Floor(height=float(-(centre @ normal)), normal=normal, inliers=len(inliers))
+
+
+def _plane_fit(points: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, float]:
+    """The least-squares plane's upward unit normal through ``centre``, and the points' spread (std, m) along
+    its narrower in-plane axis."""
+    _, spread, axes = np.linalg.svd(points - centre, full_matrices=False)
+    normal = axes[2] if axes[2][2] > 0 else -axes[2]
+    return normal, float(spread[1] / np.sqrt(len(points)))
 
 
 def _up(points: np.ndarray, config: FloorConfig, rng: np.random.Generator) -> np.ndarray:
@@ -122,6 +129,5 @@ def _up(points: np.ndarray, config: FloorConfig, rng: np.random.Generator) -> np
         if len(inliers) < 3:
             break
         point = inliers.mean(axis=0)
-        fitted = np.linalg.svd(inliers - point, full_matrices=False)[2][2]
-        normal = fitted if fitted[2] > 0 else -fitted
+        normal = _plane_fit(inliers, point)[0]
     return normal

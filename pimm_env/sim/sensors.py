@@ -12,12 +12,14 @@ when it reads a bag's layout from its messages; a user writes one for a LiDAR wi
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
+
+import numpy as np
 
 from pimm_env.errors import EnvError
 from pimm_env.settings import apply_params
-from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig
+from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig, directions_3d, non_repetitive_directions
 
 SENSORS_FILE_SUFFIXES = (".yaml", ".yml")
 
@@ -41,6 +43,25 @@ LIDAR_3D: dict[str, Lidar3DConfig] = {
     # Ouster OS1-128: 128 rings over 45 deg (+-22.5), 1024 columns, 90 m (at 10 % reflectivity: 45 m).
     "os1-128": Lidar3DConfig(layers=128, points_per_layer=1024, vertical_fov_deg=45.0, max_range=90.0),
 }
+
+
+#: a non-repetitive pattern (Mid-360-like: ``lidar.non_repetitive_directions``), named beside the spinning presets
+NON_REPETITIVE = "mid-360"
+
+
+def scan_layout(name: str) -> Lidar3DConfig:
+    """The 3D LiDAR a layout name stands for: a spinning preset, or the non-repetitive pattern's range (40 m)."""
+    if name == NON_REPETITIVE:
+        return replace(LIDAR_3D["thesis"], max_range=40.0)
+    if name not in LIDAR_3D:
+        raise EnvError(f"unknown 3D layout {name!r}; valid: {', '.join([*LIDAR_3D, NON_REPETITIVE])}")
+    return LIDAR_3D[name]
+
+
+def scan_directions(name: str, mount: Lidar3DConfig, rng: np.random.Generator, rays: int = 20_000) -> np.ndarray:
+    """Unit ray directions (sensor frame) of one scan of layout ``name``: the preset's grid, or ``rays`` fresh
+    rays of the non-repetitive pattern."""
+    return non_repetitive_directions(rays, rng) if name == NON_REPETITIVE else directions_3d(mount)
 
 
 def sensor_layouts(spec: str | None) -> tuple[Lidar3DConfig, Lidar2DConfig]:
