@@ -1,5 +1,7 @@
 """pimm/ActiveLocalization-v0: spaces, checkers, determinism, the forward guard and the belief features."""
 
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -9,6 +11,8 @@ from pimm_agents.active.env import ActiveConfig, belief_features, scan_sectors, 
 from pimm_agents.active.primitives import blocked_ahead
 from pimm_agents.localizer import Hypothesis, PoseEstimate
 from pimm_env.errors import EnvError
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _estimate(*hypotheses: tuple[float, float, float, float], status: str = "ambiguous") -> PoseEstimate:
@@ -117,3 +121,22 @@ def test_policy_training_repeats_per_seed(tmp_path):
     a, b = (PPO.load(str(p), device="cpu").policy.state_dict() for p in paths)
     assert all(torch.equal(a[k], b[k]) for k in a)
     assert (tmp_path / "p0_log" / "progress.csv").is_file() and (tmp_path / "p0.json").is_file()
+
+
+def test_training_envs_draw_every_building_and_repeat_per_seed():
+    from training.policy import WorldCycle
+
+    def drawn(seed: int) -> list[str]:
+        env = WorldCycle(["iilab", str(ROOT / "maps" / "iilab" / "world.yaml")], "amcl")  # two names, two envs
+        env.reset(seed=seed)
+        picks = [env.current]
+        for _ in range(7):
+            env.reset()
+            picks.append(env.current)
+        names = [next(w for w, e in env._envs.items() if e is p) for p in picks]
+        env.close()
+        return names
+
+    first = drawn(5)
+    assert len(set(first)) == 2  # both within 8 episodes
+    assert drawn(5) == first

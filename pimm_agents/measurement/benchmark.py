@@ -18,6 +18,7 @@ from pimm_env.world.shapes import Box, Cylinder
 
 if TYPE_CHECKING:
     from pimm_agents.pimm.feature_filter import FeatureFilter
+    from pimm_agents.pimm.rivals import RivalTracker, ScanStack
 
 
 def median_ms(fn: Callable[[], object], repeats: int) -> float:
@@ -206,7 +207,42 @@ def pimm_benchmarks(repeats: int) -> dict[str, float]:
     # PIMM perceives a scan only when it weighs with it (pimm.lazy_perception): its cost per scan that arrived
     figures["pimm_per_scan_ms"] = all_updates_ms / scans
     figures["pimm_scans_perceived_share"] = repeats / scans
+    tracker = pimm.filter.rivals
+    if tracker is not None:
+        figures.update(rival_evidence_benchmark(tracker, np.asarray(obs["odom"], dtype=float), repeats))
     return figures
+
+
+def rival_evidence_benchmark(tracker: RivalTracker, odom: np.ndarray, repeats: int) -> dict[str, float]:
+    """The rival check's evidence of 30 poses over the scans ``tracker`` kept: compiled (as PIMM runs it) and
+    as the NumPy expression it replaced (the measurement behind the compiled loop, docs/design.md)."""
+    stack = tracker.stack(odom)
+    rng = np.random.default_rng(0)
+    poses = np.column_stack([rng.normal(-10.0, 0.5, (30, 2)), rng.uniform(-np.pi, np.pi, 30)])
+    return {
+        "rival_evidence_ms": median_ms(lambda: tracker.evidence(poses, stack), repeats),
+        "rival_evidence_numpy_ms": median_ms(lambda: numpy_scan_evidence(tracker, poses, stack), repeats),
+        "rival_evidence_points": float(len(stack.points) * len(poses)),
+    }
+
+
+def numpy_scan_evidence(tracker: RivalTracker, poses: np.ndarray, stack: ScanStack) -> np.ndarray:
+    """``tracker.evidence`` as NumPy arrays of every (pose, point) pair: what the compiled loop replaced."""
+    k, m = len(poses), stack.motions
+    c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+    tx, ty = poses[:, 0:1] + c * m[:, 0] - s * m[:, 1], poses[:, 1:2] + s * m[:, 0] + c * m[:, 1]
+    heading = poses[:, 2:3] + m[:, 2]
+    of = stack.scan_of
+    ca, sa = np.cos(heading)[:, of], np.sin(heading)[:, of]
+    x = tx[:, of] + ca * stack.points[:, 0] - sa * stack.points[:, 1]
+    y = ty[:, of] + sa * stack.points[:, 0] + ca * stack.points[:, 1]
+    grid = tracker.field.grid
+    rows, cols, valid = grid.cells_of(np.column_stack([x.ravel(), y.ravel()]))
+    log_pz = np.where(valid, tracker.log_pz[np.where(valid, rows, 0), np.where(valid, cols, 0)], tracker.log_pz_off)
+    rows, cols, on_map = grid.cells_of(np.column_stack([tx.ravel(), ty.ravel()]))
+    free = on_map & tracker.free[np.where(on_map, rows, 0), np.where(on_map, cols, 0)]
+    outside = (~free).reshape(k, -1).sum(axis=1)
+    return tracker.temperature * log_pz.reshape(k, -1).sum(axis=1) + np.log(0.1) * outside
 
 
 def converged_update_benchmark(filt: FeatureFilter, features: np.ndarray, repeats: int) -> dict[str, float]:

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pimm_agents.particles.likelihood_field import LikelihoodField
+from pimm_agents.pimm.scan_evidence import summed_scan_evidence
 from pimm_agents.pimm.twins import TwinConfig
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
@@ -96,7 +97,9 @@ DEEP_STEPS = (*REFINE_STEPS, np.array([0.02, 0.02, np.radians(0.3)]))
 
 
 @dataclass(frozen=True)
-class _Stack:
+class ScanStack:
+    """Kept scans stacked for scoring: every wall point with its scan, and each scan's pose from now."""
+
     points: np.ndarray  # (P, 2) wall points, robot frame at their scan
     scan_of: np.ndarray  # (P,) their scan
     motions: np.ndarray  # (S, 3) each scan's robot pose in the robot's frame now
@@ -110,14 +113,14 @@ class RivalTracker:
         self.config = config
         self._scans: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.history_scans)
         self._added = 0  # scans kept so far: with the odometry, says whether the newest-scans stack is current
-        self._recent: tuple[tuple[int, bytes], _Stack] | None = None
+        self._recent: tuple[tuple[int, bytes], ScanStack] | None = None
         p = field.params
         floor = p.z_rand / p.range_max
         #: per map cell: log pz of a point there, relative to a point on a wall (so 0 at best)
-        self._log_pz = np.log(p.z_hit * np.exp(-(field.distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(
+        self.log_pz = np.log(p.z_hit * np.exp(-(field.distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(
             p.z_hit + floor
         )
-        self._log_pz_off = float(
+        self.log_pz_off = float(
             np.log(p.z_hit * np.exp(-(p.max_distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(p.z_hit + floor)
         )
         self.rivals = np.zeros((0, 3))
@@ -171,17 +174,17 @@ class RivalTracker:
         if self._anchor is not None:
             self._anchor = carried(self._anchor[None, :], motion)[0]
 
-    def stack(self, odom_now: np.ndarray, last: int | None = None) -> _Stack:
+    def stack(self, odom_now: np.ndarray, last: int | None = None) -> ScanStack:
         """The kept scans (the ``last`` newest) as one array of points, each with its scan's motion from now."""
         scans = list(self._scans)[-last:] if last else list(self._scans)
         if not scans:
-            return _Stack(np.zeros((0, 2)), np.zeros(0, dtype=int), np.zeros((0, 3)))
+            return ScanStack(np.zeros((0, 2)), np.zeros(0, dtype=int), np.zeros((0, 3)))
         points = np.vstack([points for _, points in scans])
         scan_of = np.repeat(np.arange(len(scans)), [len(points) for _, points in scans])
         motions = np.array([relative_motion(odom_now, odom) for odom, _ in scans])
-        return _Stack(points, scan_of, motions)
+        return ScanStack(points, scan_of, motions)
 
-    def recent(self, odom_now: np.ndarray) -> _Stack:
+    def recent(self, odom_now: np.ndarray) -> ScanStack:
         """``stack`` of the newest ``refine_scans`` scans, built once per update (``headings`` and ``update``
         both score on it)."""
         key = (self._added, np.asarray(odom_now, dtype=float).tobytes())
@@ -189,45 +192,30 @@ class RivalTracker:
             self._recent = (key, self.stack(odom_now, self.config.refine_scans))
         return self._recent[1]
 
-    def evidence(self, poses: np.ndarray, stack: _Stack) -> np.ndarray:
+    def evidence(self, poses: np.ndarray, stack: ScanStack) -> np.ndarray:
         """Summed tempered log-likelihood of the stacked scans for a robot now at each of ``poses`` (K, 3),
         carried back along the odometry to each scan (a pose off the free space costs ln 0.1 a scan)."""
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         if len(stack.motions) == 0 or len(poses) == 0:
             return np.zeros(len(poses))
-        k, m = len(poses), stack.motions
-        c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
-        then = np.stack(
-            [
-                poses[:, 0:1] + c * m[:, 0] - s * m[:, 1],
-                poses[:, 1:2] + s * m[:, 0] + c * m[:, 1],
-                poses[:, 2:3] + m[:, 2],
-            ],
-            axis=2,
-        )  # (K, S, 3): the robot at each scan
-        # the turn of each (pose, scan), worked out once and spread to that scan's points (P >> S)
-        of = stack.scan_of
-        ca, sa = np.cos(then[..., 2])[:, of], np.sin(then[..., 2])[:, of]  # (K, P)
-        px, py = stack.points[:, 0], stack.points[:, 1]
-        x = then[..., 0][:, of] + ca * px - sa * py
-        y = then[..., 1][:, of] + sa * px + ca * py
         grid = self.field.grid
-        cols = np.floor((x.ravel() - grid.origin[0]) / grid.resolution).astype(np.intp)
-        rows = np.floor((y.ravel() - grid.origin[1]) / grid.resolution).astype(np.intp)
-        valid = (rows >= 0) & (rows < grid.shape[0]) & (cols >= 0) & (cols < grid.shape[1])
-        cell = np.where(valid, rows * grid.shape[1] + cols, 0)
-        log_pz = np.where(valid, self._log_pz.ravel()[cell], self._log_pz_off)
-        outside = ~self._free_at(then[..., :2].reshape(-1, 2)).reshape(k, -1)
-        return self.temperature * log_pz.reshape(k, -1).sum(axis=1) + np.log(0.1) * outside.sum(axis=1)
-
-    def _free_at(self, xy: np.ndarray) -> np.ndarray:
-        rows, cols, valid = self.field.grid.cells_of(xy)
-        out = np.zeros(len(xy), dtype=bool)
-        out[valid] = self.free[rows[valid], cols[valid]]
-        return out
+        return summed_scan_evidence(
+            poses,
+            np.ascontiguousarray(stack.motions, dtype=float),
+            np.ascontiguousarray(stack.scan_of, dtype=np.int64),
+            np.ascontiguousarray(stack.points, dtype=float),
+            self.log_pz,
+            self.log_pz_off,
+            self.free,
+            float(grid.origin[0]),
+            float(grid.origin[1]),
+            float(grid.resolution),
+            float(self.temperature),
+            float(np.log(0.1)),
+        )
 
     def refine(
-        self, poses: np.ndarray, stack: _Stack, rounds: int = 4, steps: tuple[np.ndarray, ...] = REFINE_STEPS
+        self, poses: np.ndarray, stack: ScanStack, rounds: int = 4, steps: tuple[np.ndarray, ...] = REFINE_STEPS
     ) -> np.ndarray:
         """Each of ``poses`` (K, 3) moved by coordinate ``steps`` (x, y, heading; by default 0.1 m and 2 deg,
         then half of them), up to ``rounds`` a step size, while the stacked scans fit it better; all poses and
@@ -325,7 +313,7 @@ class RivalTracker:
             self._leader, self._lead = None, 0
         return len(unique)
 
-    def _fit_estimate(self, estimate: np.ndarray, recent: _Stack, history: _Stack) -> np.ndarray:
+    def _fit_estimate(self, estimate: np.ndarray, recent: ScanStack, history: ScanStack) -> np.ndarray:
         """The estimate's place fitted as the rivals are: from where it was fitted last (carried), if the
         estimate is still there, else fitted to the newest scans first; then a touch against all kept scans.
         Scored unfitted against rivals fitted at every update since they stood, a right estimate trailed its
@@ -335,7 +323,7 @@ class RivalTracker:
         self._anchor = self.refine(self._anchor[None, :], history, rounds=1, steps=FINE_STEP)[0]
         return self._anchor
 
-    def _follow_leader(self, estimate: np.ndarray, history: _Stack) -> None:
+    def _follow_leader(self, estimate: np.ndarray, history: ScanStack) -> None:
         """Count the updates in a row at which the same rival (within ``distinct_m``, ``distinct_deg``) led the
         estimate by ``drop_log_ratio``, both fitted to the kept scans to convergence first (``DEEP_STEPS``). The
         margins of the check compare rivals, fitted a touch at every update since they stood, with the estimate
