@@ -356,7 +356,7 @@ def segment(
 
 @command(app)
 def active(
-    world: str = WORLD,
+    world: list[str] = typer.Option(["iilab"], "--world", help="world names or world files (several pool)"),
     policy: list[str] = typer.Option(
         ["route", "random", "greedy"], "--policy", help="route, random, greedy, trained or a policy's .zip"
     ),
@@ -366,16 +366,27 @@ def active(
     limit_s: float = typer.Option(
         60.0, min=1.0, help="an episode's time limit (s): success is a right localized by then"
     ),
+    out: Path = OUT,
     json_out: bool = JSON,
 ) -> None:
     """Policies that drive to localize, on the same episodes: success, time to a right localized, distance,
-    collisions and false-localized time ([environment](docs/environment.md#active-localization))."""
+    collisions and false-localized time; every episode in OUT/<date>_active/summary.json
+    ([environment](docs/environment.md#active-localization))."""
     from pimm_agents.active.evaluation import evaluate_active
+    from pimm_agents.experiments.experiment import new_folder
+    from pimm_agents.results.provenance import machine, provenance
     from pimm_agents.results.tables import format_active
 
     chosen = [SHIPPED_POLICY if name == "trained" else name for name in policy]
-    result = evaluate_active(world, chosen, trials, seed, localizer, limit_s)
-    typer.echo(json.dumps({"policies": result["policies"]}) if json_out else format_active(result["policies"]))
+    result = evaluate_active(world, chosen, trials, seed, localizer, limit_s, progress=not json_out)
+    folder = new_folder(out, "active")
+    record = {"worlds": world, "policies": chosen, "trials": trials, "seed": seed, "localizer": localizer}
+    summary = {"record": {**record, "limit_s": limit_s, **provenance(), "machine": machine()}, **result}
+    (folder / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
+    if json_out:
+        typer.echo(json.dumps({"policies": result["policies"], "worlds": result["worlds"], "folder": str(folder)}))
+    else:
+        typer.echo(f"{format_active(result['policies'])}\n\nepisodes and per-world figures: {folder}/summary.json")
 
 
 @command(app, "passive-bound")

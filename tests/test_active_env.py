@@ -83,7 +83,7 @@ def test_the_env_passes_both_checkers_and_repeats_per_seed():
     env.close()
 
 
-def test_evaluate_active_prints_the_policies_figures():
+def test_evaluate_active_prints_and_writes_the_policies_figures(tmp_path):
     import json
 
     from typer.testing import CliRunner
@@ -91,9 +91,13 @@ def test_evaluate_active_prints_the_policies_figures():
     import evaluate
 
     args = ["active", "--localizer", "amcl", "--policy", "random", "--policy", "greedy", "--limit-s", "3", "--json"]
-    result = CliRunner().invoke(evaluate.app, args)
+    result = CliRunner().invoke(evaluate.app, [*args, "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
-    policies = json.loads(result.output)["policies"]
+    printed = json.loads(result.output)
+    policies = printed["policies"]
+    written = json.loads((Path(printed["folder"]) / "summary.json").read_text())
+    assert written["policies"] == policies and written["worlds"]["iilab"] == policies  # one world: the same
+    assert len(written["episodes"]) == 6 and written["record"]["commit"]
     assert set(policies) == {"random", "greedy"}
     for row in policies.values():
         assert set(row) == {

@@ -22,6 +22,7 @@ ROUTE = "route"
 @dataclass(frozen=True)
 class Episode:
     policy: str
+    world: str
     scenario: str
     seed: int
     first_right_s: float | None
@@ -30,7 +31,7 @@ class Episode:
     false_localized_s: float
 
 
-def run_policy_episode(env: Any, policy: Any, start: np.ndarray, seed: int, scenario: str) -> Episode:
+def run_policy_episode(env: Any, policy: Any, start: np.ndarray, seed: int, world: str, scenario: str) -> Episode:
     """One episode of a primitive policy from ``start``."""
     policy.reset(seed)
     obs, info = env.reset(seed=seed, options={"pose": start})
@@ -42,6 +43,7 @@ def run_policy_episode(env: Any, policy: Any, start: np.ndarray, seed: int, scen
             break
     return Episode(
         policy.name,
+        world,
         scenario,
         seed,
         info["first_right_localized_s"],
@@ -63,7 +65,7 @@ def run_route_episode(world: str, localizer: str, scenario: str, seed: int, limi
     steps = np.diff(clipped.true[:, :2], axis=0)
     distance = float(np.sum(np.hypot(steps[:, 0], steps[:, 1])))
     return Episode(
-        ROUTE, scenario, seed, honesty.time_to_localized_s, distance, result.collided, honesty.false_localized_s
+        ROUTE, world, scenario, seed, honesty.time_to_localized_s, distance, result.collided, honesty.false_localized_s
     )
 
 
@@ -88,36 +90,54 @@ def summarize(episodes: Sequence[Episode], limit_s: float) -> dict[str, Any]:
 
 
 def evaluate_active(
-    world: str, policies: Sequence[str], trials: int, seed: int, localizer: str = "pimm", limit_s: float = 60.0
+    worlds: str | Sequence[str],
+    policies: Sequence[str],
+    trials: int,
+    seed: int,
+    localizer: str = "pimm",
+    limit_s: float = 60.0,
+    progress: bool = False,
 ) -> dict[str, Any]:
-    """``{"policies": {NAME: summary}, "episodes": [...]}`` over the world's generated routes' starts."""
+    """``{"policies": {NAME: summary}, "worlds": {WORLD: {NAME: summary}}, "episodes": [...]}`` over each
+    world's generated routes' starts (the figures of ``policies`` pool every world's episodes)."""
     from dataclasses import asdict, replace
+
+    from tqdm import tqdm
 
     from pimm_agents.active.env import ActiveConfig, ActiveLocalizationEnv
     from pimm_agents.active.policies import make_policy
     from pimm_env.driving.scenarios import load_scenarios
 
-    scenarios = {n: s for n, s in load_scenarios(world).items() if s.kidnap_to is None}
+    worlds = [worlds] if isinstance(worlds, str) else list(worlds)
+    plans = []
+    for world in worlds:
+        starts = {n: s.start for n, s in load_scenarios(world).items() if s.kidnap_to is None}
+        plans += [
+            (world, n, start, name, seed + t) for name in policies for n, start in starts.items() for t in range(trials)
+        ]
     episodes: list[Episode] = []
-    env = None
+    envs: dict[str, Any] = {}
     try:
-        for name in policies:
-            for scenario, spec in scenarios.items():
-                for trial in range(trials):
-                    if name == ROUTE:
-                        episodes.append(run_route_episode(world, localizer, scenario, seed + trial, limit_s))
-                        continue
-                    if env is None:
-                        env = ActiveLocalizationEnv(world, localizer, replace(ActiveConfig(), time_limit_s=limit_s))
-                    policy = make_policy(name, env.scan_range)
-                    episodes.append(run_policy_episode(env, policy, spec.start, seed + trial, scenario))
+        for world, scenario, start, name, trial_seed in tqdm(plans, desc="episodes", disable=not progress):
+            if name == ROUTE:
+                episodes.append(run_route_episode(world, localizer, scenario, trial_seed, limit_s))
+                continue
+            if world not in envs:
+                envs[world] = ActiveLocalizationEnv(world, localizer, replace(ActiveConfig(), time_limit_s=limit_s))
+            policy = make_policy(name, envs[world].scan_range)
+            episodes.append(run_policy_episode(envs[world], policy, start, trial_seed, world, scenario))
     finally:
-        if env is not None:
+        for env in envs.values():
             env.close()
-    by_policy: dict[str, list[Episode]] = {}
-    for e in episodes:
-        by_policy.setdefault(e.policy, []).append(e)
     return {
-        "policies": {name: summarize(eps, limit_s) for name, eps in by_policy.items()},
+        "policies": _by_policy(episodes, limit_s),
+        "worlds": {w: _by_policy([e for e in episodes if e.world == w], limit_s) for w in worlds},
         "episodes": [asdict(e) for e in episodes],
     }
+
+
+def _by_policy(episodes: Sequence[Episode], limit_s: float) -> dict[str, Any]:
+    grouped: dict[str, list[Episode]] = {}
+    for e in episodes:
+        grouped.setdefault(e.policy, []).append(e)
+    return {name: summarize(eps, limit_s) for name, eps in grouped.items()}
