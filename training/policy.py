@@ -20,8 +20,15 @@ from typing import Any
 import gymnasium as gym
 
 #: PPO's settings: stable-baselines3's defaults, but for rollouts of 128 steps per env (an episode is 10-60
-#: primitives) and a discount for about a minute of them
-PPO_SETTINGS: dict[str, Any] = {"n_steps": 128, "batch_size": 64, "gamma": 0.98, "learning_rate": 3e-4}
+#: primitives), a discount for about a minute of them, and an entropy bonus (the default is none) to keep a
+#: run of a few thousand episodes exploring
+PPO_SETTINGS: dict[str, Any] = {
+    "n_steps": 128,
+    "batch_size": 64,
+    "gamma": 0.98,
+    "learning_rate": 3e-4,
+    "ent_coef": 0.01,
+}
 
 
 def _make_env(worlds: Sequence[str], localizer: str, seed: int):
@@ -125,6 +132,8 @@ def train_policy(
         "settings": settings,
         "wall_s": round(wall, 1),
         "versions": _versions(),
+        "reproduce": f"python -m training policy --algo {algo} --steps {steps} --seed {seed} --workers {workers}"
+        f" --localizer {localizer} --world {' '.join(str(w) for w in worlds)}",
     }
     out.with_suffix(".json").write_text(json.dumps(record, indent=2) + "\n")
     return out
