@@ -55,6 +55,26 @@ def test_the_forward_guard_looks_ahead_only():
     assert blocked_ahead(scan, bearings)
 
 
+def test_a_blocked_forward_stands_still_for_its_second():
+    from types import SimpleNamespace
+
+    from pimm_agents.active.primitives import PRIMITIVES, drive
+
+    class Sim:  # the control steps' commands; a wall 0.3 m ahead all along
+        def __init__(self) -> None:
+            self.unwrapped = SimpleNamespace(config=SimpleNamespace(robot=SimpleNamespace(control_dt=0.032)))
+            self.commands: list[np.ndarray] = []
+
+        def step(self, command: np.ndarray):
+            self.commands.append(command)
+            return {"scan": np.full(360, 0.3)}, 0.0, False, False, {"collision": False}
+
+    sim, bearings = Sim(), np.radians(np.arange(360) - 180.0)
+    _, _, steps, stopped = drive(sim, PRIMITIVES[0], {"scan": np.full(360, 0.3)}, lambda o, i: False, bearings)
+    assert stopped and steps == len(sim.commands) == 31  # the clock runs: a policy cannot stall an episode
+    assert not np.any(sim.commands)
+
+
 def test_config_values_are_checked():
     with pytest.raises(EnvError, match="hypotheses"):
         ActiveConfig(hypotheses=0)

@@ -125,6 +125,22 @@ def scan_sectors(scan: np.ndarray, beams: int, max_range: float) -> np.ndarray:
     return np.clip(nearest / max_range, 0.0, 1.0).astype(np.float32)
 
 
+def active_observation(
+    estimate: PoseEstimate | None, scan: np.ndarray, delta: np.ndarray, config: ActiveConfig, max_range: float
+) -> dict[str, np.ndarray]:
+    """The env's observation (see the module docstring) from a localizer's ``estimate``, the 2D ``scan``
+    (ranges) and the last primitive's odometry ``delta`` (x, y, heading in the robot's frame at its start)."""
+    status = np.zeros(len(STATUS_ORDER), dtype=np.float32)
+    if estimate is not None:
+        status[STATUS_ORDER.index(estimate.status)] = 1.0
+    return {
+        "hypotheses": belief_features(estimate, config.hypotheses, config.max_offset_m),
+        "status": status,
+        "scan": scan_sectors(np.asarray(scan, dtype=float), config.scan_beams, max_range),
+        "odom_delta": np.clip(np.array([delta[0], delta[1], delta[2] / np.pi]), -1, 1).astype(np.float32),
+    }
+
+
 class ActiveLocalizationEnv(gym.Env):
     """See the module docstring."""
 
@@ -247,8 +263,7 @@ class ActiveLocalizationEnv(gym.Env):
         terminated = collided or self._held_long_enough()
         truncated = not terminated and self._elapsed() >= c.time_limit_s
         delta = relative_motion(odom_start, np.asarray(obs["odom"], dtype=float))
-        sim_info = info if info is not None else {"true_pose": self._truth, "collision": False, "travelled": None}
-        return self._observation(delta), float(reward), bool(terminated), bool(truncated), self._info(sim_info)
+        return self._observation(delta), float(reward), bool(terminated), bool(truncated), self._info(info)
 
     def close(self) -> None:
         self.sim.close()
@@ -261,16 +276,7 @@ class ActiveLocalizationEnv(gym.Env):
         return self._held_since is not None and self.sim.sim_time - self._held_since >= self.config.hold_s
 
     def _observation(self, delta: np.ndarray) -> dict[str, np.ndarray]:
-        c = self.config
-        status = np.zeros(len(STATUS_ORDER), dtype=np.float32)
-        if self._estimate is not None:
-            status[STATUS_ORDER.index(self._estimate.status)] = 1.0
-        return {
-            "hypotheses": belief_features(self._estimate, c.hypotheses, c.max_offset_m),
-            "status": status,
-            "scan": scan_sectors(np.asarray(self._obs["scan"], dtype=float), c.scan_beams, self._max_range),
-            "odom_delta": np.clip(np.array([delta[0], delta[1], delta[2] / np.pi]), -1, 1).astype(np.float32),
-        }
+        return active_observation(self._estimate, self._obs["scan"], delta, self.config, self._max_range)
 
     def _info(self, sim_info: dict[str, Any]) -> dict[str, Any]:
         estimate = self._estimate

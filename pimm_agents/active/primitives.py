@@ -3,9 +3,11 @@
 Primitives rather than velocities: a policy choosing among "forward 0.5 m", "turn left 45 deg" and "turn right
 45 deg" sees the effect of each choice in the next belief (a velocity held for one 32 ms control step changes
 nothing a localizer can see), an episode is tens of decisions instead of thousands, and a guard can keep each
-one safe. The forward primitive stops early when the 2D scan shows anything within ``stop_range`` in a 60 deg
-cone ahead (what a robot's own bumper-less safety layer does), so a policy cannot drive into a wall by
-choice; a turn in place cannot hit anything the robot is not already touching.
+one safe. The forward primitive stops when the 2D scan shows anything within ``stop_range`` in a 60 deg cone
+ahead (what a robot's own bumper-less safety layer does) and stands still for the rest of its second, so a
+policy cannot drive into a wall by choice and every primitive takes its time (a blocked forward that took none
+would let a policy that keeps choosing it stop the clock); a turn in place cannot hit anything the robot is
+not already touching.
 """
 
 from __future__ import annotations
@@ -48,16 +50,18 @@ def drive(
     obs: dict[str, np.ndarray],
     on_step: Callable[[dict[str, np.ndarray], dict[str, Any]], bool],
     bearings: np.ndarray,
-) -> tuple[dict[str, np.ndarray], dict[str, Any] | None, int, bool]:
-    """Drive ``primitive`` in ``sim`` (a LidarRobotEnv) from its current observation ``obs``, calling
-    ``on_step(obs, info)`` after each control step (it returns True to end the primitive early). Returns the last
-    observation and info (None if no step was taken), the steps taken and whether the forward guard stopped it."""
-    steps = max(1, round(primitive.duration / sim.config.robot.control_dt))
-    info: dict[str, Any] | None = None
+) -> tuple[dict[str, np.ndarray], dict[str, Any], int, bool]:
+    """Drive ``primitive`` in ``sim`` (a LidarRobotEnv, or a wrapper of one) from its current observation
+    ``obs``, calling ``on_step(obs, info)`` after each control step (it returns True to end the primitive early).
+    Returns the last observation and info, the steps taken and whether the forward guard stopped the robot (it
+    then stood still for the primitive's remaining steps)."""
+    steps = max(1, round(primitive.duration / sim.unwrapped.config.robot.control_dt))
+    info: dict[str, Any] = {}
+    stopped = False
     for k in range(steps):
-        if primitive.linear > 0 and blocked_ahead(obs["scan"], bearings):
-            return obs, info, k, True
-        obs, _, _, _, info = sim.step(np.array([primitive.linear, primitive.angular], dtype=np.float32))
+        stopped = stopped or (primitive.linear > 0 and blocked_ahead(obs["scan"], bearings))
+        command = (0.0, 0.0) if stopped else (primitive.linear, primitive.angular)
+        obs, _, _, _, info = sim.step(np.array(command, dtype=np.float32))
         if on_step(obs, info):
-            return obs, info, k + 1, False
-    return obs, info, steps, False
+            return obs, info, k + 1, stopped
+    return obs, info, steps, stopped
