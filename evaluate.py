@@ -74,6 +74,9 @@ def run(
     fault: str = typer.Option("", "--fault", help="dropout@START:DUR, slip@START:DUR, kidnap@START (comma-separated)"),
     walkers: int = typer.Option(0, min=0, help="people walking about (not in the maps)"),
     unmapped: int = typer.Option(0, min=0, help="pieces of furniture along the walls that the maps do not have"),
+    driver: str = typer.Option(
+        "route", help="route (the waypoints) or policy:NAME (random, greedy, trained or a policy's .zip)"
+    ),
 ) -> None:
     """Run localizers on scenarios (one simulation per trial feeds them all) into a resumable results folder."""
     from pimm_agents.experiments import Execution, RunPlan, read_plan, resolve_localizers
@@ -81,7 +84,11 @@ def run(
     plan = read_plan(from_file) if from_file else None
     if plan is None:
         chosen = resolve_localizers(localizers, params, settings)
-        plan = RunPlan(world, chosen, tuple(scenarios or ()), trials, seed, sensors, start, fault, walkers, unmapped)
+        if driver == "policy:trained":
+            driver = f"policy:{SHIPPED_POLICY}"
+        plan = RunPlan(
+            world, chosen, tuple(scenarios or ()), trials, seed, sensors, start, fault, walkers, unmapped, driver
+        )
     _run_plan(plan, Execution(workers, backend, address, progress=not json_out), out, resume, video)
 
 

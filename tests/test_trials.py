@@ -160,3 +160,40 @@ def test_a_trial_whose_robot_hits_the_post_is_counted_as_a_collision(room_file, 
     assert "through_post: 1 of 1 trial(s)" in format_collisions(summary) and "there:" not in format_collisions(summary)
     saved = save_trial(tmp_path, hit)
     assert load_trial(saved).collided
+
+
+@pytest.mark.parametrize("scenario", ["there", "there_kidnap"])
+def test_a_policy_drives_the_scenario_for_as_long_as_its_route_would(room_with_routes, scenario):
+    spec = replace(_spec(room_with_routes, "amcl", scenario, params=AMCL), driver="policy:greedy")
+    first, again = run_shared([spec])[0], run_shared([spec])[0]
+    assert _same_log(first.log, again.log)  # the same seed drives the same way
+    laps = 2 if scenario == "there_kidnap" else 1
+    assert first.log.time[-1] == pytest.approx(laps * 4.5 / 0.5, abs=1.1)  # 4.5 m at 0.5 m/s, a primitive's slack
+    assert (first.log.kidnap_index is not None) == (scenario == "there_kidnap") and not first.collided
+    moved = np.hypot(*(first.log.true[-1, :2] - first.log.true[0, :2]))
+    assert moved > 0.3 or scenario == "there_kidnap"
+    route = run_shared([replace(spec, driver="route")])[0]
+    assert not np.array_equal(route.log.true[-1], first.log.true[-1])  # not the waypoints' path
+
+
+def test_policy_driven_specs_simulate_alone_and_are_stored_apart(room_with_routes, tmp_path):
+    specs = [replace(_spec(room_with_routes, name), driver="policy:random") for name in ("amcl", DEAD)]
+    assert group_by_simulation(specs) == [[0], [1]]  # each drives on its own localizer's belief
+    assert trial_key(specs[0]) != trial_key(replace(specs[0], driver="route"))
+    args = ["run", "--world", room_with_routes, "--localizers", DEAD, "--scenarios", "there", "--trials", "1"]
+    result = CliRunner().invoke(evaluate.app, [*args, "--driver", "policy:random", "--json", "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    folder = Path(json.loads(result.output)["folder"])
+    assert yaml.safe_load((folder / "run.yaml").read_text())["driver"] == "policy:random"
+    assert any("driver-policy-random" in p.name for p in (folder / "trials").iterdir())
+
+
+def test_a_bad_driver_is_refused_by_name(room_with_routes):
+    from pimm_agents.experiments.run_plan import RunPlan
+
+    plan = RunPlan(room_with_routes, {"amcl": {}}, trials=1)
+    with pytest.raises(ValueError, match="expected 'route' or 'policy:NAME'"):
+        replace(plan, driver="wander").checked()
+    with pytest.raises(ValueError, match="nope.zip does not exist"):
+        replace(plan, driver="policy:nope.zip").checked()
+    assert replace(plan, driver="policy:greedy").checked().driver == "policy:greedy"

@@ -14,6 +14,7 @@ start: global
 faults: dropout@30:5        # pimm_env/envs/faults.py
 walkers: 2
 unmapped: 0
+driver: route               # or policy:NAME (random, greedy, a policy's .zip): pimm_agents/active/driver.py
 ```
 
 A ``made:`` section, if present, says how and where the run was made; it is not part of what is repeated.
@@ -46,6 +47,7 @@ class RunPlan:
     faults: str = ""
     walkers: int = 0
     unmapped: int = 0
+    driver: str = "route"
 
     def checked(self) -> RunPlan:
         """This plan with its scenarios filled in from the world, after checking every field; a bad one raises a
@@ -65,6 +67,7 @@ class RunPlan:
             raise ExperimentError(f"start: expected {' or '.join(STARTS)}, got {self.start!r}")
         sensor_layouts(self.sensors)
         parse_faults(self.faults)
+        check_driver(self.driver)
         available = list(load_scenarios(load_world(self.world)))
         unknown = [s for s in self.scenarios if s not in available]
         if unknown:
@@ -87,6 +90,7 @@ class RunPlan:
                 faults=self.faults,
                 walkers=self.walkers,
                 unmapped=self.unmapped,
+                driver=self.driver,
             )
             for trial in range(self.trials)
             for scenario in self.scenarios
@@ -107,6 +111,19 @@ class RunPlan:
         return Path(path)
 
 
+def check_driver(driver: str) -> None:
+    """``route``, or ``policy:`` and random, greedy or an existing policy ``.zip``; else an error naming it."""
+    from pimm_agents.active.driver import policy_name
+
+    name = policy_name(driver)
+    if name is None or name in ("random", "greedy"):
+        return
+    if not name.endswith(".zip"):
+        raise ExperimentError(f"driver {driver!r}: the policy must be random, greedy or a policy's .zip")
+    if not Path(name).is_file():
+        raise ExperimentError(f"driver {driver!r}: {name} does not exist (python -m training policy writes one)")
+
+
 def read_plan(path: Path) -> RunPlan:
     """The plan in a ``run.yaml``; every problem names the file and the field."""
     from pimm_env.yaml_file import read_yaml_mapping
@@ -117,7 +134,7 @@ def read_plan(path: Path) -> RunPlan:
     unknown = sorted(set(data) - set(valid))
     if unknown:
         raise ExperimentError(f"{path}: unknown field {unknown[0]!r}; valid fields: {', '.join(valid)}")
-    kinds = {"world": str, "trials": int, "seed": int, "sensors": str, "start": str, "faults": str}
+    kinds = {"world": str, "trials": int, "seed": int, "sensors": str, "start": str, "faults": str, "driver": str}
     kinds.update(walkers=int, unmapped=int, localizers=dict, scenarios=list)
     for name, kind in kinds.items():
         if name in data and not isinstance(data[name], kind):

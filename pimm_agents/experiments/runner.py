@@ -66,7 +66,12 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
         recorders.append(env)
     on_step = None if watch is None else (lambda obs, info: watch(localizers, obs, info))
     try:
-        rollout = run(scenario, seed=first.seed, env=env, on_step=on_step)
+        if first.driver == "route":
+            rollout = run(scenario, seed=first.seed, env=env, on_step=on_step)
+        else:  # one spec (TrialSpec.simulation): its localizer's recorder is the outermost wrapper
+            from pimm_agents.active.driver import drive_with_policy, policy_name
+
+            rollout = drive_with_policy(env, scenario, str(policy_name(first.driver)), first.seed, on_step)
         logs = [recorder.trial_log() for recorder in recorders]
     finally:
         env.close()
@@ -79,7 +84,7 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
 
 def group_by_simulation(specs: Sequence[TrialSpec]) -> list[list[int]]:
     """Indices of ``specs`` grouped by the simulation they share, in order of first appearance."""
-    groups: dict[tuple[str, str, int, int, str, str, int, int], list[int]] = {}
+    groups: dict[tuple[Any, ...], list[int]] = {}
     for i, spec in enumerate(specs):
         groups.setdefault(spec.simulation, []).append(i)
     return list(groups.values())

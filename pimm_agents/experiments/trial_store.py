@@ -46,6 +46,8 @@ def trial_key(spec: TrialSpec) -> str:
         parts = (*parts, f"faults-{spec.faults}")
     if spec.walkers or spec.unmapped:
         parts = (*parts, f"walkers{spec.walkers}-unmapped{spec.unmapped}")
+    if spec.driver != "route":
+        parts = (*parts, f"driver-{spec.driver}")
     return "__".join("".join(c if c.isalnum() or c in "._-" else "-" for c in part) for part in parts)
 
 

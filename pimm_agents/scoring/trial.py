@@ -24,6 +24,9 @@ class TrialSpec:
     faults: str = ""  # pimm_env.envs.faults.parse_faults's form, e.g. "dropout@30:5,kidnap@60"
     walkers: int = 0  # people walking about (pimm_env/sim/movers.py)
     unmapped: int = 0  # furniture the maps do not have
+    #: who drives: "route" (the scenario's waypoints) or "policy:NAME" (pimm_agents/active/driver.py), which
+    #: drives on this spec's localizer's belief, so such a spec has a simulation of its own
+    driver: str = "route"
 
     @property
     def name(self) -> str:
@@ -34,7 +37,7 @@ class TrialSpec:
         return self.row or self.scenario
 
     @property
-    def simulation(self) -> tuple[str, str, int, int, str, str, int, int]:
+    def simulation(self) -> tuple[str, str, int, int, str, str, int, int, str, str]:
         """What the simulated stream depends on; specs that share it share one simulation."""
         return (
             self.world,
@@ -45,6 +48,8 @@ class TrialSpec:
             self.faults,
             self.walkers,
             self.unmapped,
+            self.driver,
+            "" if self.driver == "route" else self.name,  # a policy drives on one localizer's belief
         )
 
 
