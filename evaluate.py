@@ -25,7 +25,6 @@ WORLD = typer.Option("iilab", help="world name or world file")
 OUT = typer.Option(Path("results"), help="where the timestamped results folder goes")
 JSON = typer.Option(False, "--json", help="print one JSON object")
 #: the policy ``--policy trained`` means (``python -m training policy --out`` writes it)
-SHIPPED_POLICY = "maps/policies/active_ppo.zip"
 PARAMS = typer.Option(None, "--params", help="params file: one section per localizer name")
 SETTINGS = typer.Option([], "--set", help="NAME.KEY=VALUE, e.g. amcl.max_particles=500")
 SENSORS = typer.Option("thesis", help="LiDAR presets, comma-separated (thesis, hokuyo-utm30lx, ...), or a .yaml")
@@ -84,8 +83,6 @@ def run(
     plan = read_plan(from_file) if from_file else None
     if plan is None:
         chosen = resolve_localizers(localizers, params, settings)
-        if driver == "policy:trained":
-            driver = f"policy:{SHIPPED_POLICY}"
         plan = RunPlan(
             world, chosen, tuple(scenarios or ()), trials, seed, sensors, start, fault, walkers, unmapped, driver
         )
@@ -384,10 +381,9 @@ def active(
     from pimm_agents.results.provenance import machine, provenance
     from pimm_agents.results.tables import format_active
 
-    chosen = [SHIPPED_POLICY if name == "trained" else name for name in policy]
-    result = evaluate_active(world, chosen, trials, seed, localizer, limit_s, progress=not json_out)
+    result = evaluate_active(world, policy, trials, seed, localizer, limit_s, progress=not json_out)
     folder = new_folder(out, "active")
-    record = {"worlds": world, "policies": chosen, "trials": trials, "seed": seed, "localizer": localizer}
+    record = {"worlds": world, "policies": policy, "trials": trials, "seed": seed, "localizer": localizer}
     summary = {"record": {**record, "limit_s": limit_s, **provenance(), "machine": machine()}, **result}
     (folder / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
     if json_out:

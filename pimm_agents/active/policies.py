@@ -10,7 +10,7 @@ Each is a callable ``policy(observation) -> action`` with ``reset(seed)`` called
   sector is ahead and turns toward it otherwise. Corridors are driven to their ends and rooms are looked into,
   which is where look-alike places differ;
 - ``trained``: a stable-baselines3 policy loaded from a ``.zip`` (``python -m training policy`` writes one),
-  acting deterministically.
+  acting deterministically; the name ``trained`` is the shipped one (``SHIPPED_POLICY``, its record beside it).
 """
 
 from __future__ import annotations
@@ -23,6 +23,8 @@ import numpy as np
 from pimm_env.geometry import wrap_angle
 
 FORWARD, LEFT, RIGHT = 0, 1, 2
+#: the shipped policy (``trained``), beside the record of how it was trained (``.json``)
+SHIPPED_POLICY = Path(__file__).resolve().parent / "weights" / "active_ppo.zip"
 
 
 class Policy(Protocol):
@@ -87,9 +89,8 @@ class Explorer:
 
 
 class Trained:
-    """A stable-baselines3 policy from a ``.zip``, acting deterministically."""
-
-    name = "trained"
+    """A stable-baselines3 policy from a ``.zip``, acting deterministically; named ``trained`` when it is the
+    shipped one, else by its file's name."""
 
     def __init__(self, path: Path) -> None:
         from stable_baselines3 import PPO
@@ -99,6 +100,7 @@ class Trained:
         if not Path(path).is_file():
             raise MissingFileError(f"policy {path} does not exist (python -m training policy writes one)")
         self.model: Any = PPO.load(str(path), device="cpu")
+        self.name = "trained" if Path(path).resolve() == SHIPPED_POLICY else Path(path).stem
 
     def reset(self, seed: int | None = None) -> None:
         pass
@@ -109,13 +111,15 @@ class Trained:
 
 
 def make_policy(name: str, max_range: float = 20.0) -> Policy:
-    """``random``, ``greedy`` or the path of a trained policy's ``.zip``."""
+    """``random``, ``greedy``, ``trained`` (the shipped policy) or the path of a trained policy's ``.zip``."""
     from pimm_env.errors import EnvError
 
     if name == "random":
         return RandomWalk()
     if name == "greedy":
         return Explorer(max_range)
+    if name == "trained":
+        return Trained(SHIPPED_POLICY)
     if name.endswith(".zip"):
         return Trained(Path(name))
-    raise EnvError(f"policy {name!r}: expected random, greedy or a trained policy's .zip")
+    raise EnvError(f"policy {name!r}: expected random, greedy, trained or a trained policy's .zip")

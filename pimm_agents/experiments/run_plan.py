@@ -116,10 +116,10 @@ def check_driver(driver: str) -> None:
     from pimm_agents.active.driver import policy_name
 
     name = policy_name(driver)
-    if name is None or name in ("random", "greedy"):
+    if name is None or name in ("random", "greedy", "trained"):
         return
     if not name.endswith(".zip"):
-        raise ExperimentError(f"driver {driver!r}: the policy must be random, greedy or a policy's .zip")
+        raise ExperimentError(f"driver {driver!r}: the policy must be random, greedy, trained or a policy's .zip")
     if not Path(name).is_file():
         raise ExperimentError(f"driver {driver!r}: {name} does not exist (python -m training policy writes one)")
 
