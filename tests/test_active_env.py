@@ -164,3 +164,17 @@ def test_training_envs_draw_every_building_and_repeat_per_seed():
     first = drawn(5)
     assert len(set(first)) == 2  # both within 8 episodes
     assert drawn(5) == first
+
+
+@pytest.mark.expensive
+def test_a_checkpoint_is_the_policy_a_shorter_run_would_have_written(tmp_path):
+    import torch
+    from stable_baselines3 import PPO
+
+    from training.policy import train_policy
+
+    train_policy(["iilab"], 1024, tmp_path / "full.zip", seed=3, localizer="amcl")
+    short = train_policy(["iilab"], 512, tmp_path / "short.zip", seed=3, localizer="amcl")
+    a = PPO.load(str(tmp_path / "full_log" / "checkpoints" / "full_512_steps.zip"), device="cpu").policy.state_dict()
+    b = PPO.load(str(short), device="cpu").policy.state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)

@@ -116,7 +116,9 @@ def train_policy(
     model.set_logger(logger)
     start = time.perf_counter()
     try:
-        model.learn(total_timesteps=steps, callback=_progress_bar(steps), progress_bar=False)
+        model.learn(
+            total_timesteps=steps, callback=[_progress_bar(steps), _checkpoints(steps, out)], progress_bar=False
+        )
     finally:
         logger.close()
         venv.close()
@@ -137,6 +139,26 @@ def train_policy(
     }
     out.with_suffix(".json").write_text(json.dumps(record, indent=2) + "\n")
     return out
+
+
+def _checkpoints(total: int, out: Path) -> Any:
+    """The policy at every tenth of the run (whole rollouts of 256 steps), in ``<out>_log/checkpoints/``: what a
+    shorter run of the same seed would have written, so a stopped run keeps its progress."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    folder = Path(str(out.with_suffix("")) + "_log") / "checkpoints"
+    every = max(256, total // 10 // 256 * 256)
+
+    class Checkpoints(BaseCallback):
+        def _on_rollout_start(self) -> None:  # the last rollout has been learned from
+            if self.num_timesteps and self.num_timesteps % every == 0:
+                folder.mkdir(parents=True, exist_ok=True)
+                self.model.save(str(folder / f"{out.stem}_{self.num_timesteps}_steps.zip"))
+
+        def _on_step(self) -> bool:
+            return True
+
+    return Checkpoints()
 
 
 def _progress_bar(total: int) -> Any:
