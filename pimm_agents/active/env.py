@@ -44,12 +44,13 @@ from gymnasium import spaces
 
 from pimm_agents.active.primitives import PRIMITIVES, drive
 from pimm_agents.localizer import PoseEstimate
+from pimm_agents.scoring.honesty import RIGHT_ANGLE_DEG, RIGHT_POSITION_M
 from pimm_env.errors import EnvError
 from pimm_env.geometry import relative_motion, wrap_angle
 
 STATUS_ORDER = ("lost", "ambiguous", "localized")
-RIGHT_M = 1.0  # a pose within this (and RIGHT_DEG) of the truth is right: the honest metrics' threshold
-RIGHT_DEG = 10.0
+RIGHT_M = RIGHT_POSITION_M  # a pose within this (and RIGHT_DEG) of the truth is right, as the honest metrics say
+RIGHT_DEG = RIGHT_ANGLE_DEG
 
 
 @dataclass(frozen=True)
