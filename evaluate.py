@@ -376,7 +376,7 @@ def active(
     """Policies that drive to localize, on the same episodes: success, time to a right localized, distance,
     collisions and false-localized time; every episode in OUT/<date>_active/summary.json
     ([environment](docs/environment.md#active-localization))."""
-    from pimm_agents.active.evaluation import evaluate_active
+    from pimm_agents.experiments.active_episodes import evaluate_active
     from pimm_agents.experiments.experiment import new_folder
     from pimm_agents.results.provenance import machine, provenance
     from pimm_agents.results.tables import format_active
