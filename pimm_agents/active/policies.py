@@ -5,10 +5,13 @@ Each is a callable ``policy(observation) -> action`` with ``reset(seed)`` called
 - ``random``: a random walk: each primitive drawn at random, forward twice as often as each turn (the env's
   forward guard keeps it off the walls);
 - ``greedy``: explores: it drives toward the most open direction it has not yet been towards. The scan's 60
-  sectors are scored by their free range (up to 8 m), less a penalty for each time the robot has already faced
-  that way from about here (cells of 2 m in the odometry frame, 8 headings): it goes forward when the best
-  sector is ahead and turns toward it otherwise. Corridors are driven to their ends and rooms are looked into,
-  which is where look-alike places differ;
+  sectors are scored by their free range (up to 8 m), less 0.5 m per radian of turn to face them (of equally
+  open ways, the one needing least turning) and 3 m for each time the robot has already faced that way from
+  about here (cells of 2 m in the odometry frame, 8 headings; driving on in one cell and heading counts once):
+  it goes forward when the best sector is within half a turn ahead (22.5 deg, and 5 deg of margin so that it
+  does not turn back and forth across a direction between two headings) and the way ahead is clear, and turns
+  toward it otherwise. Corridors are driven to their ends and rooms are looked into, which is where look-alike
+  places differ;
 - ``trained``: a stable-baselines3 policy loaded from a ``.zip`` (``python -m training policy`` writes one),
   acting deterministically; the name ``trained`` is the shipped one (``SHIPPED_POLICY``, its record beside it).
 """
@@ -20,6 +23,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from pimm_agents.active.primitives import STOP_CONE, STOP_RANGE
 from pimm_env.geometry import wrap_angle
 
 FORWARD, LEFT, RIGHT = 0, 1, 2
@@ -56,6 +60,8 @@ class Explorer:
     HEADINGS = 8
     OPEN_M = 8.0
     SEEN_PENALTY_M = 3.0  # free range (m) a direction loses for each time it was already faced from here
+    AHEAD_MARGIN = np.radians(5.0)
+    TURN_COST_M = 0.5  # per radian of turn to face a direction
 
     def __init__(self, max_range: float = 20.0) -> None:
         self.max_range = max_range
@@ -64,6 +70,7 @@ class Explorer:
     def reset(self, seed: int | None = None) -> None:
         self.pose = np.zeros(3)  # dead-reckoned from the odometry increments, in the episode's own frame
         self.faced: dict[tuple[int, int, int], int] = {}
+        self.last_faced: tuple[int, int, int] | None = None
 
     def __call__(self, observation: dict[str, np.ndarray]) -> int:
         dx, dy, dtheta = np.asarray(observation["odom_delta"], dtype=float) * np.array([1.0, 1.0, np.pi])
@@ -73,14 +80,20 @@ class Explorer:
         n = len(scan)
         bearings = -np.pi + (np.arange(n) + 0.5) * 2 * np.pi / n  # sector centres, robot frame
         cell = (int(np.floor(self.pose[0] / self.CELL_M)), int(np.floor(self.pose[1] / self.CELL_M)))
-        score = np.minimum(scan, self.OPEN_M)
+        # open range up to OPEN_M, less a little per radian off ahead: of directions equally open (beyond OPEN_M
+        # many are), the one needing the least turning wins, instead of the first sector's (behind the robot)
+        score = np.minimum(scan, self.OPEN_M) - self.TURN_COST_M * np.abs(bearings)
         for i, bearing in enumerate(bearings):
             score[i] -= self.SEEN_PENALTY_M * self.faced.get((*cell, self._heading_bin(self.pose[2] + bearing)), 0)
         best = float(bearings[int(np.argmax(score))])
-        self.faced[(*cell, self._heading_bin(self.pose[2]))] = (
-            self.faced.get((*cell, self._heading_bin(self.pose[2])), 0) + 1
-        )
-        if abs(best) <= np.pi / 8:
+        facing = (*cell, self._heading_bin(self.pose[2]))
+        if facing != self.last_faced:  # driving on in one cell and heading faces that way once, not at every step
+            self.faced[facing] = self.faced.get(facing, 0) + 1
+            self.last_faced = facing
+        ahead = np.abs(bearings) <= STOP_CONE
+        # within half a turn (and a margin: a best direction half a turn off either way would otherwise have the
+        # robot turn back and forth across it) and clear ahead: drive on
+        if abs(best) <= np.pi / 8 + self.AHEAD_MARGIN and scan[ahead].min() > STOP_RANGE + 0.2:
             return FORWARD
         return LEFT if best > 0 else RIGHT
 
