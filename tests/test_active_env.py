@@ -178,3 +178,4 @@ def test_a_checkpoint_is_the_policy_a_shorter_run_would_have_written(tmp_path):
     a = PPO.load(str(tmp_path / "full_log" / "checkpoints" / "full_512_steps.zip"), device="cpu").policy.state_dict()
     b = PPO.load(str(short), device="cpu").policy.state_dict()
     assert all(torch.equal(a[k], b[k]) for k in a)
+    assert (tmp_path / "full_log" / "progress.png").is_file()  # the learning curve, drawn at the end
