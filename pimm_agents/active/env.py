@@ -24,7 +24,10 @@ Reward per step, with the weights of :class:`ActiveConfig` (the truth is used he
 - ``+localized_bonus`` the first time the status is ``localized`` while right (within 1 m and 10 deg);
 - ``-false_localized`` per second reported ``localized`` while wrong;
 - ``-collision`` on touching an obstacle (the episode ends);
-- ``-time`` per simulated second.
+- ``-time`` per simulated second;
+- ``+distance`` per metre driven: both LiDARs see all around, so only moving shows the scans anything new (a
+  turn on the spot shows the same room); without it, policies trained for 8 000 steps learned to turn on the
+  spot, which is safe and lets the localizer settle in some buildings, and drove 0.05 m a minute.
 
 An episode starts at a random free pose (``reset(seed=...)``), or, with ``options={"kidnap": True}`` (or
 ``ActiveConfig.kidnap``), with the localizer holding the pose it started at for ``hold_s`` and the robot then
@@ -68,6 +71,7 @@ class ActiveConfig:
     false_localized: float = 1.0  # per second
     collision: float = 10.0
     time: float = 0.1  # per second
+    distance: float = 0.2  # per metre driven: a full forward primitive (0.5 m) makes up for its second
 
     def __post_init__(self) -> None:
         if self.hypotheses < 1 or self.scan_beams < 1:
@@ -230,6 +234,7 @@ class ActiveLocalizationEnv(gym.Env):
         primitive = PRIMITIVES[int(np.asarray(action).item())]
         c, dt = self.config, self.sim.config.robot.control_dt
         odom_start = np.asarray(self._obs["odom"], dtype=float).copy()
+        travelled_before = self.sim.robot.travelled
         false_s, collided = 0.0, False
         done = False
 
@@ -253,7 +258,13 @@ class ActiveLocalizationEnv(gym.Env):
         obs, info, _, _ = drive(self.sim, primitive, self._obs, on_step, self._bearings)
         self._obs = obs
         near = weight_near(self._estimate, self._truth) if self._estimate is not None else 0.0
-        reward = c.progress * (near - self._near) - c.time * primitive.duration - c.false_localized * false_s
+        driven = self.sim.robot.travelled - travelled_before
+        reward = (
+            c.progress * (near - self._near)
+            - c.time * primitive.duration
+            - c.false_localized * false_s
+            + c.distance * driven
+        )
         self._near = near
         self._false_s += false_s
         if self._held_since is not None and not self._rewarded:
