@@ -189,7 +189,11 @@ def imitate_explorer(model: Any, venv: Any, steps: int, seed: int) -> dict[str, 
             optimizer.step()
     with torch.no_grad():
         agreement = float((policy.get_distribution(batch).distribution.probs.argmax(1) == target).float().mean())
-    return {"steps": len(target), "agreement": round(agreement, 3), "forward_share": round(float(np.mean(np.array(actions) == 0)), 3)}
+    return {
+        "steps": len(target),
+        "agreement": round(agreement, 3),
+        "forward_share": round(float(np.mean(np.array(actions) == 0)), 3),
+    }
 
 
 def plot_progress(progress_csv: Path) -> Path | None:
