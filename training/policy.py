@@ -166,8 +166,10 @@ def imitate_explorer(model: Any, venv: Any, steps: int, seed: int) -> dict[str, 
     explorers = [Explorer(SimConfig().lidar2d.max_range) for _ in range(venv.num_envs)]  # the env's own LiDAR
     observations: list[dict[str, np.ndarray]] = []
     actions: list[int] = []
+    from tqdm import tqdm
+
     obs = venv.reset()
-    for _ in range(max(1, steps // venv.num_envs)):
+    for _ in tqdm(range(max(1, steps // venv.num_envs)), desc="imitation", unit="step"):
         chosen = [explorer({k: v[i] for k, v in obs.items()}) for i, explorer in enumerate(explorers)]
         observations += [{k: v[i].copy() for k, v in obs.items()} for i in range(venv.num_envs)]
         actions += chosen
