@@ -169,7 +169,9 @@ def imitate_explorer(model: Any, venv: Any, steps: int, seed: int) -> dict[str, 
     from tqdm import tqdm
 
     obs = venv.reset()
-    for _ in tqdm(range(max(1, steps // venv.num_envs)), desc="imitation", unit="step"):
+    bar = tqdm(total=max(1, steps // venv.num_envs) * venv.num_envs, desc="imitation", unit="step")
+    for _ in range(max(1, steps // venv.num_envs)):
+        bar.update(venv.num_envs)
         chosen = [explorer({k: v[i] for k, v in obs.items()}) for i, explorer in enumerate(explorers)]
         observations += [{k: v[i].copy() for k, v in obs.items()} for i in range(venv.num_envs)]
         actions += chosen
@@ -177,6 +179,7 @@ def imitate_explorer(model: Any, venv: Any, steps: int, seed: int) -> dict[str, 
         for i, done in enumerate(dones):
             if done:
                 explorers[i].reset()
+    bar.close()
     generator = torch.Generator().manual_seed(seed)
     batch = {k: torch.as_tensor(np.stack([o[k] for o in observations])) for k in observations[0]}
     target = torch.as_tensor(np.array(actions))
