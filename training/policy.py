@@ -157,7 +157,8 @@ def imitate_explorer(model: Any, venv: Any, steps: int, seed: int) -> dict[str, 
     """Drive ``venv`` for ``steps`` steps with the ``greedy`` explorer (one per env, reset at each episode) and
     fit ``model``'s policy network to its actions (cross-entropy, Adam): a start for PPO that already drives
     where it is open, instead of the uniform policy that PPO's few thousand episodes here did not get far from
-    (8 000 steps without it: a policy that turned on the spot). Returns the fit's agreement with the explorer."""
+    (after 3 840-7 680 steps without it: policies that turned on the spot). Returns the fit's agreement with
+    the explorer."""
     import torch
 
     from pimm_agents.active.policies import Explorer
