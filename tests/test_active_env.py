@@ -179,3 +179,21 @@ def test_a_checkpoint_is_the_policy_a_shorter_run_would_have_written(tmp_path):
     b = PPO.load(str(short), device="cpu").policy.state_dict()
     assert all(torch.equal(a[k], b[k]) for k in a)
     assert (tmp_path / "full_log" / "progress.png").is_file()  # the learning curve, drawn at the end
+
+
+def test_the_shipped_policy_loads_with_its_record_and_acts_on_the_envs_observations():
+    import json
+
+    from pimm_agents.active.policies import SHIPPED_POLICY, make_policy
+
+    record = json.loads(SHIPPED_POLICY.with_suffix(".json").read_text())
+    assert record["algo"] == "ppo" and "python -m training policy" in record["reproduce"]
+    env = gym.make("pimm/ActiveLocalization-v0", localizer="amcl")
+    obs, _ = env.reset(seed=2)
+    policy = make_policy("trained")
+    assert policy.name == "trained"
+    for _ in range(3):
+        action = policy(obs)
+        assert action in (0, 1, 2)
+        obs, *_ = env.step(action)
+    env.close()
