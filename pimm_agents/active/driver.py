@@ -1,7 +1,7 @@
 """A scenario driven by an active-localization policy instead of its waypoints: ``run --driver policy:NAME``.
 
 The robot starts where the scenario starts and, for as long as the route would have taken (its length over its
-speed), drives the motion primitives a policy chooses (``random``, ``greedy`` or a trained ``.zip``,
+speed), drives the motion primitives a policy chooses (``random``, ``greedy``, ``trained`` or a ``.zip``,
 policies.py) from what the trial's localizer believes: the env stack's ``info["estimate"]`` (the
 :class:`~pimm_agents.experiments.recorder.LocalizationRecorder` puts it there), the 2D scan and the odometry,
 built into the task env's observation (env.py). A kidnap scenario carries the robot to its kidnap pose after one
@@ -27,7 +27,9 @@ def policy_name(driver: str) -> str | None:
         return None
     if driver.startswith(PREFIX) and driver[len(PREFIX) :]:
         return driver[len(PREFIX) :]
-    raise ExperimentError(f"driver {driver!r}: expected 'route' or 'policy:NAME' (random, greedy or a policy's .zip)")
+    raise ExperimentError(
+        f"driver {driver!r}: expected 'route' or 'policy:NAME' (random, greedy, trained or a policy's .zip)"
+    )
 
 
 def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: Any = None) -> Any:
