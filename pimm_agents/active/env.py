@@ -26,7 +26,7 @@ Reward per step, with the weights of :class:`ActiveConfig` (the truth is used he
 - ``-collision`` on touching an obstacle (the episode ends);
 - ``-time`` per simulated second;
 - ``+distance`` per metre driven: both LiDARs see all around, so only moving shows the scans anything new (a
-  turn on the spot shows the same room); without it, policies trained for 8 000 steps learned to turn on the
+  turn on the spot shows the same room); without it, a policy trained for 7 680 steps learned to turn on the
   spot, which is safe and lets the localizer settle in some buildings, and drove 0.05 m a minute.
 
 An episode starts at a random free pose (``reset(seed=...)``), or, with ``options={"kidnap": True}`` (or
