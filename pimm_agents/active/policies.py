@@ -123,16 +123,23 @@ class Trained:
         return int(np.asarray(action).item())
 
 
+def check_policy(name: str) -> None:
+    """Raise unless ``name`` is ``random``, ``greedy``, ``trained`` or the path of an existing ``.zip``."""
+    from pimm_env.errors import EnvError, MissingFileError
+
+    if name in ("random", "greedy", "trained"):
+        return
+    if not name.endswith(".zip"):
+        raise EnvError(f"policy {name!r}: expected random, greedy, trained or a trained policy's .zip")
+    if not Path(name).is_file():
+        raise MissingFileError(f"policy {name} does not exist (python -m training policy writes one)")
+
+
 def make_policy(name: str, max_range: float = 20.0) -> Policy:
     """``random``, ``greedy``, ``trained`` (the shipped policy) or the path of a trained policy's ``.zip``."""
-    from pimm_env.errors import EnvError
-
+    check_policy(name)
     if name == "random":
         return RandomWalk()
     if name == "greedy":
         return Explorer(max_range)
-    if name == "trained":
-        return Trained(SHIPPED_POLICY)
-    if name.endswith(".zip"):
-        return Trained(Path(name))
-    raise EnvError(f"policy {name!r}: expected random, greedy, trained or a trained policy's .zip")
+    return Trained(SHIPPED_POLICY if name == "trained" else Path(name))

@@ -112,16 +112,17 @@ class RunPlan:
 
 
 def check_driver(driver: str) -> None:
-    """``route``, or ``policy:`` and random, greedy or an existing policy ``.zip``; else an error naming it."""
+    """``route``, or ``policy:`` and a policy ``make_policy`` takes; else an error naming it."""
     from pimm_agents.active.driver import policy_name
+    from pimm_agents.active.policies import check_policy
 
     name = policy_name(driver)
-    if name is None or name in ("random", "greedy", "trained"):
+    if name is None:
         return
-    if not name.endswith(".zip"):
-        raise ExperimentError(f"driver {driver!r}: the policy must be random, greedy, trained or a policy's .zip")
-    if not Path(name).is_file():
-        raise ExperimentError(f"driver {driver!r}: {name} does not exist (python -m training policy writes one)")
+    try:
+        check_policy(name)
+    except (ValueError, FileNotFoundError) as error:  # the plan's field, as every other field's error says
+        raise ExperimentError(f"driver {driver!r}: {error}") from None
 
 
 def read_plan(path: Path) -> RunPlan:
