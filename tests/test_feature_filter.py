@@ -426,3 +426,32 @@ def test_no_place_is_localized_before_the_rival_check_has_kept_settle_scans():
         first[settle] = statuses.index("localized")
     # without it the first claim comes once 10 updates confirm it; with it, not before 25 scans are kept
     assert first[0] < 25 <= first[25]
+
+
+@pytest.mark.parametrize("hold", [True, False])
+def test_a_held_estimate_stays_where_the_kept_scans_put_it_when_the_particles_move_to_a_twin(hold):
+    occupancy = twin_rooms()
+    corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
+    rivals = RivalConfig(hold=hold)
+    config = FeatureFilterConfig(num_particles=10_000)
+    filt = FeatureFilter(occupancy, corners, config, wall_field_for(occupancy), 0.2, rivals=rivals)
+    filt.reset(np.random.default_rng(0))
+    # round and about in the second room's west half, then east until the block tells the rooms apart
+    turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
+    truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 20.0, 0.12)]])
+    updates = track(filt, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
+    status, held, now = updates[-1]
+    assert status == "localized" and np.hypot(*(held[:2] - now[:2])) < 0.3
+    # then the filter's weight goes over to the twin in the first room (as phantom features would take it)
+    twin = held - [12.0, 0.0, 0.0]
+    filt.particles[:100], filt.particles[100:200] = twin, held
+    filt.weights = np.full(len(filt.particles), 1e-9)
+    filt.weights[:100], filt.weights[100:200] = 0.6 / 100, 0.4 / 100
+    filt.weights /= filt.weights.sum()
+    found = filt.correct(np.zeros((0, 5)), np.zeros((0, 2)), held)  # nothing measured: the weights stand
+    if hold:
+        assert found is None, "the held place stays: the kept scans rule the twin out"
+        assert np.hypot(*(filt.particles[:100, :2] - held[:2]).T).max() < 1e-9, "the twin's particles moved onto it"
+        assert filt.reading.status == "localized"  # offered to the rival check, which the kept scans rule out
+    else:
+        assert found is not None and np.hypot(*(found[:2] - twin[:2])) < 0.1, "the filter alone jumps to the twin"

@@ -137,3 +137,23 @@ def test_fit_estimate_scores_an_estimate_a_little_off_as_its_rivals_are_scored()
         margins.append(float(tracker.margins[0]))
     # unfitted, the estimate trails the fitted twin by 38 nats; fitted alike (one update's fit), by 13
     assert margins[0] > 20.0 and margins[1] < margins[0] / 2
+
+
+def test_a_held_place_stays_against_a_place_the_kept_scans_rule_out_but_not_after_a_kidnap():
+    # east through the door until the block is in sight: the kept scans tell the second room from the first
+    truths = np.vstack([west_half_drive(), [[x, 1.0, 0.0] for x in np.arange(15.0, 19.0, 0.1)]])
+    tracker = tracker_along(truths)
+    now = truths[-1]
+    twin = now - np.array([12.0, 0.0, 0.0])
+    assert tracker.holds(now, twin, now), "the kept scans favour the held place: it stays"
+    assert not tracker.holds(twin, now, now), "a held place the kept scans rule out gives way"
+    # kidnapped: the odometry drives on east, the scans are those of the first room's west half, facing north
+    occupancy = twin_rooms()
+    odometry = [[x, 1.0, 0.0] for x in np.arange(19.0, 20.2, 0.1)]
+    for k, odom in enumerate(odometry):
+        tracker.add_scan(np.array(odom), rays_from(occupancy, np.array([2.0, 1.0 + 0.1 * k, np.pi / 2]), 10.0))
+    carried_held = np.array(odometry[-1])  # where the held place has been carried to
+    there = np.array([2.0, 1.0 + 0.1 * (len(odometry) - 1), np.pi / 2])
+    assert not tracker.holds(carried_held, there, np.array(odometry[-1])), "the newest scans favour the new place"
+    # too few scans kept to judge: the held place does not stay on that account
+    assert not tracker_along(truths[:5]).holds(truths[4], truths[4] - [12.0, 0.0, 0.0], truths[4])

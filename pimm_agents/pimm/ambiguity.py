@@ -1,11 +1,12 @@
-"""Whether the estimate is the only place the scans allow: the rival check, the map's twins and the one case in
-which the check moves the estimate. The feature filter (feature_filter.py) asks it once per measurement update.
+"""Whether the estimate is the only place the scans allow: the rival check, the map's twins and the two cases in
+which the check moves particles. The feature filter (feature_filter.py) asks it once per measurement update.
 
 The rival check (rivals.py) keeps the recent scans and the look-alike places they cannot rule out; a localized
 reading with one standing becomes ``ambiguous``. Candidates are the filter's other modes, its best particles away
 from the estimate, the fingerprint suggestions and, for a localized reading, the map's own twins of the place
 (twins.py). A rival that leads an estimate never reported localized since its last jump decisively
-(``RivalConfig.switch``) takes the estimate's mode. Whether the estimate is held is this module's state:
+(``RivalConfig.switch``) takes the estimate's mode; a held estimate the kept scans favour keeps its place when the
+filter's best particles move elsewhere (``RivalConfig.hold``). Whether the estimate is held is this module's state:
 ``after`` is told each update's reported status.
 """
 
@@ -56,6 +57,16 @@ class AmbiguityCheck:
     def after(self, status: str, jumped: bool) -> None:
         """Note the status the filter reported for this update, and whether its estimate jumped."""
         self.held = (self.held and not jumped and status != "lost") or status == "localized"
+
+    def keeps(self, filt: Any, held: np.ndarray, new: np.ndarray, odom: np.ndarray) -> bool:
+        """Whether a held estimate at ``held`` stays there instead of jumping to ``new``, the filter's best place
+        (``RivalTracker.holds``). If it does, the particles of ``new``'s mode are moved onto ``held``; the rival
+        check then scores ``new`` as any other candidate."""
+        if not (self.held and self.tracker.config.hold) or not self.tracker.holds(held, new, odom):
+            return False
+        assert filt.belief is not None
+        move_particles(filt, new, filt.belief.mode_of(new, filt.particles), held)
+        return True
 
     def check(
         self,
@@ -122,21 +133,27 @@ class AmbiguityCheck:
         """Move the particles of the estimate's mode (``chosen``; those within 1 m and 30 deg of ``pose`` if it
         is in none) rigidly from ``pose`` to ``target``, a rival the kept scans favour decisively; the place left
         is held as a rival until they rule it out. Returns the reading there (``ambiguous``) and ``target``."""
-        assert filt.belief is not None
-        if chosen >= 0:
-            members = filt.belief.particle_mode == chosen
-        else:
-            d = filt.particles - pose
-            members = (np.hypot(d[:, 0], d[:, 1]) <= 1.0) & (np.abs(wrap_angle(d[:, 2])) <= np.radians(30.0))
-        turn = wrap_angle(target[2] - pose[2])
-        c, s = np.cos(turn), np.sin(turn)
-        d = filt.particles[members, :2] - pose[:2]
-        filt.particles[members, 0] = target[0] + c * d[:, 0] - s * d[:, 1]
-        filt.particles[members, 1] = target[1] + s * d[:, 0] + c * d[:, 1]
-        filt.particles[members, 2] = wrap_angle(filt.particles[members, 2] + turn)
+        move_particles(filt, pose, chosen, target)
         self.tracker.forget()
         self.tracker.keep(pose)
-        filt.belief = read_belief(filt.particles, filt.weights, filt.belief_config)
         reading = filt.read(target)
         left = rival_hypothesis(pose)
         return BeliefReading("ambiguous", reading.covariance, (*reading.hypotheses, left), reading.chosen), target
+
+
+def move_particles(filt: Any, pose: np.ndarray, chosen: int, target: np.ndarray) -> None:
+    """Move the particles of mode ``chosen`` (those within 1 m and 30 deg of ``pose`` if it is in none) rigidly
+    from ``pose`` to ``target``, and read the filter's belief again."""
+    assert filt.belief is not None
+    if chosen >= 0:
+        members = filt.belief.particle_mode == chosen
+    else:
+        d = filt.particles - pose
+        members = (np.hypot(d[:, 0], d[:, 1]) <= 1.0) & (np.abs(wrap_angle(d[:, 2])) <= np.radians(30.0))
+    turn = wrap_angle(target[2] - pose[2])
+    c, s = np.cos(turn), np.sin(turn)
+    d = filt.particles[members, :2] - pose[:2]
+    filt.particles[members, 0] = target[0] + c * d[:, 0] - s * d[:, 1]
+    filt.particles[members, 1] = target[1] + s * d[:, 0] + c * d[:, 1]
+    filt.particles[members, 2] = wrap_angle(filt.particles[members, 2] + turn)
+    filt.belief = read_belief(filt.particles, filt.weights, filt.belief_config)

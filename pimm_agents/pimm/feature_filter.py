@@ -397,7 +397,8 @@ class FeatureFilter:
         """One measurement step after a motion update: weigh, then read the estimate while the weights still
         say something, then resample if degenerate and inject. Returns the best-particles mean if the filter
         has converged by the ESS test and, when it lies away from ``previous`` (the last estimate carried to
-        now), holds more weight than it; else None (the caller carries its last estimate by odometry).
+        now), holds more weight than it and, if ``previous`` is held, the kept scans do not rule it out
+        (``AmbiguityCheck.keeps``); else None (the caller carries its last estimate by odometry).
 
         Injection follows only an update that weighed something: with nothing measured the weights say
         nothing about which particles are worst, and replacing an arbitrary 5 % per step would wear the
@@ -410,6 +411,9 @@ class FeatureFilter:
         if estimate is not None and previous is not None and r > 0 and np.hypot(*(estimate[:2] - previous[:2])) > r:
             if self.weight_near(estimate, r) <= self.weight_near(previous, r):
                 estimate = None
+            elif self.ambiguity is not None and self._odom_ref is not None:
+                if self.ambiguity.keeps(self, previous, estimate, self._odom_ref):
+                    estimate = None  # a held place the kept scans favour: its rival's particles were moved onto it
         pose = estimate if estimate is not None else previous
         reading = self.read(pose)
         jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
