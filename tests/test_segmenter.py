@@ -53,6 +53,8 @@ def test_segmenter_labels_every_return_and_gives_a_unit_descriptor(checkpoint):
     assert np.all(result.labels[~mask] == -1) and np.all((result.labels[mask] >= 0) & (result.labels[mask] < 4))
     assert result.descriptor.shape == (6,) and np.linalg.norm(result.descriptor) == pytest.approx(1.0, abs=1e-5)
     assert set(result.timings_ms) == {"features", "network", "boundaries"}
+    # the descriptor alone (what a fingerprint map needs) is the same to the bit
+    assert np.array_equal(segmenter.describe(cloud, mask), result.descriptor)
 
 
 @pytest.fixture

@@ -7,7 +7,8 @@ import torch
 from pimm_agents.measurement.perception_quality import iou_per_class
 from pimm_agents.perception.pointnet import PointNetConfig, PointNetSegmenter, save_checkpoint
 from pimm_agents.perception.segmenter import Segmenter
-from pimm_agents.preparation.fingerprints import build_fingerprint_map
+from pimm_agents.preparation.fingerprints import _descriptors, build_fingerprint_map
+from pimm_env.envs.iilab_env import IILabEnv
 from training.dataset import generate, load, save, split
 from training.train import TrainConfig, class_weights, contrastive_loss, pair_batches, train
 
@@ -62,6 +63,13 @@ def test_tiny_end_to_end_training_run(tmp_path):
     segmenter = Segmenter(tmp_path / "pointnet.pt")
     fmap = build_fingerprint_map("iilab", segmenter, spacing=4.0, seed=0, progress=False)
     assert len(fmap) > 10 and fmap.dim == 8
+    # the map casts the 3D LiDAR alone and takes the descriptor alone: the same as a full env's scan segmented
+    poses, seeds = np.column_stack([fmap.positions[:3], [0.3, -2.0, 3.0]]), np.array([5, 6, 7])
+    env = IILabEnv()
+    full = [env.reset(seed=int(k), options={"pose": list(p)})[0] for p, k in zip(poses, seeds, strict=True)]
+    env.close()
+    expected = [segmenter.segment(obs["cloud"], obs["cloud_mask"]).descriptor for obs in full]
+    np.testing.assert_array_equal(_descriptors(("iilab", segmenter, poses, seeds, False)), np.array(expected))
 
 
 def test_dataset_errors_name_the_file(tmp_path):

@@ -120,8 +120,11 @@ class Segmenter(_Network):
         self.layers = layers
         self.points_per_layer = points_per_layer
 
-    def segment(self, cloud: np.ndarray, mask: np.ndarray) -> Segmentation:
-        start = time.perf_counter()
+    def _inputs(
+        self, cloud: np.ndarray, mask: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Per-return features, which returns are valid, their indices, the sampled ones (into the indices) and
+        the network's input for those."""
         features = point_features(cloud, mask, self.layers, self.points_per_layer)
         valid = valid_returns(np.asarray(cloud), mask)
         valid_index = np.flatnonzero(valid)
@@ -130,6 +133,24 @@ class Segmenter(_Network):
         sampled = strided_sample(valid_index, self.model.config.points)
         offsets = self.model.config.context_offsets
         chosen = with_context(features, valid_index[sampled], self.layers, self.points_per_layer, offsets)
+        return features, valid, valid_index, sampled, chosen
+
+    def describe(self, cloud: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """The scan's unit descriptor alone, as ``segment`` gives it (no classes: what a fingerprint map needs;
+        the classification head and the boundary pass are most of a third of the network's time)."""
+        chosen = self._inputs(cloud, mask)[4]
+        self.threads.before()
+        start = time.perf_counter()
+        with torch.inference_mode():
+            net = self.network
+            descriptor = net.descriptor_of(net.global_feature(net.local_features(torch.from_numpy(chosen))))
+        self.threads.after(time.perf_counter() - start)
+        return descriptor.numpy().astype(np.float32)
+
+    def segment(self, cloud: np.ndarray, mask: np.ndarray) -> Segmentation:
+        start = time.perf_counter()
+        features, valid, valid_index, sampled, chosen = self._inputs(cloud, mask)
+        offsets = self.model.config.context_offsets
         net = self.network
         self.threads.before()
         prepared = time.perf_counter()
@@ -190,6 +211,10 @@ class CloudSegmenter(_Network):
         labels = np.full(len(valid), -1, dtype=np.int8)
         labels[valid] = classes
         return Segmentation(labels, descriptor, {"network": 1000 * (time.perf_counter() - start)})
+
+    def describe(self, cloud: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """The scan's unit descriptor, as ``segment`` gives it."""
+        return self.segment(cloud, mask).descriptor
 
     def segment_points(self, level: np.ndarray, height: float) -> tuple[np.ndarray, np.ndarray]:
         """Classes (int8, one per return) and the unit descriptor of returns ``level`` (N, 3, level sensor frame)

@@ -51,18 +51,23 @@ def build_fingerprint_map(
 
 
 def _descriptors(job: tuple[Any, Segmenter | CloudSegmenter, np.ndarray, np.ndarray, bool]) -> np.ndarray:
-    """The descriptors of scans taken at ``poses`` with these noise seeds (one job of the map)."""
+    """The descriptors of scans taken at ``poses`` with these noise seeds (one job of the map). Only the 3D
+    LiDAR is cast (its noise has its own generator, so its clouds are those of the full env)."""
+    from dataclasses import replace
+
     from tqdm import tqdm
 
     from pimm_env.envs.iilab_env import IILabEnv
+    from pimm_env.envs.sim_config import SimConfig
 
     world, segmenter, poses, noise_seeds, progress = job
-    env = IILabEnv(world=world)
+    config = SimConfig()
+    env = IILabEnv(world=world, config=replace(config, lidar2d=replace(config.lidar2d, enabled=False)))
     out = np.empty((len(poses), segmenter.descriptor_dim), dtype=np.float32)
     try:
         for i in tqdm(range(len(poses)), desc="fingerprints", disable=not progress, unit="scan"):
             obs, _ = env.reset(seed=int(noise_seeds[i]), options={"pose": list(poses[i])})
-            out[i] = segmenter.segment(obs["cloud"], obs["cloud_mask"]).descriptor
+            out[i] = segmenter.describe(obs["cloud"], obs["cloud_mask"])
     finally:
         env.close()
     return out
