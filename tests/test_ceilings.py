@@ -75,3 +75,42 @@ def test_two_ceiling_heights_give_each_room_its_own(tmp_path):
     high = corners.xy[np.isclose(corners.z, 3.5)]
     assert len(low) == 4 and np.all(low[:, 0] < 4.1)
     assert len(high) == 4 and np.all(high[:, 0] > 4.1)
+
+
+def _slope(x0: float, x1: float, z0: float, z1: float, y0: float = -0.2, y1: float = 4.2):
+    """A plane sloping from height z0 at x0 to z1 at x1."""
+    import trimesh
+
+    vertices = [[x0, y0, z0], [x1, y0, z1], [x1, y1, z1], [x0, y1, z0]]
+    return trimesh.Trimesh(vertices, [[0, 2, 1], [0, 3, 2]], process=False)
+
+
+@pytest.mark.parametrize(
+    "ceiling, low",
+    [
+        # a flat room beside one under a 20 deg slope, and a gable roof over both (ridge on the middle wall)
+        ({"Ceiling_flat": _box([-0.2, -0.2, 3.0], [4.1, 4.2, 3.2]), "Ceiling_slope": _slope(4.1, 8.2, 2.4, 3.9)}, 2.4),
+        ({"Ceiling_west": _slope(-0.2, 4.1, 2.4, 3.9), "Ceiling_east": _slope(4.1, 8.2, 3.9, 2.4)}, 2.4),
+    ],
+    ids=["flat beside sloped", "gable"],
+)
+def test_walls_under_a_sloped_ceiling_give_their_corners_once(tmp_path, ceiling, low):
+    world = _two_rooms(tmp_path, ceiling)
+    assert min(ceiling_levels(world)) == pytest.approx(low)  # a slope counts from its lowest point
+    corners = derive_corner_map(world)
+    assert len(corners) == 8  # four per room, each once though a slope spans many heights
+    assert np.all(corners.z[corners.xy[:, 0] > 4.1] == pytest.approx(low))
+
+
+def test_a_corner_under_two_ceilings_of_nearly_one_height_is_one_corner(tmp_path):
+    # the east room's ceiling 4 cm above the west room's: the middle wall's corners are found at both heights
+    world = _two_rooms(
+        tmp_path,
+        {
+            "Ceiling_west": _box([-0.2, -0.2, 3.0], [4.15, 4.2, 3.1]),
+            "Ceiling_east": _box([4.05, -0.2, 3.04], [8.2, 4.2, 3.14]),
+        },
+    )
+    corners = derive_corner_map(world)
+    assert len(corners) == 8
+    assert len({(round(x, 2), round(y, 2)) for x, y in corners.xy}) == 8

@@ -3,9 +3,10 @@
 Boxes and prisms are solid: their underside is the bottom of their vertical extent and they cover their
 footprint. A mesh ceiling can be anything a modeller drew: a closed slab, a single plane (facing up or down), a
 ceiling at several heights, sloped parts. Its heights are read from its horizontal faces (the undersides: the
-faces that look down, or a one-sided plane's only face), each height kept where it spans at least
-``min_area`` square metres; the cells under a height are those its horizontal and sloped faces cover from above,
-so a slab covers its whole area, not only the rim its cross-section would give.
+faces that look down, or a one-sided plane's only face) and from the lowest points of its sloped faces, each
+height kept where it spans at least ``min_area`` square metres; the cells under a height are those its horizontal
+and sloped faces cover from above, so a slab covers its whole area, not only the rim its cross-section would give.
+A corner under several heights (a sloped part spans many) is one corner, at the lowest (corner_map.py).
 """
 
 from __future__ import annotations
@@ -45,7 +46,10 @@ def ceiling_levels(world: World, min_area: float = MIN_AREA) -> list[float]:
         tri, nz, tri_area = _faces(element.shape)
         down = nz <= -FLAT_NZ
         faces = down if down.any() else nz >= FLAT_NZ
-        for z, a in zip(tri[faces, :, 2].mean(axis=1), tri_area[faces], strict=True):
+        # a sloped part counts from its lowest point, where the walls under it first meet it
+        sloped = (np.abs(nz) >= VERTICAL_NZ) & (np.abs(nz) < FLAT_NZ)
+        heights = np.concatenate([tri[faces, :, 2].mean(axis=1), tri[sloped, :, 2].min(axis=1)])
+        for z, a in zip(heights, np.concatenate([tri_area[faces], tri_area[sloped]]), strict=True):
             key = round(round(float(z) / LEVEL_STEP) * LEVEL_STEP, 3)
             area[key] = area.get(key, 0.0) + float(a)
     mesh_levels = [z for z, a in area.items() if a >= min_area]

@@ -65,10 +65,24 @@ def _on_grid(yaw: float) -> bool:
     return abs((yaw + np.pi / 4) % (np.pi / 2) - np.pi / 4) < 1e-6
 
 
+#: corners found under several ceiling heights this close (m) and this alike in orientation (deg) are one corner
+SAME_CORNER_M = 0.15
+SAME_CORNER_DEG = 10.0
+
+
 def _as_map(found: list[tuple[float, float, float, float]]) -> CornerMap:
+    """The corners (x, y, ceiling height, orientation), each place once: where the same corner was found under
+    several ceiling heights (a sloped ceiling spans many), at the lowest."""
     if not found:
         return CornerMap(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
     arr = np.array(found)
+    kept: list[int] = []
+    for i in np.argsort(arr[:, 2], kind="stable"):
+        turn = np.abs((arr[kept, 3] - arr[i, 3] + np.pi) % (2 * np.pi) - np.pi)
+        near = np.hypot(*(arr[kept, :2] - arr[i, :2]).T) < SAME_CORNER_M
+        if not np.any(near & (turn < np.radians(SAME_CORNER_DEG))):
+            kept.append(int(i))
+    arr = arr[np.sort(kept)]
     return CornerMap(arr[:, :2], arr[:, 2], arr[:, 3])
 
 
