@@ -3,6 +3,7 @@ import pytest
 
 from pimm_env.errors import WorldFileError
 from pimm_env.world.files import load_world, world_from_spec
+from pimm_env.world.model import point_in_polygon
 from pimm_env.world.semantics import SemanticClass
 from pimm_env.world.shapes import Box
 
@@ -19,6 +20,18 @@ def test_iilab_world_has_every_kind_of_structure():
     assert any("beam" in n for n in names) and any("duct" in n for n in names)
     # Beams and ducts hang under the ceilings but are not part of the occupancy map.
     assert all(not e.occupancy for e in world.elements if "beam" in e.name or "duct" in e.name)
+
+
+def test_point_in_polygon_agrees_with_shapely_on_a_concave_outline():
+    from shapely.geometry import Point, Polygon
+
+    rng = np.random.default_rng(0)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, 40))
+    outline = np.column_stack([np.cos(angles), np.sin(angles)]) * rng.uniform(1.0, 4.0, (40, 1))  # a star
+    shape = Polygon(outline)
+    for x, y in rng.uniform(-4.5, 4.5, (2000, 2)):
+        if shape.exterior.distance(Point(x, y)) > 1e-9:
+            assert point_in_polygon(x, y, outline) == shape.contains(Point(x, y)), (x, y)
 
 
 def test_iilab_areas_and_doorways():

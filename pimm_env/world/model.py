@@ -84,9 +84,11 @@ class World:
         return mask
 
     def area_of(self, x: float, y: float) -> str | None:
-        """Name of the area holding the point, or None."""
+        """Name of the area holding the point, or None. (The env asks at every step: an imported plan has tens
+        of areas of a hundred vertices, so each is first ruled out by its box.)"""
         for name, polygon in self.areas.items():
-            if point_in_polygon(x, y, polygon):
+            lo, hi = polygon.min(axis=0), polygon.max(axis=0)
+            if lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1] and point_in_polygon(x, y, polygon):
                 return name
         return None
 
@@ -97,11 +99,11 @@ class World:
 
 
 def point_in_polygon(x: float, y: float, polygon: np.ndarray) -> bool:
-    inside = False
-    n = len(polygon)
-    for i in range(n):
-        ax, ay = polygon[i]
-        bx, by = polygon[(i + 1) % n]
-        if (ay > y) != (by > y) and x < ax + (y - ay) * (bx - ax) / (by - ay):
-            inside = not inside
-    return inside
+    """Whether (x, y) lies inside ``polygon`` (N, 2) by the even-odd rule: a ray towards +x crosses its edges
+    an odd number of times."""
+    a = np.asarray(polygon, dtype=float)
+    b = np.roll(a, -1, axis=0)
+    crosses = (a[:, 1] > y) != (b[:, 1] > y)
+    a, b = a[crosses], b[crosses]
+    at = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    return bool(np.count_nonzero(x < at) % 2)
