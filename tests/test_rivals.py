@@ -155,5 +155,10 @@ def test_a_held_place_stays_against_a_place_the_kept_scans_rule_out_but_not_afte
     carried_held = np.array(odometry[-1])  # where the held place has been carried to
     there = np.array([2.0, 1.0 + 0.1 * (len(odometry) - 1), np.pi / 2])
     assert not tracker.holds(carried_held, there, np.array(odometry[-1])), "the newest scans favour the new place"
+    # even towards a place the newest scans do not favour, the hold is lifted: the held place's fit collapsed
+    elsewhere = carried_held - [12.0, 0.0, 0.0]
+    recent = tracker.recent(np.array(odometry[-1]))
+    assert tracker.evidence(elsewhere[None], recent)[0] - tracker.evidence(carried_held[None], recent)[0] < 6.9
+    assert not tracker.holds(carried_held, elsewhere, np.array(odometry[-1]))
     # too few scans kept to judge: the held place does not stay on that account
     assert not tracker_along(truths[:5]).holds(truths[4], truths[4] - [12.0, 0.0, 0.0], truths[4])

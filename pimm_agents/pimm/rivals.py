@@ -76,10 +76,12 @@ class RivalConfig:
     #: a held estimate (reported localized since it last jumped) does not jump to the filter's new best place while
     #: the kept scans rule that place out as they rule out a rival (``drop_log_ratio``) and the newest
     #: ``refine_scans`` do not favour it by ``log_ratio``; the new place's particles are moved onto the held one
-    #: and it stands as a rival. In a furnished house a window's lintel and sill made two corners that the map
+    #: (the rival check then scores the new place as any candidate). In a furnished house a window's lintel and sill made two corners that the map
     #: (rightly) lacks; they matched a room 9.5 m away and the filter jumped there from a place tracked for 100 s,
-    #: which the kept scans favoured by ~2 000 nats. After a kidnap the newest scans fit the held place so badly
-    #: that they favour the new one within a few scans. False: the filter alone decides (``switch_radius_m``).
+    #: which the kept scans favoured by ~2 000 nats. A kidnap lifts the hold within a few scans: the held place
+    #: then fits the newest scans 10-60 nats worse than the ones before (0.2 better in that house; development
+    #: kidnaps, gen-970 to 977), or they favour the new place. False: the filter alone decides
+    #: (``switch_radius_m``).
     hold: bool = True
 
     def __post_init__(self) -> None:
@@ -246,8 +248,10 @@ class RivalTracker:
 
     def holds(self, held: np.ndarray, new: np.ndarray, odom_now: np.ndarray) -> bool:
         """Whether a held place should stay rather than give way to ``new`` (see ``RivalConfig.hold``): both fitted
-        to the newest scans, then a touch to all kept ones, the newest do not favour ``new`` by ``log_ratio`` and
-        all kept ones favour ``held`` by ``drop_log_ratio``. False with fewer than ``settle_scans`` kept."""
+        to the newest ``refine_scans``, these do not favour ``new`` by ``log_ratio``, nor do the ``refine_scans``
+        before them favour ``held`` over itself now by ``log_ratio`` (its fit collapsing is a kidnap's mark), and
+        all kept scans (``held`` and ``new`` fitted a touch more) favour ``held`` by ``drop_log_ratio``. False with
+        fewer than ``settle_scans`` kept."""
         c = self.config
         if len(self._scans) < max(c.settle_scans, c.refine_scans):
             return False
@@ -255,6 +259,10 @@ class RivalTracker:
         places = self.refine(np.vstack([held, new]), recent, rounds=2)
         newest = self.evidence(places, recent)
         if newest[1] - newest[0] >= c.log_ratio:
+            return False
+        # a kidnap: the held place explains the newest scans far worse than the ones before them
+        before = self.evidence(places[:1], self.stack(odom_now, 2 * c.refine_scans))[0] - newest[0]
+        if before - newest[0] >= c.log_ratio:
             return False
         history = self.stack(odom_now)
         places = self.refine(places, history, rounds=1, steps=FINE_STEP)
