@@ -76,12 +76,12 @@ class RivalConfig:
     #: a held estimate (reported localized since it last jumped) does not jump to the filter's new best place while
     #: the kept scans rule that place out as they rule out a rival (``drop_log_ratio``) and the newest
     #: ``refine_scans`` do not favour it by ``log_ratio``; the new place's particles are moved onto the held one
-    #: (the rival check then scores the new place as any candidate). In a furnished house a window's lintel and sill made two corners that the map
-    #: (rightly) lacks; they matched a room 9.5 m away and the filter jumped there from a place tracked for 100 s,
-    #: which the kept scans favoured by ~2 000 nats. A kidnap lifts the hold within a few scans: the held place
-    #: then fits the newest scans 10-60 nats worse than the ones before (0.2 better in that house; development
-    #: kidnaps, gen-970 to 977), or they favour the new place. False: the filter alone decides
-    #: (``switch_radius_m``).
+    #: (the rival check then scores the new place as any candidate). In a furnished house a window's lintel and
+    #: sill made two corners that the map (rightly) lacks; they matched a room 9.5 m away and the filter jumped
+    #: there from a place tracked for 100 s, which the kept scans favoured by ~2 000 nats. A kidnap lifts the
+    #: hold within a few scans: the held place then fits the newest scans 10-60 nats worse than the ones before
+    #: (0.2 better in that house; development kidnaps, gen-970 to 977), or they favour the new place. False: the
+    #: filter alone decides (``switch_radius_m``).
     hold: bool = True
 
     def __post_init__(self) -> None:
