@@ -455,3 +455,27 @@ def test_a_held_estimate_stays_where_the_kept_scans_put_it_when_the_particles_mo
         assert filt.reading.status == "localized"  # offered to the rival check, which the kept scans rule out
     else:
         assert found is not None and np.hypot(*(found[:2] - twin[:2])) < 0.1, "the filter alone jumps to the twin"
+
+
+def test_a_held_estimate_stays_for_at_most_switch_updates_refusals_until_it_is_localized_again():
+    occupancy = twin_rooms()
+    corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
+    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=1000), wall_field_for(occupancy), 0.2)
+    filt.reset(np.random.default_rng(0))
+    held, twin = np.array([14.0, 1.0, 0.0]), np.array([2.0, 1.0, 0.0])
+    check = filt.ambiguity
+    assert check is not None
+    check.tracker.holds = lambda *_: True  # the kept scans always favour the held place
+    check.after("localized", False)
+    limit = check.tracker.config.switch_updates
+    answers = []
+    for _ in range(limit + 2):
+        filt.particles[:500], filt.particles[500:] = twin, held
+        filt.belief = read_belief(filt.particles, filt.weights, BeliefConfig())
+        answers.append(check.keeps(filt, held, twin, np.zeros(3)))
+        check.after("ambiguous", False)
+    assert answers == [True] * limit + [False, False]  # a kidnap to a look-alike place is not held forever
+    check.after("localized", False)  # confirmed again: the count starts anew
+    filt.particles[:500] = twin
+    filt.belief = read_belief(filt.particles, filt.weights, BeliefConfig())
+    assert check.keeps(filt, held, twin, np.zeros(3))

@@ -47,23 +47,35 @@ class AmbiguityCheck:
         #: whether the estimate has been reported localized since it last jumped: a held place is not moved by the
         #: rival check (its margins over 150 scans are not enough to overturn a place the scans confirmed)
         self.held = False
+        self._kept = 0  # jumps refused since the held estimate was last reported localized (``keeps``)
 
     def reset(self) -> None:
         self.tracker.reset()
         self._odom = None
         self._twin_updates = 0
         self.held = False
+        self._kept = 0
 
     def after(self, status: str, jumped: bool) -> None:
         """Note the status the filter reported for this update, and whether its estimate jumped."""
+        was = self.held
         self.held = (self.held and not jumped and status != "lost") or status == "localized"
+        if not was or not self.held or jumped or status == "localized":
+            self._kept = 0  # counted anew while the held place is not confirmed again
 
     def keeps(self, filt: Any, held: np.ndarray, new: np.ndarray, odom: np.ndarray) -> bool:
         """Whether a held estimate at ``held`` stays there instead of jumping to ``new``, the filter's best place
-        (``RivalTracker.holds``). If it does, the particles of ``new``'s mode are moved onto ``held``; the rival
-        check then scores ``new`` as any other candidate."""
-        if not (self.held and self.tracker.config.hold) or not self.tracker.holds(held, new, odom):
+        (``RivalTracker.holds``), at most ``switch_updates`` times before it is reported localized again: a filter
+        that goes on leaving it that long is heard, as a rival that leads that long takes an estimate not held
+        (a kidnap to a place the scans cannot tell from the held one). If it stays, the
+        particles of ``new``'s mode are moved onto ``held``; the rival check then scores ``new`` as any other
+        candidate."""
+        config = self.tracker.config
+        if not (self.held and config.hold) or self._kept >= config.switch_updates:
             return False
+        if not self.tracker.holds(held, new, odom):
+            return False
+        self._kept += 1
         assert filt.belief is not None
         move_particles(filt, new, filt.belief.mode_of(new, filt.particles), held)
         return True
