@@ -80,8 +80,9 @@ class RivalConfig:
     #: sill made two corners that the map (rightly) lacks; they matched a room 9.5 m away and the filter jumped
     #: there from a place tracked for 100 s, which the kept scans favoured by ~2 000 nats. A kidnap lifts the
     #: hold within a few scans: the held place then fits the newest scans 10-60 nats worse than the ones before
-    #: (0.2 better in that house; development kidnaps, gen-970 to 977), or they favour the new place. False: the
-    #: filter alone decides (``switch_radius_m``).
+    #: (0.2 better in that house; development kidnaps, gen-970 to 977), or they favour the new place; and the
+    #: hold refuses at most ``switch_updates`` jumps before the held place is reported localized again (a kidnap
+    #: to a place the scans cannot tell from the held one). False: the filter alone decides (``switch_radius_m``).
     hold: bool = True
 
     def __post_init__(self) -> None:
