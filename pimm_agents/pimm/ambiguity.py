@@ -63,17 +63,19 @@ class AmbiguityCheck:
         if not was or not self.held or jumped or status == "localized":
             self._kept = 0  # counted anew while the held place is not confirmed again
 
-    def keeps(self, filt: Any, held: np.ndarray, new: np.ndarray, odom: np.ndarray) -> bool:
+    def keeps(
+        self, filt: Any, held: np.ndarray, new: np.ndarray, odom: np.ndarray, wall_points: np.ndarray | None = None
+    ) -> bool:
         """Whether a held estimate at ``held`` stays there instead of jumping to ``new``, the filter's best place
-        (``RivalTracker.holds``), at most ``switch_updates`` times before it is reported localized again: a filter
-        that goes on leaving it that long is heard, as a rival that leads that long takes an estimate not held
-        (a kidnap to a place the scans cannot tell from the held one). If it stays, the
-        particles of ``new``'s mode are moved onto ``held``; the rival check then scores ``new`` as any other
-        candidate."""
+        (``RivalTracker.holds``, with this update's ``wall_points``), at most ``switch_updates`` times before it is
+        reported localized again: a filter that goes on leaving it that long is heard, as a rival that leads that
+        long takes an estimate not held (a kidnap to a place the scans cannot tell from the held one). If it
+        stays, the particles of ``new``'s mode are moved onto ``held``; the rival check then scores ``new`` as
+        any other candidate."""
         config = self.tracker.config
         if not (self.held and config.hold) or self._kept >= config.switch_updates:
             return False
-        if not self.tracker.holds(held, new, odom):
+        if not self.tracker.holds(held, new, odom, wall_points):
             return False
         self._kept += 1
         assert filt.belief is not None

@@ -185,9 +185,13 @@ class RivalTracker:
         if self._anchor is not None:
             self._anchor = carried(self._anchor[None, :], motion)[0]
 
-    def stack(self, odom_now: np.ndarray, last: int | None = None) -> ScanStack:
-        """The kept scans (the ``last`` newest) as one array of points, each with its scan's motion from now."""
-        scans = list(self._scans)[-last:] if last else list(self._scans)
+    def stack(
+        self, odom_now: np.ndarray, last: int | None = None, extra: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> ScanStack:
+        """The kept scans (the ``last`` newest) as one array of points, each with its scan's motion from now;
+        ``extra`` (odometry, wall points) is taken as one more, newest scan without being kept."""
+        scans = list(self._scans) + ([extra] if extra is not None and len(extra[1]) else [])
+        scans = scans[-last:] if last else scans
         if not scans:
             return ScanStack(np.zeros((0, 2)), np.zeros(0, dtype=int), np.zeros((0, 3)))
         points = np.vstack([points for _, points in scans])
@@ -247,25 +251,29 @@ class RivalTracker:
         best[:, 2] = wrap_angle(best[:, 2])
         return best
 
-    def holds(self, held: np.ndarray, new: np.ndarray, odom_now: np.ndarray) -> bool:
-        """Whether a held place should stay rather than give way to ``new`` (see ``RivalConfig.hold``): both fitted
-        to the newest ``refine_scans``, these do not favour ``new`` by ``log_ratio``, nor do the ``refine_scans``
-        before them favour ``held`` over itself now by ``log_ratio`` (its fit collapsing is a kidnap's mark), and
-        all kept scans (``held`` and ``new`` fitted a touch more) favour ``held`` by ``drop_log_ratio``. False with
-        fewer than ``settle_scans`` kept."""
+    def holds(
+        self, held: np.ndarray, new: np.ndarray, odom_now: np.ndarray, wall_points: np.ndarray | None = None
+    ) -> bool:
+        """Whether a held place should stay rather than give way to ``new`` (see ``RivalConfig.hold``), judged on
+        the kept scans and this update's ``wall_points`` (robot frame now; the scan that moved the filter, not
+        kept yet): both fitted to the newest ``refine_scans``, these do not favour ``new`` by ``log_ratio``, nor
+        do the ``refine_scans`` before them favour ``held`` over itself now by ``log_ratio`` (its fit collapsing
+        is a kidnap's mark), and all of them (``held`` and ``new`` fitted a touch more) favour ``held`` by
+        ``drop_log_ratio``. False with fewer than ``settle_scans`` kept."""
         c = self.config
         if len(self._scans) < max(c.settle_scans, c.refine_scans):
             return False
-        recent = self.recent(odom_now)
+        extra = None if wall_points is None else (np.asarray(odom_now, dtype=float), np.asarray(wall_points))
+        recent = self.stack(odom_now, c.refine_scans, extra)
         places = self.refine(np.vstack([held, new]), recent, rounds=2)
         newest = self.evidence(places, recent)
         if newest[1] - newest[0] >= c.log_ratio:
             return False
         # a kidnap: the held place explains the newest scans far worse than the ones before them
-        before = self.evidence(places[:1], self.stack(odom_now, 2 * c.refine_scans))[0] - newest[0]
+        before = self.evidence(places[:1], self.stack(odom_now, 2 * c.refine_scans, extra))[0] - newest[0]
         if before - newest[0] >= c.log_ratio:
             return False
-        history = self.stack(odom_now)
+        history = self.stack(odom_now, None, extra)
         places = self.refine(places, history, rounds=1, steps=FINE_STEP)
         kept = self.evidence(places, history)
         return bool(kept[0] - kept[1] >= c.drop_log_ratio)
