@@ -162,3 +162,14 @@ def test_a_held_place_stays_against_a_place_the_kept_scans_rule_out_but_not_afte
     assert not tracker.holds(carried_held, elsewhere, np.array(odometry[-1]))
     # too few scans kept to judge: the held place does not stay on that account
     assert not tracker_along(truths[:5]).holds(truths[4], truths[4] - [12.0, 0.0, 0.0], truths[4])
+
+
+def test_the_scan_that_moved_the_filter_is_judged_too():
+    # kept: east through the door until the block is in sight; then the robot is carried to the first room
+    truths = np.vstack([west_half_drive(), [[x, 1.0, 0.0] for x in np.arange(15.0, 19.0, 0.1)]])
+    tracker = tracker_along(truths)
+    now = truths[-1] + [0.1, 0.0, 0.0]
+    there = np.array([2.0, 3.0, -np.pi / 2])  # where it is now, facing south
+    first = rays_from(twin_rooms(), there, 10.0)  # its first scan there, not kept yet
+    assert tracker.holds(now, there, now), "on the kept scans alone the kidnap does not show"
+    assert not tracker.holds(now, there, now, first), "its first scan marks it"
