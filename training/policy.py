@@ -160,6 +160,7 @@ def imitate_explorer(model: Any, venv: Any, steps: int, seed: int) -> dict[str, 
     (after 3 840-7 680 steps without it: policies that turned on the spot). Returns the fit's agreement with
     the explorer."""
     import torch
+    from tqdm import tqdm
 
     from pimm_agents.active.policies import Explorer
     from pimm_env.envs.base_env import SimConfig
@@ -167,8 +168,6 @@ def imitate_explorer(model: Any, venv: Any, steps: int, seed: int) -> dict[str, 
     explorers = [Explorer(SimConfig().lidar2d.max_range) for _ in range(venv.num_envs)]  # the env's own LiDAR
     observations: list[dict[str, np.ndarray]] = []
     actions: list[int] = []
-    from tqdm import tqdm
-
     obs = venv.reset()
     bar = tqdm(total=max(1, steps // venv.num_envs) * venv.num_envs, desc="imitation", unit="step")
     for _ in range(max(1, steps // venv.num_envs)):

@@ -412,8 +412,7 @@ class FeatureFilter:
             if self.weight_near(estimate, r) <= self.weight_near(previous, r):
                 estimate = None
             elif self.ambiguity is not None and self._odom_ref is not None:
-                walls = None if wall_points is None else np.asarray(wall_points, dtype=float).reshape(-1, 2)
-                if self.ambiguity.keeps(self, previous, estimate, self._odom_ref, walls):
+                if self.ambiguity.keeps(self, previous, estimate, self._odom_ref, wall_points):
                     estimate = None  # a held place the kept scans favour: its rival's particles were moved onto it
         pose = estimate if estimate is not None else previous
         reading = self.read(pose)

@@ -263,7 +263,9 @@ class RivalTracker:
         c = self.config
         if len(self._scans) < max(c.settle_scans, c.refine_scans):
             return False
-        extra = None if wall_points is None else (np.asarray(odom_now, dtype=float), np.asarray(wall_points))
+        if wall_points is not None:
+            wall_points = np.asarray(wall_points, dtype=float).reshape(-1, 2)
+        extra = None if wall_points is None else (np.asarray(odom_now, dtype=float), wall_points)
         recent = self.stack(odom_now, c.refine_scans, extra)
         places = self.refine(np.vstack([held, new]), recent, rounds=2)
         newest = self.evidence(places, recent)
