@@ -160,3 +160,21 @@ def test_faces_that_end_either_side_of_a_doorway_make_no_corner_in_the_gap():
     meeting = [wall_x(0.0, np.arange(0.0, 3.0, 0.05), height), wall_y(0.0, np.arange(0.0, 4.0, 0.05), height)]
     found = detect_corners(*scene(meeting, rng))
     assert len(found) == 1 and np.hypot(found.features[0].x, found.features[0].y) < 0.02
+
+
+def test_the_gap_is_measured_on_every_wall_return_not_only_the_subsample_the_planes_were_fitted_to():
+    # two walls meeting at (0, 0) under a ceiling, each seen near the corner only as a thin column of returns
+    # 0.2 m from it (as far, grazing walls give), densely from 0.6 m on: the planes are fitted to 150 points of
+    # each class, which keep none of the columns, but the scan has them, so the walls reach the corner
+    rng = np.random.default_rng(9)
+    height = np.arange(-0.5, 2.5, 0.05)
+    column = np.array([0.2])
+    partition = np.concatenate([wall_x(0.0, column, height[::6]), wall_x(0.0, np.arange(0.6, 3.0, 0.05), height)])
+    corridor = np.concatenate([wall_y(0.0, column, height[::6]), wall_y(0.0, np.arange(0.6, 4.0, 0.05), height)])
+    config = CornerDetectorConfig(max_points_per_class=150)
+    points, labels = scene([partition, corridor], rng)
+    found = detect_corners(points, labels, config=config)
+    assert len(found) == 1 and np.hypot(found.features[0].x, found.features[0].y) < 0.05
+    # the columns are what reach the corner: without them both faces stop 0.6 m short, as in a doorway's gap
+    near = (np.hypot(points[:, 0], points[:, 1]) < 0.25) & (labels == WALL)
+    assert near.sum() == 20 and len(detect_corners(points[~near], labels[~near], config=config)) == 0

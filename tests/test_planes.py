@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pimm_agents.corners.planes import PlaneParams, _median, constrained_ransac, extract_planes
+from pimm_agents.corners.planes import PlaneParams, constrained_ransac, extract_planes, robust_refit
 
 
 def wall_and_clutter(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -47,7 +47,11 @@ def test_extract_planes_by_either_ransac_takes_planes_largest_first():
         PlaneParams(method="magic")
 
 
-@pytest.mark.parametrize("n", [1, 2, 5, 6, 2501])
-def test_the_partition_median_equals_numpys(n: int) -> None:
-    values = np.random.default_rng(n).normal(size=n)
-    assert _median(values) == float(np.median(values))
+def test_the_robust_refit_trims_the_band_of_a_meeting_wall():
+    # a wall x = 0 and the first 0.2 m of a wall y = 0 meeting it: RANSAC's 0.2 m band takes both in
+    rng = np.random.default_rng(4)
+    wall = np.column_stack([rng.normal(0, 0.005, 400), rng.uniform(0.2, 4, 400), rng.uniform(0, 3, 400)])
+    meeting = np.column_stack([rng.uniform(0, 0.2, 60), rng.normal(0, 0.005, 60), rng.uniform(0, 3, 60)])
+    normal, d, rms, kept = robust_refit(np.concatenate([wall, meeting]))
+    assert abs(abs(normal[0]) - 1) < 1e-3 and abs(d) < 0.01 and rms < 0.01
+    assert 395 <= len(kept) <= 420  # the wall's points, few of the meeting wall's

@@ -11,10 +11,12 @@ to the corner; these three offset variances map to the corner through the invers
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
+from numba import njit
 
 from pimm_agents.corners.planes import Plane, PlaneParams, extract_planes
 from pimm_agents.perception.point_arrays import finite_rows
@@ -57,8 +59,13 @@ class CornerDetectorConfig:
     # of two faces that end either side of a doorway meet in the gap, up to max_corner_distance (2 m) from
     # either; in office rows those phantoms were half the features seen while driving. 0: no test.
     max_wall_gap: float = 0.5
-    # ours: the gap allowed grows by this much per metre from the sensor to the corner, as the returns (and
-    # the 2 500 kept of them) thin out with range; 0: the same gap at any range
+    # ours, m: the gap is measured to the scan's wall returns (every one, not only the 2 500 the planes were
+    # fitted to) within this distance of the wall's plane (or 3 RMS of its fit, if more). Where one wall
+    # reaches the corner, its returns there lie in the other's band too: the test rejects the corner only when
+    # neither face comes near its edge, as in a doorway's gap
+    wall_gap_band: float = 0.1
+    # ours: the gap allowed grows by this much per metre from the sensor to the corner, as the returns thin
+    # out with range; 0: the same gap at any range
     wall_gap_per_m: float = 0.0
     max_points_per_class: int = 2500  # random subsample for speed; 0 keeps all
     min_position_std: float = 0.02  # m: a floor on the derived position uncertainty
@@ -74,6 +81,7 @@ class CornerDetectorConfig:
             "through_points",
             "through_band",
             "max_wall_gap",
+            "wall_gap_band",
             "wall_gap_per_m",
             "max_points_per_class",
             "min_position_std",
@@ -114,25 +122,30 @@ def detect_corners(
 ) -> FeatureList:
     """Corners in the frame of ``points`` (N, 3), given a class per point; NaN points are ignored."""
     config = config or CornerDetectorConfig()
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    points = np.asarray(points).reshape(-1, 3)
     labels = np.asarray(labels).reshape(-1)
     if len(points) != len(labels):
         raise LocalizerError(f"{len(points)} points but {len(labels)} labels")
-    finite = finite_rows(points)
     rng = np.random.default_rng(seed)
-    walls = _planes_of(points[finite & (labels == SemanticClass.WALL)], config, rng, seed, "vertical")
+    wall_points = _points_of(points, labels, SemanticClass.WALL)
+    walls = _planes_of(wall_points, config, rng, seed, "vertical")
     walls = [p for p in walls if abs(p.normal[2]) < config.vertical_max_nz]
     if len(walls) < 2:
         return FeatureList(stamp, [])
-    ceilings = _planes_of(points[finite & (labels == SemanticClass.CEILING)], config, rng, seed + 1, "horizontal")
+    ceilings = _planes_of(_points_of(points, labels, SemanticClass.CEILING), config, rng, seed + 1, "horizontal")
     ceilings = [p for p in ceilings if abs(p.normal[2]) > config.horizontal_min_nz]
     candidates = [
         feature
-        for ceiling in ceilings
-        for a, b in combinations(walls, 2)
-        if (feature := _corner(a, b, ceiling, config)) is not None
+        for a, b, ceiling, corner in _intersections(walls, ceilings, config)
+        if (feature := _corner(a, b, ceiling, corner, wall_points, config)) is not None
     ]
     return FeatureList(stamp, _merge(candidates, config.merge_distance))
+
+
+def _points_of(points: np.ndarray, labels: np.ndarray, semantic: SemanticClass) -> np.ndarray:
+    """The finite points of one class, as float64."""
+    chosen = np.asarray(points[labels == semantic], dtype=float)
+    return chosen[finite_rows(chosen)]
 
 
 def _planes_of(
@@ -143,27 +156,55 @@ def _planes_of(
     return extract_planes(points, config.planes, seed, orientation)
 
 
-def _corner(a: Plane, b: Plane, ceiling: Plane, config: CornerDetectorConfig) -> Feature | None:
-    normals = np.stack([a.normal, b.normal, ceiling.normal])
-    max_cos = np.cos(config.min_plane_angle)
-    for i, j in ((0, 1), (0, 2), (1, 2)):
-        if abs(normals[i] @ normals[j]) > max_cos + 1e-12:
+def _intersections(
+    walls: list[Plane], ceilings: list[Plane], config: CornerDetectorConfig
+) -> list[tuple[Plane, Plane, Plane, np.ndarray]]:
+    """Each pair of walls with each ceiling whose normals are all at least ``min_plane_angle`` apart, with the
+    point where the three planes meet, kept when that point lies within ``max_corner_distance`` of all three
+    planes' inlier boxes (a cheap lower bound on the distance to their inliers). One batched solve."""
+    if not ceilings:
+        return []
+    triples = [(a, b, c) for c in ceilings for a, b in combinations(walls, 2)]
+    normals = np.array([[a.normal, b.normal, c.normal] for a, b, c in triples])
+    max_cos = np.cos(config.min_plane_angle) + 1e-12
+    cosines = np.abs(np.einsum("kij,klj->kil", normals, normals))[:, [0, 0, 1], [1, 2, 2]]
+    apart = np.all(cosines <= max_cos, axis=1)
+    if not apart.any():
+        return []
+    offsets = np.array([[a.d, b.d, c.d] for a, b, c in triples])
+    corners = np.linalg.solve(normals[apart], -offsets[apart][..., None])[..., 0]
+    kept = [triple for triple, ok in zip(triples, apart, strict=True) if ok]
+    lower = np.array([[p.bounds[0] for p in triple] for triple in kept])
+    upper = np.array([[p.bounds[1] for p in triple] for triple in kept])
+    outside = np.maximum(np.maximum(lower - corners[:, None], corners[:, None] - upper), 0.0)
+    near = np.all(np.linalg.norm(outside, axis=2) <= config.max_corner_distance, axis=1)
+    return [(*triple, corner) for triple, corner, ok in zip(kept, corners, near, strict=True) if ok]
+
+
+def _corner(
+    a: Plane, b: Plane, ceiling: Plane, corner: np.ndarray, wall_points: np.ndarray, config: CornerDetectorConfig
+) -> Feature | None:
+    """The corner where the three planes meet at ``corner``, or None where a rule rejects it; ``wall_points``
+    are every wall return of the scan (the planes were fitted to a subsample)."""
+    reach = _nearest_distance(ceiling.inliers, corner)
+    if reach > config.max_corner_distance:
+        return None
+    for wall in (a, b):
+        distance, ends = _wall_checks(wall, corner, config)
+        if distance > config.max_corner_distance or not ends:
             return None
-    corner = np.linalg.solve(normals, -np.array([a.d, b.d, ceiling.d]))
-    if any(p.box_distance(corner) > config.max_corner_distance for p in (a, b, ceiling)):
-        return None  # far from some plane's inliers: rejected without measuring to each of them
-    gaps = [p.nearest_distance(corner) for p in (a, b, ceiling)]
-    if max(gaps) > config.max_corner_distance:
-        return None
-    allowed = config.max_wall_gap + config.wall_gap_per_m * float(np.hypot(corner[0], corner[1]))
-    if config.max_wall_gap > 0 and max(_floor_gap(p, corner) for p in (a, b)) > allowed:
-        return None
-    if not all(_ends_at(p, corner, config) for p in (a, b)):
-        return None
+        reach = max(reach, distance)
+    if config.max_wall_gap > 0:
+        allowed = config.max_wall_gap + config.wall_gap_per_m * float(np.hypot(corner[0], corner[1]))
+        for wall in (a, b):
+            band = max(config.wall_gap_band, 3 * wall.rms)
+            if _floor_gap(wall_points, np.array([*wall.normal, wall.d]), band, corner) > allowed:
+                return None
     towards = [(p.centroid - corner)[:2] for p in (a, b)]
     bisector = sum(v / max(np.linalg.norm(v), 1e-9) for v in towards)
     if np.linalg.norm(bisector) < 1e-6:
         return None
+    normals = np.stack([a.normal, b.normal, ceiling.normal])
     position_cov, orientation_var = _uncertainty(normals, (a, b, ceiling), corner, config)
     return Feature(
         float(corner[0]),
@@ -171,13 +212,8 @@ def _corner(a: Plane, b: Plane, ceiling: Plane, config: CornerDetectorConfig) ->
         float(np.arctan2(bisector[1], bisector[0])),
         position_cov,
         orientation_var,
-        float(max(0.0, 1.0 - max(gaps) / config.max_corner_distance)),
+        float(max(0.0, 1.0 - reach / config.max_corner_distance)),
     )
-
-
-def _floor_gap(wall: Plane, corner: np.ndarray) -> float:
-    """Distance in the floor plane from the corner's vertical edge to the wall's nearest inlier."""
-    return float(np.min(np.hypot(*(wall.inliers[:, :2] - corner[:2]).T)))
 
 
 def _ends_at(wall: Plane, corner: np.ndarray, config: CornerDetectorConfig) -> bool:
@@ -192,18 +228,73 @@ def _ends_at(wall: Plane, corner: np.ndarray, config: CornerDetectorConfig) -> b
     doorway) or with two parallel faces that RANSAC's band merged into one plane is a phantom. The height
     band keeps real corners where a wall runs on past the corner only lower down, under a step in the ceiling.
     """
-    along = np.array([-wall.normal[1], wall.normal[0]])
-    along /= max(np.linalg.norm(along), 1e-9)
-    t = (wall.inliers[:, :2] - corner[:2]) @ along
-    height = np.abs(wall.inliers[:, 2] - corner[2])
-    on_face = (np.abs(t) >= config.min_face) & (np.abs(t) <= config.max_corner_distance)
-    face = on_face & (height <= config.face_band)
-    if config.min_face > 0 and max(np.sum(face & (t > 0)), np.sum(face & (t < 0))) < config.min_face_points:
-        return False
-    if config.through_points <= 0:
-        return True
-    near = on_face & (height <= config.through_band)
-    return bool(min(np.sum(near & (t > 0)), np.sum(near & (t < 0))) < config.through_points)
+    return _wall_checks(wall, corner, config)[1]
+
+
+def _wall_checks(wall: Plane, corner: np.ndarray, config: CornerDetectorConfig) -> tuple[float, bool]:
+    """The distance from the corner to the wall's nearest inlier, and whether the wall ends at the corner
+    (:func:`_ends_at`), in one pass over its inliers."""
+    return _compiled_wall_checks(
+        wall.inliers, wall.normal, np.asarray(corner, dtype=float), config.max_corner_distance, config.min_face,
+        config.min_face_points, config.face_band, config.through_points, config.through_band,
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True)
+def _compiled_wall_checks(
+    inliers: np.ndarray,
+    normal: np.ndarray,
+    corner: np.ndarray,
+    max_corner_distance: float,
+    min_face: float,
+    min_face_points: int,
+    face_band: float,
+    through_points: int,
+    through_band: float,
+) -> tuple[float, bool]:
+    ax, ay = -normal[1], normal[0]
+    norm = max(math.sqrt(ax * ax + ay * ay), 1e-9)
+    ax, ay = ax / norm, ay / norm
+    nearest = np.inf
+    face_ahead = face_behind = near_ahead = near_behind = 0
+    for i in range(inliers.shape[0]):
+        dx, dy, dz = inliers[i, 0] - corner[0], inliers[i, 1] - corner[1], inliers[i, 2] - corner[2]
+        nearest = min(nearest, dx * dx + dy * dy + dz * dz)
+        t = dx * ax + dy * ay
+        if not min_face <= abs(t) <= max_corner_distance:
+            continue
+        height = abs(dz)
+        if height <= face_band:
+            face_ahead += t > 0
+            face_behind += t < 0
+        if height <= through_band:
+            near_ahead += t > 0
+            near_behind += t < 0
+    if min_face > 0 and max(face_ahead, face_behind) < min_face_points:
+        return math.sqrt(nearest), False
+    return math.sqrt(nearest), through_points <= 0 or min(near_ahead, near_behind) < through_points
+
+
+@njit(cache=True, nogil=True)
+def _nearest_distance(points: np.ndarray, corner: np.ndarray) -> float:
+    """Distance from ``corner`` to the nearest of ``points`` (K, 3)."""
+    best = np.inf
+    for i in range(points.shape[0]):
+        dx, dy, dz = points[i, 0] - corner[0], points[i, 1] - corner[1], points[i, 2] - corner[2]
+        best = min(best, dx * dx + dy * dy + dz * dz)
+    return math.sqrt(best)
+
+
+@njit(cache=True, nogil=True)
+def _floor_gap(points: np.ndarray, plane: np.ndarray, band: float, corner: np.ndarray) -> float:
+    """Distance in the floor plane from the corner's vertical edge to the nearest of ``points`` within ``band``
+    of ``plane`` (normal and offset, 4 numbers)."""
+    best = np.inf
+    for i in range(points.shape[0]):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        if abs(plane[0] * x + plane[1] * y + plane[2] * z + plane[3]) <= band:
+            best = min(best, (x - corner[0]) ** 2 + (y - corner[1]) ** 2)
+    return math.sqrt(best)
 
 
 def _uncertainty(

@@ -2,15 +2,19 @@
 
 Two RANSACs are offered. Open3D's ``segment_plane`` (the thesis's) draws planes of any orientation. Ours draws
 only the orientation the class allows (walls: vertical planes through two points; ceilings: horizontal planes
-through one) and scores every hypothesis against every point in one array operation.
+through one), and its whole loop (hypotheses, scoring, the robust refit, taking the inliers out) is compiled
+with numba: a scan's planes cost a tenth of what the same steps cost as NumPy calls (``evaluate.py bench``,
+``corners_ms``; docs/design.md#measured-choices).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from numba import njit
 
 from pimm_agents.perception.point_arrays import column_bounds, column_mean, finite_rows
 from pimm_env.errors import LocalizerError
@@ -57,60 +61,21 @@ class Plane:
         """RMS distance of the inliers from their centroid (1 for a degenerate plane)."""
         return float(np.sqrt(np.mean(np.sum((self.inliers - self.centroid) ** 2, axis=1)))) or 1.0
 
-    def nearest_distance(self, point: np.ndarray) -> float:
-        """Distance from ``point`` to the nearest inlier."""
-        offset = self.inliers - point
-        return float(np.sqrt(np.min(np.einsum("ij,ij->i", offset, offset))))
-
-    def box_distance(self, point: np.ndarray) -> float:
-        """Distance from ``point`` to the inliers' box: a cheap lower bound on the distance to any inlier."""
-        lower, upper = self.bounds
-        return float(np.linalg.norm(np.maximum(np.maximum(lower - point, point - upper), 0.0)))
-
     def distance(self, points: np.ndarray) -> np.ndarray:
         return np.abs(points @ self.normal + self.d)
-
-
-def refit(points: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """Least-squares plane through ``points``: unit normal, offset and RMS residual.
-
-    The normal is the eigenvector of the 3 x 3 scatter matrix with the smallest eigenvalue, which is the RMS
-    residual squared (the same plane as an SVD of the centred points, at a fraction of the cost).
-    """
-    centroid = column_mean(points)
-    centred = points - centroid
-    values, vectors = np.linalg.eigh(centred.T @ centred / len(points))
-    normal = vectors[:, 0]
-    rms = float(np.sqrt(max(values[0], 0.0)))
-    return normal, float(-normal @ centroid), rms
 
 
 def robust_refit(points: np.ndarray, rounds: int = 3) -> tuple[np.ndarray, float, float, np.ndarray]:
     """Least-squares plane refitted a few times on the points within 3 robust sigmas of the last fit.
 
     RANSAC's band (0.2 m by default) also takes in the first 0.2 m of any wall meeting this one; trimming
-    them keeps the corner where the two surfaces really meet. Returns normal, offset, RMS and the kept points.
+    them keeps the corner where the two surfaces really meet. The normal is the eigenvector of the 3 x 3
+    scatter matrix with the smallest eigenvalue, which is the RMS residual squared. Returns normal, offset,
+    RMS and the kept points.
     """
-    kept = points
-    normal, d, rms = refit(kept)
-    for _ in range(rounds):
-        residual = np.abs(points @ normal + d)
-        sigma = 1.4826 * _median(residual)
-        inside = residual <= max(3.0 * sigma, 0.01)
-        if inside.sum() < 3 or inside.sum() == len(kept):
-            break
-        kept = points[inside]
-        normal, d, rms = refit(kept)
-    return normal, d, rms, kept
-
-
-def _median(values: np.ndarray) -> float:
-    """``np.median`` of a 1-D array by one partition, without its general-purpose overhead."""
-    half = len(values) // 2
-    if len(values) % 2:
-        return float(np.partition(values, half)[half])
-    low, high = np.partition(values, (half - 1, half))[half - 1 : half + 1]
-    return float((low + high) / 2)
+    points = np.ascontiguousarray(points, dtype=float)
+    normal, d, rms, kept = _robust_refit(points, rounds)
+    return normal, float(d), float(rms), points[kept]
 
 
 def constrained_ransac(
@@ -124,39 +89,20 @@ def constrained_ransac(
     """Indices of the inliers of the best of ``iterations`` random planes of the given orientation.
 
     "vertical": the plane through two points' floor projections, standing upright; "horizontal": the level
-    plane through one point; "any": the plane through three points. Every hypothesis is scored against every
-    point at once, as a (points x hypotheses) array of distances.
+    plane through one point; "any": the plane through three points. Hypotheses are scored on the first
+    ``score_points`` points (a random subset when the caller shuffled them), the best on all of them.
     """
     if orientation not in ORIENTATIONS:
         raise LocalizerError(f"orientation {orientation!r}: valid orientations are {ORIENTATIONS}")
-    n = len(points)
-    if n == 0:
+    points = np.ascontiguousarray(points, dtype=float)
+    if len(points) == 0:
         return np.zeros(0, dtype=np.int64)
-    pts = points.astype(np.float32)
-    picks = rng.integers(0, n, size=(3, iterations))
-    if orientation == "horizontal":
-        normals = np.tile(np.array([0.0, 0.0, 1.0], np.float32), (iterations, 1))
-    else:
-        a, b = pts[picks[0]], pts[picks[1]]
-        if orientation == "vertical":
-            run = b[:, :2] - a[:, :2]
-            normals = np.stack([-run[:, 1], run[:, 0], np.zeros(iterations, np.float32)], axis=1)
-        else:
-            normals = np.cross(b - a, pts[picks[2]] - a)
-    norm = np.linalg.norm(normals, axis=1)
-    good = norm > 1e-6  # coincident picks make no plane
-    if not good.any():
+    draws = rng.random((iterations, 3))
+    xs, ys, zs = (np.ascontiguousarray(points[:, axis]) for axis in range(3))
+    (nx, ny, nz, d), found = _best_plane(xs, ys, zs, draws, threshold, _ORIENTATION_CODE[orientation], score_points)
+    if not found:
         return np.zeros(0, dtype=np.int64)
-    normals = normals[good] / norm[good, None]
-    offsets = -np.einsum("ij,ij->i", normals, pts[picks[0][good]])
-    # hypotheses are scored on the first ``score_points`` points (a random subset when the caller shuffled them)
-    distance = pts[:score_points] @ normals.T
-    distance += offsets
-    np.abs(distance, out=distance)
-    inside = distance <= threshold
-    # summing a bool array along an axis is slow; as bytes into int32 it is four times faster
-    best = int(np.argmax(inside.view(np.uint8).sum(axis=0, dtype=np.int32)))
-    return np.flatnonzero(np.abs(pts @ normals[best] + offsets[best]) <= threshold)
+    return np.flatnonzero(np.abs(points @ np.array([nx, ny, nz]) + d) <= threshold)
 
 
 def extract_planes(points: np.ndarray, params: PlaneParams, seed: int = 0, orientation: str = "any") -> list[Plane]:
@@ -165,24 +111,31 @@ def extract_planes(points: np.ndarray, params: PlaneParams, seed: int = 0, orien
     Each RANSAC model is refitted to its inliers by trimmed least squares (:func:`robust_refit`). Both RANSACs
     are seeded, so that a scan always gives the same planes; ``orientation`` steers the constrained one only.
     """
+    if orientation not in ORIENTATIONS:
+        raise LocalizerError(f"orientation {orientation!r}: valid orientations are {ORIENTATIONS}")
     points = np.asarray(points, dtype=float)
-    points = points[finite_rows(points)]
-    if params.method == "open3d":
-        import open3d as o3d
+    points = np.ascontiguousarray(points[finite_rows(points)])
+    if params.method == "constrained":
+        draws = np.random.default_rng(seed).random((params.max_planes, params.iterations, 3))
+        normals, offsets, rms, owner = _extract(
+            points, draws, params.distance_threshold, _ORIENTATION_CODE[orientation], params.score_points,
+            params.min_inliers,
+        )  # fmt: skip
+        return [Plane(normals[k], float(offsets[k]), points[owner == k], float(rms[k])) for k in range(len(rms))]
+    return _open3d_planes(points, params, seed)
 
-        o3d.utility.random.seed(seed)
-    rng = np.random.default_rng(seed)
+
+def _open3d_planes(points: np.ndarray, params: PlaneParams, seed: int) -> list[Plane]:
+    """The thesis's loop: Open3D's ``segment_plane`` (any orientation), refitted as ours."""
+    import open3d as o3d
+
+    o3d.utility.random.seed(seed)
     planes: list[Plane] = []
     remaining = points
     while len(planes) < params.max_planes and len(remaining) >= params.min_inliers:
-        if params.method == "constrained":
-            index = constrained_ransac(
-                remaining, params.distance_threshold, params.iterations, orientation, rng, params.score_points
-            )
-        else:
-            cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(remaining))
-            _, inlier_list = cloud.segment_plane(params.distance_threshold, 3, params.iterations)
-            index = np.asarray(inlier_list, dtype=np.int64)
+        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(remaining))
+        _, inlier_list = cloud.segment_plane(params.distance_threshold, 3, params.iterations)
+        index = np.asarray(inlier_list, dtype=np.int64)
         if len(index) < params.min_inliers:
             break
         normal, d, rms, inliers = robust_refit(remaining[index])
@@ -191,3 +144,145 @@ def extract_planes(points: np.ndarray, params: PlaneParams, seed: int = 0, orien
         keep[index] = False
         remaining = remaining[keep]
     return planes
+
+
+# ---- compiled RANSAC (the "constrained" method) ----
+
+_ORIENTATION_CODE = {"any": 0, "vertical": 1, "horizontal": 2}
+
+
+@njit(cache=True, nogil=True)
+def _hypothesis(xs: np.ndarray, ys: np.ndarray, zs: np.ndarray, draw: np.ndarray, orientation: int) -> tuple:
+    """The plane (unit normal, offset, made) through the points that ``draw`` (3 numbers in [0, 1)) picks;
+    ``made`` is False when the picks make no plane (coincident points)."""
+    count = xs.shape[0]
+    i = min(int(draw[0] * count), count - 1)
+    ax, ay, az = xs[i], ys[i], zs[i]
+    nx, ny, nz = 0.0, 0.0, 1.0
+    if orientation != 2:
+        j = min(int(draw[1] * count), count - 1)
+        u0, u1, u2 = xs[j] - ax, ys[j] - ay, zs[j] - az
+        if orientation == 1:
+            nx, ny, nz = -u1, u0, 0.0
+        else:
+            k = min(int(draw[2] * count), count - 1)
+            v0, v1, v2 = xs[k] - ax, ys[k] - ay, zs[k] - az
+            nx, ny, nz = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+    norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if norm <= 1e-6:
+        return 0.0, 0.0, 0.0, 0.0, False
+    nx, ny, nz = nx / norm, ny / norm, nz / norm
+    return nx, ny, nz, -(nx * ax + ny * ay + nz * az), True
+
+
+@njit(cache=True, nogil=True)
+def _best_plane(
+    xs: np.ndarray,
+    ys: np.ndarray,
+    zs: np.ndarray,
+    draws: np.ndarray,
+    threshold: float,
+    orientation: int,
+    score_points: int,
+) -> tuple:
+    """Of one random plane per row of ``draws``, the one with the most of the first ``score_points`` points
+    (coordinates ``xs``, ``ys``, ``zs``) within ``threshold`` (the first such on a tie); ``found`` False when
+    no draw made a plane."""
+    scored = min(score_points, xs.shape[0])
+    best, best_plane, found = -1, (0.0, 0.0, 0.0, 0.0), False
+    for h in range(draws.shape[0]):
+        nx, ny, nz, d, made = _hypothesis(xs, ys, zs, draws[h], orientation)
+        if not made:
+            continue
+        inside = 0
+        for i in range(scored):
+            inside += abs(nx * xs[i] + ny * ys[i] + nz * zs[i] + d) <= threshold
+        if inside > best:
+            best, best_plane, found = inside, (nx, ny, nz, d), True
+    return best_plane, found
+
+
+@njit(cache=True, nogil=True)
+def _refit(points: np.ndarray) -> tuple:
+    """Least-squares plane of ``points`` (K, 3): the scatter matrix's eigenvector of least eigenvalue."""
+    n = points.shape[0]
+    cx, cy, cz = 0.0, 0.0, 0.0
+    for i in range(n):
+        cx += points[i, 0]
+        cy += points[i, 1]
+        cz += points[i, 2]
+    cx, cy, cz = cx / n, cy / n, cz / n
+    sxx = sxy = sxz = syy = syz = szz = 0.0
+    for i in range(n):
+        x, y, z = points[i, 0] - cx, points[i, 1] - cy, points[i, 2] - cz
+        sxx += x * x
+        sxy += x * y
+        sxz += x * z
+        syy += y * y
+        syz += y * z
+        szz += z * z
+    scatter = np.array([[sxx, sxy, sxz], [sxy, syy, syz], [sxz, syz, szz]]) / n
+    values, vectors = np.linalg.eigh(scatter)
+    normal = vectors[:, 0].copy()
+    return normal, -(normal[0] * cx + normal[1] * cy + normal[2] * cz), math.sqrt(max(values[0], 0.0))
+
+
+@njit(cache=True, nogil=True)
+def _robust_refit(points: np.ndarray, rounds: int) -> tuple:
+    """:func:`robust_refit`, compiled: the plane and a mask of the points it kept."""
+    kept = np.ones(points.shape[0], dtype=np.bool_)
+    normal, d, rms = _refit(points)
+    for _ in range(rounds):
+        residual = np.abs(points @ normal + d)
+        inside = residual <= max(3.0 * 1.4826 * np.median(residual), 0.01)
+        inside_count = inside.sum()
+        if inside_count < 3 or inside_count == kept.sum():
+            break
+        kept = inside
+        normal, d, rms = _refit(points[kept])
+    return normal, d, rms, kept
+
+
+@njit(cache=True, nogil=True)
+def _extract(
+    points: np.ndarray,
+    draws: np.ndarray,
+    threshold: float,
+    orientation: int,
+    score_points: int,
+    min_inliers: int,
+) -> tuple:
+    """Up to ``draws.shape[0]`` planes, one RANSAC per row of ``draws`` on the points no earlier plane took,
+    each refitted robustly. Returns normals (P, 3), offsets, RMS residuals and each point's plane (-1 none)."""
+    n = points.shape[0]
+    planes = draws.shape[0]
+    normals, offsets, rms_of = np.zeros((planes, 3)), np.zeros(planes), np.zeros(planes)
+    owner = np.full(n, -1, dtype=np.int64)
+    alive = np.arange(n)  # the points no plane took yet, in their order (its first ones are the scored ones)
+    xs, ys, zs = points[:, 0].copy(), points[:, 1].copy(), points[:, 2].copy()
+    count, made = n, 0
+    for k in range(planes):
+        if count < min_inliers:
+            break
+        plane, found = _best_plane(xs[:count], ys[:count], zs[:count], draws[k], threshold, orientation, score_points)
+        if not found:
+            break
+        nx, ny, nz, d = plane
+        inliers = np.empty(count, dtype=np.int64)
+        m = left = 0
+        for i in range(count):  # the inliers leave the pool (kept by the refit or trimmed); the rest close up
+            if abs(nx * xs[i] + ny * ys[i] + nz * zs[i] + d) <= threshold:
+                inliers[m] = alive[i]
+                m += 1
+            else:
+                alive[left], xs[left], ys[left], zs[left] = alive[i], xs[i], ys[i], zs[i]
+                left += 1
+        if m < min_inliers:
+            break
+        inliers = inliers[:m]
+        normal, offset, rms, kept = _robust_refit(points[inliers], 3)
+        normals[made], offsets[made], rms_of[made] = normal, offset, rms
+        owner[inliers[kept]] = made
+        made += 1
+        count = left
+    return normals[:made], offsets[:made], rms_of[:made], owner
