@@ -30,6 +30,7 @@ from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
 from pimm_agents.pimm.ambiguity import AmbiguityCheck
+from pimm_agents.pimm.corner_evidence import corner_exponents
 from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
@@ -206,40 +207,18 @@ class FeatureFilter:
     def likelihoods(self, features: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
         """Eq. 3.15 summed as cubes over the features, for every particle (or each of ``poses``): L_total (N,).
 
-        The filter's hot loop (10 000 particles x 5 features per update): float32, arrays laid out
-        (features, particles) so every operation runs along the long axis, and the nearest corner read
-        straight from the lookup grid's cells.
+        The filter's hot loop (10 000 particles x 5 features per update): float32, the exponents compiled
+        (``corner_evidence``), the nearest corner read straight from the lookup grid's cells.
         """
         if self.corners is None:
             raise LocalizerError("the filter has no corner map to weigh corner features with")
         f = np.asarray(features, dtype=np.float32).reshape(-1, len(FEATURE_COLUMNS))
         x, y, theta = (self.particles if poses is None else poses).T.astype(np.float32)
-        cos, sin = np.cos(theta), np.sin(theta)
-        fx, fy = f[:, 0:1], f[:, 1:2]
-        mx = fx * cos
-        mx -= fy * sin
-        mx += x
-        my = fy * cos
-        my += fx * sin
-        my += y
-        da = theta + f[:, 2:3]  # the feature's heading in the map
-        cell = self.corners.cells(mx, my, da)
-        corner = np.take(self.corners.cell_xy, cell)
-        mx -= corner.real
-        my -= corner.imag
-        da -= np.take(self.corners.cell_theta, cell)
-        da -= np.float32(2 * np.pi) * np.rint(da * np.float32(1 / (2 * np.pi)))
         # L^3 = exp(-3 (d^2 / 2 sigma_pos^2 + da^2 / 2 sigma_theta^2))
-        mx *= mx
-        my *= my
-        mx += my
-        mx *= -1.5 / f[:, 3:4] ** 2
-        da *= da
-        da *= -1.5 / f[:, 4:5] ** 2
-        mx += da
-        np.maximum(mx, np.float32(-60.0), out=mx)  # exp(-60) ~ 1e-26 is nothing; lower, float32 goes subnormal (slow)
-        np.exp(mx, out=mx)
-        return mx.sum(axis=0, dtype=np.float64)
+        exponent = corner_exponents(self.corners, f, x, y, theta)
+        np.maximum(exponent, np.float32(-60.0), out=exponent)  # exp(-60) ~ 1e-26 is nothing; lower, float32 goes
+        np.exp(exponent, out=exponent)  # subnormal (slow)
+        return exponent.sum(axis=0, dtype=np.float64)
 
     def in_free_space(self, poses: np.ndarray | None = None) -> np.ndarray:
         """Per particle (or pose): whether it lies in a free cell of the map."""
