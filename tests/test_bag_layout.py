@@ -17,7 +17,7 @@ from pimm_env.bags.messages import point_cloud, typestore
 from pimm_env.bags.record import record_scenario
 from pimm_env.errors import BagError
 from pimm_env.mapping.derived_maps import ensure_derived_maps
-from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
+from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, non_repetitive_directions
 from pimm_env.sim.sensors import LIDAR_2D, LIDAR_3D, sensor_layouts, write_sensors_file
 from pimm_env.world.files import load_world
 from tests.test_trials import AMCL, ROUTES
@@ -74,22 +74,42 @@ def test_organize_puts_top_first_shuffled_and_unorganized_clouds_back_in_the_gri
         organize(other[other_mask > 0], layout, "test")
 
 
-def test_an_unorganized_cloud_needs_a_ring_field_or_sensors(tmp_path):
+def flat_cloud_bag(path: Path, cloud: np.ndarray, mask: np.ndarray) -> Path:
+    """A bag of one unorganized PointCloud2 (height 1, no ring field) and one odometry message."""
     from rosbags.rosbag2 import Writer
 
     from pimm_env.bags.messages import odometry
 
-    store, layout = typestore(), LIDAR_3D["thesis"]
-    cloud, mask = sphere_cloud(layout)
+    store = typestore()
     msg = point_cloud(store, 0.1, cloud, mask, rings=1)  # height 1: no rows to count rings by
-    path = tmp_path / "flat"
     with Writer(path, version=9) as writer:
         points = writer.add_connection("/points", "sensor_msgs/msg/PointCloud2", typestore=store)
         odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
         writer.write(points, 100, store.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2"))
         writer.write(odom, 200, store.serialize_cdr(odometry(store, 0.2, np.zeros(3), "odom"), "nav_msgs/msg/Odometry"))
-    with pytest.raises(BagError, match=r"flat: /points message 0: an unorganized PointCloud2 .* without a ring field"):
-        layouts_from_bag(path, "/scan", "/points")
+    return path
+
+
+@pytest.mark.parametrize("name", ["thesis", "vlp-16", "os1-128"])
+def test_an_unorganized_cloud_without_rings_has_them_read_from_its_elevations(tmp_path, name):
+    layout = LIDAR_3D[name]
+    cloud, mask = sphere_cloud(layout)
+    order = np.random.default_rng(2).permutation(len(cloud))  # in no order, and only the returns
+    returned = cloud[order][mask[order] > 0]
+    bag = flat_cloud_bag(tmp_path / name, returned, np.ones(len(returned), np.int8))
+    lidar3d, _ = layouts_from_bag(bag, "/scan", "/points")
+    assert [getattr(lidar3d, k) for k in GEOMETRY_3D] == pytest.approx([getattr(layout, k) for k in GEOMETRY_3D])
+    placed, placed_mask = organize(returned, lidar3d, "test")  # and replay places every return on its ray
+    assert np.array_equal(placed_mask, mask) and np.allclose(placed, cloud)
+
+
+def test_a_cloud_whose_elevations_form_no_rings_says_what_to_give(tmp_path):
+    # a non-repetitive pattern: quasi-random directions, no two returns at one elevation
+    directions = non_repetitive_directions(20_000, np.random.default_rng(0))
+    cloud = (directions * 4.0).astype(np.float32)
+    bag = flat_cloud_bag(tmp_path / "flat", cloud, np.ones(len(cloud), np.int8))
+    with pytest.raises(BagError, match=r"flat: /points message 0: .* without a ring field .* no rings .*--sensors"):
+        layouts_from_bag(bag, "/scan", "/points")
 
 
 def test_a_ros1_bag_with_no_record_file_replays_with_the_layout_its_messages_give(room, tmp_path):

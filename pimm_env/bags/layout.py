@@ -4,7 +4,11 @@
   is a full circle), range_min / range_max, and the rate from ``scan_time``.
 - 3D, from the first ``sensor_msgs/PointCloud2``: rings are the rows of an organized cloud, or the values of its
   ``ring`` field; columns are the points per ring; the vertical field is the spread of the rings' median
-  elevations, which must be evenly spaced and centred on the horizon (what ``Lidar3DConfig`` describes).
+  elevations, which must be evenly spaced and centred on the horizon (what ``Lidar3DConfig`` describes). An
+  unorganized cloud without a ring field (a driver or a conversion that dropped it) has its rings read from
+  its returns' elevations, which a spinning LiDAR's returns take at a few discrete values, and its columns
+  from the azimuth step within a ring (``layout_from_angles``); a cloud whose elevations form no evenly
+  spaced rings (a non-repetitive or solid-state pattern) is refused with what to give instead.
   Range and rate are not in the message: the rate comes from the first two clouds' stamps, the range is the
   thesis's unless the cloud reaches further.
 
@@ -60,22 +64,19 @@ def scan_layout(msg: Any, where: str) -> Lidar2DConfig:
         raise BagError(f"{where}: {error}") from None
 
 
-def ring_of_points(msg: Any, count: int, where: str) -> np.ndarray:
-    """Each point's ring: its row in an organized cloud, else its ``ring`` field."""
+def ring_of_points(msg: Any, count: int, where: str) -> np.ndarray | None:
+    """Each point's ring: its row in an organized cloud, else its ``ring`` field; None when it has neither."""
     if msg.height > 1:
         return np.repeat(np.arange(msg.height), msg.width)
     rings = field_of(msg, point_rows(msg, where), "ring")
-    if rings is None:
-        raise BagError(
-            f"{where}: an unorganized PointCloud2 (height 1) without a ring field does not tell its rings; "
-            "give the 3D LiDAR with --sensors (a preset or a sensors .yaml file)"
-        )
-    return rings.astype(np.int64)[:count]
+    return None if rings is None else rings.astype(np.int64)[:count]
 
 
 def cloud_layout(msg: Any, points: np.ndarray, where: str) -> Lidar3DConfig:
     """The 3D LiDAR a PointCloud2 (and its x/y/z ``points``) describes."""
     rings = ring_of_points(msg, len(points), where)
+    if rings is None:
+        return layout_from_angles(points, where)
     layers = int(rings.max()) + 1 if len(rings) else 0
     if layers < 2 or len(points) % layers:
         raise BagError(f"{where}: {len(points)} points in {layers} rings is not a grid of rings x columns")
@@ -86,20 +87,70 @@ def cloud_layout(msg: Any, points: np.ndarray, where: str) -> Lidar3DConfig:
         medians[ring] = np.median(elevation[returned & (rings == ring)])
     if np.isnan(medians).any():
         raise BagError(f"{where}: rings {np.flatnonzero(np.isnan(medians)).tolist()} have no return to measure")
-    ordered = np.sort(medians)
-    spacing = (ordered[-1] - ordered[0]) / (layers - 1)
-    even = np.abs(ordered - np.linspace(ordered[0], ordered[-1], layers)).max() <= spacing / 2
-    centred = abs(ordered[0] + ordered[-1]) / 2 <= spacing / 2
+    return _ring_layout(np.sort(medians), len(points) // layers, points[returned], where)
+
+
+#: Returns whose elevations lie closer than this belong to one ring (rad); a spinning LiDAR's rings are at
+#: least 0.3 deg apart (a 128-ring one over 45 deg), and a ring's returns share one elevation to far less.
+RING_GAP = np.radians(0.1)
+#: Fewest returns a ring of a cloud without a ring field must hold: fewer, and the elevations are not rings.
+MIN_RING_RETURNS = 8
+NO_RINGS = (
+    "give the 3D LiDAR with --sensors (a preset or a sensors .yaml file) to place its points into that layout's "
+    "grid, or segment single clouds with `evaluate.py segment`, which reads any point set"
+)
+
+
+def layout_from_angles(points: np.ndarray, where: str) -> Lidar3DConfig:
+    """The spinning LiDAR an unorganized cloud without a ring field came from: rings where its returns'
+    elevations cluster (gaps wider than ``RING_GAP`` between them), evenly spaced about the horizon; columns
+    from the median azimuth step between neighbouring returns of a ring. Refuses a cloud whose elevations form
+    no such rings, saying what to give instead."""
+    returned = points[returns(points)]
+    if len(returned) < 2 * MIN_RING_RETURNS:
+        raise BagError(f"{where}: {len(returned)} returns in a cloud without a ring field are too few to read its "
+                       f"rings from; {NO_RINGS}")  # fmt: skip
+    horizontal = np.hypot(returned[:, 0], returned[:, 1])
+    elevation = np.arctan2(returned[:, 2], horizontal)
+    order = np.argsort(elevation, kind="stable")
+    ring_of = np.zeros(len(returned), dtype=np.int64)
+    ring_of[order] = np.concatenate([[0], np.cumsum(np.diff(elevation[order]) > RING_GAP)])
+    counts = np.bincount(ring_of)
+    if len(counts) < 2 or counts.min() < MIN_RING_RETURNS:
+        raise BagError(
+            f"{where}: an unorganized PointCloud2 without a ring field whose returns' elevations form no rings "
+            f"({len(counts)} clusters, the smallest of {counts.min()} returns: a non-repetitive or solid-state "
+            f"pattern?); {NO_RINGS}"
+        )
+    medians = np.array([np.median(elevation[ring_of == ring]) for ring in range(len(counts))])
+    azimuth = np.arctan2(returned[:, 1], returned[:, 0])
+    steps = []
+    for ring in range(len(counts)):
+        around = np.sort(azimuth[ring_of == ring])
+        step = np.diff(around)
+        steps.append(np.median(step[step > 1e-6]) if (step > 1e-6).any() else np.inf)
+    columns = round(2 * np.pi / float(np.median(steps)))
+    if columns < 2:
+        raise BagError(f"{where}: the rings of a cloud without a ring field hold returns at one azimuth; {NO_RINGS}")
+    return _ring_layout(medians, columns, returned, where)
+
+
+def _ring_layout(medians: np.ndarray, columns: int, returned: np.ndarray, where: str) -> Lidar3DConfig:
+    """The layout of rings at ``medians`` (rad, lowest first) with ``columns`` points each, which must be evenly
+    spaced about the horizon; its range reaches the farthest of the ``returned`` points."""
+    layers = len(medians)
+    spacing = (medians[-1] - medians[0]) / (layers - 1)
+    even = np.abs(medians - np.linspace(medians[0], medians[-1], layers)).max() <= spacing / 2
+    centred = abs(medians[0] + medians[-1]) / 2 <= spacing / 2
     if not (even and centred):
         raise BagError(
-            f"{where}: rings from {np.degrees(ordered[0]):.1f} to {np.degrees(ordered[-1]):.1f} deg are not evenly "
+            f"{where}: rings from {np.degrees(medians[0]):.1f} to {np.degrees(medians[-1]):.1f} deg are not evenly "
             "spaced about the horizon, which is the only 3D layout this project models"
         )
-    fov = round(float(np.degrees(ordered[-1] - ordered[0])), 1)
-    reach = float(np.hypot(*points[returned].T).max()) if returned.any() else 0.0
+    fov = round(float(np.degrees(medians[-1] - medians[0])), 1)
+    reach = float(np.hypot(returned[:, 0], returned[:, 1]).max()) if len(returned) else 0.0  # in the floor plane
     max_range = max(Lidar3DConfig().max_range, float(np.ceil(reach)))
-    return Lidar3DConfig(layers=layers, points_per_layer=len(points) // layers, vertical_fov_deg=fov,
-                         max_range=max_range)  # fmt: skip
+    return Lidar3DConfig(layers=layers, points_per_layer=columns, vertical_fov_deg=fov, max_range=max_range)
 
 
 def layouts_from_bag(path: Path, scan_topic: str | None, points_topic: str | None) -> tuple[Any, Any]:
