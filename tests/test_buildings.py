@@ -3,10 +3,14 @@ from pimm_env.world.semantics import SemanticClass
 from training.buildings import (
     DEVELOPMENT_SEEDS,
     FAMILIES,
+    FURNISHED_FAMILIES,
+    FURNISHED_HELD_OUT_SEEDS,
+    FURNISHED_TRAINING_SEEDS,
     HELD_OUT_SEEDS,
     LOCALIZER_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
+    NEVER_TRAIN_SEEDS,
     TRAINING_SEEDS,
     building_spec,
     draw_plan,
@@ -21,6 +25,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     looked_at = set(TRAINING_SEEDS) | set(DEVELOPMENT_SEEDS) | set(HELD_OUT_SEEDS) | set(LOOKALIKE_DEVELOPMENT_SEEDS)
     assert not looked_at & (set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS))
     assert {draw_plan(seed)[0] for seed in LOOKALIKE_HELD_OUT_SEEDS} <= {"periodic", "mirror"}
+    seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
+    assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
+    assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))
 
 
 def test_generated_buildings_cover_the_families_low_ceilings_and_look_alike_rooms():
@@ -37,3 +44,27 @@ def test_generated_buildings_cover_the_families_low_ceilings_and_look_alike_room
         ceilings = world.ceiling_heights()
         assert min(ceilings) >= 2.4 and max(ceilings) <= 8.0
         assert any(e.semantic == SemanticClass.CLUTTER for e in world.elements)
+
+
+def test_furnished_buildings_stand_their_furniture_against_the_walls_and_leave_the_doors_free():
+    assert {draw_plan(seed)[0] for seed in FURNISHED_TRAINING_SEEDS} == set(FURNISHED_FAMILIES)
+    for family in FURNISHED_FAMILIES:
+        seed = next(s for s in FURNISHED_TRAINING_SEEDS if draw_plan(s)[0] == family)
+        _, plan = draw_plan(seed)
+        spec = building_spec(seed)
+        world = world_from_spec(spec, f"<building {seed}>")
+        furniture = [e for e in spec["elements"] if e["class"] == "clutter" and "min" in e.get("box", {})]
+        assert len(furniture) >= 10, family
+        against = 0
+        for element in furniture:
+            (x0, y0, _), (x1, y1, _) = element["box"]["min"], element["box"]["max"]
+            inside = [r.box for r in plan.rooms if r.box[0] - 1e-3 <= x0 and x1 <= r.box[2] + 1e-3]
+            room = next(b for b in inside if b[1] - 1e-3 <= y0 and y1 <= b[3] + 1e-3)  # in one room
+            against += any(abs(a - b) < 1e-3 for a, b in zip((x0, y0, x1, y1), room, strict=True))
+            for dx0, dy0, dx1, dy1 in plan.doors:  # nothing in a doorway or within 0.8 m of it, either side
+                grow_x, grow_y = (0.8, 0.0) if dx1 - dx0 < dy1 - dy0 else (0.0, 0.8)
+                assert not (x0 < dx1 + grow_x and dx0 - grow_x < x1 and y0 < dy1 + grow_y and dy0 - grow_y < y1)
+        assert against >= 0.6 * len(furniture), family
+        assert any(e.semantic == SemanticClass.WALL and e.name.startswith("glass") for e in world.elements) == (
+            family == "ward"
+        )

@@ -69,10 +69,10 @@ def clouds(
 ) -> None:
     """Labelled scans of many LiDARs, mounts and conditions for the layout-free network
     (training/cloud_dataset.py)."""
-    from training.buildings import HELD_OUT_SEEDS, LOCALIZER_HELD_OUT_SEEDS, LOOKALIKE_HELD_OUT_SEEDS
+    from training.buildings import NEVER_TRAIN_SEEDS
     from training.cloud_dataset import generate, save
 
-    held = {f"gen-{s}" for s in (*HELD_OUT_SEEDS, *LOCALIZER_HELD_OUT_SEEDS, *LOOKALIKE_HELD_OUT_SEEDS)}
+    held = {f"gen-{s}" for s in NEVER_TRAIN_SEEDS}
     for world in worlds:
         if Path(world).parent.name in held or world in held:
             raise typer.BadParameter(f"{world} is a held-out building: never train on it", param_hint="--world")
@@ -220,7 +220,9 @@ def _check_backend(backend: str, address: str | None) -> None:
 @command_line.command(app)
 def buildings(
     seeds: str = typer.Option(
-        "100-129", help="building seeds: 'A-B' or 'A,B,C' (held out: 910-929 and 980-987, never train on them)"
+        "100-129",
+        help="building seeds: 'A-B' or 'A,B,C' (furnished: 130-159; held out: 910-929, 980-987 and 990-997, never "
+        "train on them)",
     ),
     out: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
 ) -> None:
@@ -229,10 +231,10 @@ def buildings(
 
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.world.files import load_world
-    from training.buildings import HELD_OUT_SEEDS, LOCALIZER_HELD_OUT_SEEDS, LOOKALIKE_HELD_OUT_SEEDS, write_building
+    from training.buildings import NEVER_TRAIN_SEEDS, write_building
 
     chosen = _seed_list(seeds)
-    held = sorted(set(chosen) & set(HELD_OUT_SEEDS + LOCALIZER_HELD_OUT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS))
+    held = sorted(set(chosen) & set(NEVER_TRAIN_SEEDS))
     if held:
         typer.echo(f"note: seeds {held} are the held-out buildings: evaluate on them, never train on them", err=True)
     for seed in tqdm(chosen, desc="buildings", unit="building"):
@@ -260,6 +262,7 @@ def heldout(
     from pimm_agents.results.markdown import provenance_here
     from training.buildings import (
         DEVELOPMENT_SEEDS,
+        FURNISHED_HELD_OUT_SEEDS,
         HELD_OUT_SEEDS,
         LOCALIZER_HELD_OUT_SEEDS,
         LOOKALIKE_DEVELOPMENT_SEEDS,
@@ -268,7 +271,7 @@ def heldout(
     from training.heldout import building_row, format_table, measure_building, summarize
 
     chosen = _seed_list(seeds)
-    held_out = LOCALIZER_HELD_OUT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS
+    held_out = LOCALIZER_HELD_OUT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS + FURNISHED_HELD_OUT_SEEDS
     outside = sorted(set(chosen) - set(held_out))
     if outside:
         typer.echo(f"note: seeds {outside} are not among the held-out buildings {held_out}", err=True)
