@@ -51,8 +51,8 @@ def test_perception_reports_segmentation_where_the_corner_map_is_empty():
 @pytest.mark.expensive
 def test_corner_recall_in_the_iilab_does_not_drop_below_what_it_is():
     """The corner detector on the shipped network's labels, 50 fresh iiLab scans (seed 1, as `evaluate.py
-    perception`): measured precision 0.989, recall 0.791 (53 of the 67 corners in sight); a change that costs
-    one of them fails here (the goal is 0.8, docs/perception.md)."""
+    perception`): measured precision 0.971, recall 0.851 (57 of the 67 corners in sight); a change that costs
+    one of them fails here (the goal is 0.8 at precision 0.95, docs/perception.md)."""
     from pimm_agents.measurement.corner_quality import collect_scans, corner_stats
     from pimm_agents.perception.files import load_perception
     from pimm_env.mapping.derived_maps import ensure_derived_maps
@@ -62,4 +62,4 @@ def test_corner_recall_in_the_iilab_does_not_drop_below_what_it_is():
     segmenter, _ = load_perception("iilab")
     corners = ensure_derived_maps(load_world("iilab")).corners
     stats = corner_stats([s.corner_input(segmenter.segment(s.cloud, s.mask).labels) for s in scans], corners)
-    assert stats.precision >= 0.95 and stats.recall >= 0.79, (stats.precision, stats.recall)
+    assert stats.precision >= 0.95 and stats.recall >= 0.85, (stats.precision, stats.recall)
