@@ -61,9 +61,6 @@ class Plane:
         """RMS distance of the inliers from their centroid (1 for a degenerate plane)."""
         return float(np.sqrt(np.mean(np.sum((self.inliers - self.centroid) ** 2, axis=1)))) or 1.0
 
-    def distance(self, points: np.ndarray) -> np.ndarray:
-        return np.abs(points @ self.normal + self.d)
-
 
 def robust_refit(points: np.ndarray, rounds: int = 3) -> tuple[np.ndarray, float, float, np.ndarray]:
     """Least-squares plane refitted a few times on the points within 3 robust sigmas of the last fit.

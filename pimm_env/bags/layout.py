@@ -122,13 +122,14 @@ def layout_from_angles(points: np.ndarray, where: str) -> Lidar3DConfig:
             f"({len(counts)} clusters, the smallest of {counts.min()} returns: a non-repetitive or solid-state "
             f"pattern?); {NO_RINGS}"
         )
-    medians = np.array([np.median(elevation[ring_of == ring]) for ring in range(len(counts))])
     azimuth = np.arctan2(returned[:, 1], returned[:, 0])
-    steps = []
-    for ring in range(len(counts)):
-        around = np.sort(azimuth[ring_of == ring])
-        step = np.diff(around)
-        steps.append(np.median(step[step > 1e-6]) if (step > 1e-6).any() else np.inf)
+    medians, steps = np.empty(len(counts)), np.empty(len(counts))
+    ends = np.cumsum(counts)
+    for ring, (start, end) in enumerate(zip(ends - counts, ends, strict=True)):  # a ring: a run of ``order``
+        members = order[start:end]
+        medians[ring] = np.median(elevation[members])
+        step = np.diff(np.sort(azimuth[members]))
+        steps[ring] = np.median(step[step > 1e-6]) if (step > 1e-6).any() else np.inf
     columns = round(2 * np.pi / float(np.median(steps)))
     if columns < 2:
         raise BagError(f"{where}: the rings of a cloud without a ring field hold returns at one azimuth; {NO_RINGS}")
