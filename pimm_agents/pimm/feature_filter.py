@@ -216,8 +216,9 @@ class FeatureFilter:
         x, y, theta = (self.particles if poses is None else poses).T.astype(np.float32)
         # L^3 = exp(-3 (d^2 / 2 sigma_pos^2 + da^2 / 2 sigma_theta^2))
         exponent = corner_exponents(self.corners, f, x, y, theta)
-        np.maximum(exponent, np.float32(-60.0), out=exponent)  # exp(-60) ~ 1e-26 is nothing; lower, float32 goes
-        np.exp(exponent, out=exponent)  # subnormal (slow)
+        # exp(-60) ~ 1e-26 is nothing; lower, float32 goes subnormal (slow)
+        np.maximum(exponent, np.float32(-60.0), out=exponent)
+        np.exp(exponent, out=exponent)
         return exponent.sum(axis=0, dtype=np.float64)
 
     def in_free_space(self, poses: np.ndarray | None = None) -> np.ndarray:
