@@ -308,7 +308,7 @@ def policy(
     seed: int = typer.Option(0, help="seed of the policy, the envs and their episodes"),
     localizer: str = typer.Option("pimm", help="the localizer in the loop"),
     workers: int = typer.Option(1, min=1, help="envs, each in a worker process when more than one"),
-    imitate: int = typer.Option(0, min=0, help="steps of the greedy explorer the network first learns from"),
+    imitate: int = typer.Option(0, min=0, help="steps of the greedy policy the network first learns from"),
     worlds_dir: Path = typer.Option(Path("build/worlds"), "--worlds", help="folder of the generated worlds"),
     out: Path = typer.Option(Path("build/policies/active_ppo.zip"), help="the policy's .zip (record beside it)"),
 ) -> None:

@@ -89,8 +89,8 @@ def train_policy(
     imitate: int = 0,
 ) -> Path:
     """Train and save a policy to ``out`` (a ``.zip``); returns its path. With ``imitate`` > 0, the policy
-    network first learns to act as the ``greedy`` explorer does, from that many of its steps in the same envs
-    (:func:`imitate_explorer`), and PPO goes on from there."""
+    network first learns to act as the ``greedy`` policy does, from that many of its steps in the same envs
+    (:func:`imitate_greedy`), and PPO goes on from there."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
@@ -120,7 +120,7 @@ def train_policy(
     model.set_logger(logger)
     start = time.perf_counter()
     try:
-        imitation = imitate_explorer(model, venv, imitate, seed) if imitate else None
+        imitation = imitate_greedy(model, venv, imitate, seed) if imitate else None
         model.learn(
             total_timesteps=steps, callback=[_progress_bar(steps), _checkpoints(steps, out)], progress_bar=False
         )
@@ -149,36 +149,36 @@ def train_policy(
     return out
 
 
-#: the imitation's fit: epochs over the explorer's steps, minibatch, Adam's step (PPO's own learning rate)
+#: the imitation's fit: epochs over the greedy policy's steps, minibatch, Adam's step (PPO's own learning rate)
 IMITATION_EPOCHS, IMITATION_BATCH = 20, 64
 
 
-def imitate_explorer(model: Any, venv: Any, steps: int, seed: int) -> dict[str, float]:
-    """Drive ``venv`` for ``steps`` steps with the ``greedy`` explorer (one per env, reset at each episode) and
-    fit ``model``'s policy network to its actions (cross-entropy, Adam): a start for PPO that already drives
-    where it is open, instead of the uniform policy that PPO's few thousand episodes here did not get far from
-    (after 3 840-7 680 steps without it: policies that turned on the spot). Returns the fit's agreement with
-    the explorer."""
+def imitate_greedy(model: Any, venv: Any, steps: int, seed: int) -> dict[str, float]:
+    """Drive ``venv`` for ``steps`` steps with the ``greedy`` policy (one per env, reset at each episode) and
+    fit ``model``'s policy network to its actions (cross-entropy, Adam): a start for PPO that already follows
+    the guide and drives where it is open, instead of the uniform policy that PPO's few thousand episodes here
+    did not get far from (after 3 840-7 680 steps without it: policies that turned on the spot). Returns the
+    fit's agreement with ``greedy``."""
     import torch
     from tqdm import tqdm
 
-    from pimm_agents.active.policies import Explorer
+    from pimm_agents.active.policies import Greedy
     from pimm_env.envs.base_env import SimConfig
 
-    explorers = [Explorer(SimConfig().lidar2d.max_range) for _ in range(venv.num_envs)]  # the env's own LiDAR
+    teachers = [Greedy(SimConfig().lidar2d.max_range) for _ in range(venv.num_envs)]  # the env's own LiDAR
     observations: list[dict[str, np.ndarray]] = []
     actions: list[int] = []
     obs = venv.reset()
     bar = tqdm(total=max(1, steps // venv.num_envs) * venv.num_envs, desc="imitation", unit="step")
     for _ in range(max(1, steps // venv.num_envs)):
         bar.update(venv.num_envs)
-        chosen = [explorer({k: v[i] for k, v in obs.items()}) for i, explorer in enumerate(explorers)]
+        chosen = [teacher({k: v[i] for k, v in obs.items()}) for i, teacher in enumerate(teachers)]
         observations += [{k: v[i].copy() for k, v in obs.items()} for i in range(venv.num_envs)]
         actions += chosen
         obs, _, dones, _ = venv.step(np.array(chosen))
         for i, done in enumerate(dones):
             if done:
-                explorers[i].reset()
+                teachers[i].reset()
     bar.close()
     generator = torch.Generator().manual_seed(seed)
     batch = {k: torch.as_tensor(np.stack([o[k] for o in observations])) for k in observations[0]}

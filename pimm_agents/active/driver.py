@@ -3,8 +3,8 @@
 The robot starts where the scenario starts and, for as long as the route would have taken (its length over its
 speed), drives the motion primitives a policy chooses (``random``, ``greedy``, ``trained`` or a ``.zip``,
 policies.py) from what the trial's localizer believes: the env stack's ``info["estimate"]`` (the
-:class:`~pimm_agents.experiments.recorder.LocalizationRecorder` puts it there), the 2D scan and the odometry,
-built into the task env's observation (env.py). A kidnap scenario carries the robot to its kidnap pose after one
+:class:`~pimm_agents.experiments.recorder.LocalizationRecorder` puts it there), the 2D scan, the odometry and
+the map (the guide, views.py), built into the task env's observation (env.py). A kidnap scenario carries the robot to its kidnap pose after one
 such stretch and drives a second. The trial is recorded and scored as a route's is.
 """
 
@@ -38,6 +38,7 @@ def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: 
     from pimm_agents.active.env import ActiveConfig, active_observation
     from pimm_agents.active.policies import make_policy
     from pimm_agents.active.primitives import PRIMITIVES, drive
+    from pimm_agents.active.views import Guide
     from pimm_env.driving.rollout import RolloutResult, odom_to_map
     from pimm_env.geometry import relative_motion
     from pimm_env.sim.lidar import beam_bearings_2d
@@ -46,6 +47,7 @@ def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: 
     config, max_range = ActiveConfig(), float(sim.config.lidar2d.max_range)
     bearings = beam_bearings_2d(sim.config.lidar2d)
     chosen = make_policy(policy, max_range)
+    guide = Guide(sim.maps.occupancy)
     chosen.reset(seed)
     stretch_s = scenario.length / scenario.speed
     true_poses: list[np.ndarray] = []
@@ -75,8 +77,11 @@ def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: 
             record(obs, info)
             end_s = sim.sim_time + stretch_s
         delta = np.zeros(3)
+        guide.reset()
         while not collided and sim.sim_time < end_s:
-            action = chosen(active_observation(estimate, obs["scan"], delta, config, max_range))
+            scan = np.asarray(obs["scan"], dtype=float)
+            shown = guide(estimate, scan, bearings, delta)
+            action = chosen(active_observation(estimate, scan, delta, config, max_range, shown))
             odom_start = np.asarray(obs["odom"], dtype=float).copy()
             obs, _, _, _ = drive(env, PRIMITIVES[action], obs, record, bearings)
             delta = relative_motion(odom_start, np.asarray(obs["odom"], dtype=float))

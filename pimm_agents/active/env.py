@@ -13,7 +13,11 @@ Observation (``spaces.Dict``, fixed shapes, every value in [-1, 1] or [0, 1]; th
 - ``status``: one-hot ``lost``, ``ambiguous``, ``localized``;
 - ``scan``: the 2D LiDAR's ranges over ``scan_beams`` equal sectors (the nearest in each), over its maximum range;
 - ``odom_delta``: the last primitive's wheel-odometry motion in the robot's frame at its start (x and y over 1 m,
-  heading over pi).
+  heading over pi);
+- ``guide``: where to drive to tell the hypotheses apart, from the map and the belief (views.py): sine and
+  cosine of the bearing of the next waypoint toward the reachable place whose predicted views differ most
+  between the hypotheses, that place's gain (0..1), and 1 when there is such a place (all 0 when the status is
+  not ``ambiguous`` or no place tells the hypotheses apart).
 
 Action: ``Discrete(3)``, the primitives forward 0.5 m, turn left 45 deg, turn right 45 deg (why primitives:
 see primitives.py).
@@ -46,6 +50,7 @@ import numpy as np
 from gymnasium import spaces
 
 from pimm_agents.active.primitives import PRIMITIVES, drive
+from pimm_agents.active.views import GUIDE_SIZE, Guide
 from pimm_agents.localizer import PoseEstimate
 from pimm_agents.scoring.honesty import RIGHT_ANGLE_DEG, RIGHT_POSITION_M
 from pimm_env.errors import EnvError
@@ -131,10 +136,16 @@ def scan_sectors(scan: np.ndarray, beams: int, max_range: float) -> np.ndarray:
 
 
 def active_observation(
-    estimate: PoseEstimate | None, scan: np.ndarray, delta: np.ndarray, config: ActiveConfig, max_range: float
+    estimate: PoseEstimate | None,
+    scan: np.ndarray,
+    delta: np.ndarray,
+    config: ActiveConfig,
+    max_range: float,
+    guide: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """The env's observation (see the module docstring) from a localizer's ``estimate``, the 2D ``scan``
-    (ranges) and the last primitive's odometry ``delta`` (x, y, heading in the robot's frame at its start)."""
+    (ranges), the last primitive's odometry ``delta`` (x, y, heading in the robot's frame at its start) and the
+    ``guide`` (views.py's :class:`~pimm_agents.active.views.Guide`; none shown when None)."""
     status = np.zeros(len(STATUS_ORDER), dtype=np.float32)
     if estimate is not None:
         status[STATUS_ORDER.index(estimate.status)] = 1.0
@@ -143,6 +154,7 @@ def active_observation(
         "status": status,
         "scan": scan_sectors(np.asarray(scan, dtype=float), config.scan_beams, max_range),
         "odom_delta": np.clip(np.array([delta[0], delta[1], delta[2] / np.pi]), -1, 1).astype(np.float32),
+        "guide": np.zeros(GUIDE_SIZE, dtype=np.float32) if guide is None else np.asarray(guide, dtype=np.float32),
     }
 
 
@@ -183,8 +195,10 @@ class ActiveLocalizationEnv(gym.Env):
                 "status": spaces.Box(0.0, 1.0, (len(STATUS_ORDER),), np.float32),
                 "scan": spaces.Box(0.0, 1.0, (c.scan_beams,), np.float32),
                 "odom_delta": spaces.Box(-1.0, 1.0, (3,), np.float32),
+                "guide": spaces.Box(-1.0, 1.0, (GUIDE_SIZE,), np.float32),
             }
         )
+        self.guide = Guide(self.sim.maps.occupancy)
         self._obs: dict[str, np.ndarray] = {}
         self._estimate: PoseEstimate | None = None
         self._truth = np.zeros(3)
@@ -225,6 +239,7 @@ class ActiveLocalizationEnv(gym.Env):
         self._held_since, self._rewarded = None, False
         self._false_s, self._first_right = 0.0, None
         self._travelled0 = float(info["travelled"])
+        self.guide.reset()
         self._near = weight_near(self._estimate, self._truth)
         return self._observation(np.zeros(3)), self._info(info)
 
@@ -288,7 +303,9 @@ class ActiveLocalizationEnv(gym.Env):
         return self._held_since is not None and self.sim.sim_time - self._held_since >= self.config.hold_s
 
     def _observation(self, delta: np.ndarray) -> dict[str, np.ndarray]:
-        return active_observation(self._estimate, self._obs["scan"], delta, self.config, self._max_range)
+        scan = np.asarray(self._obs["scan"], dtype=float)
+        guide = self.guide(self._estimate, scan, self._bearings, delta)
+        return active_observation(self._estimate, scan, delta, self.config, self._max_range, guide)
 
     def _info(self, sim_info: dict[str, Any]) -> dict[str, Any]:
         estimate = self._estimate

@@ -4,7 +4,9 @@ Each is a callable ``policy(observation) -> action`` with ``reset(seed)`` called
 
 - ``random``: a random walk: each primitive drawn at random, forward twice as often as each turn (the env's
   forward guard keeps it off the walls);
-- ``greedy``: explores: it drives toward the most open direction it has not yet been towards. The scan's 60
+- ``greedy``: while the observation's ``guide`` shows a place that tells the belief's hypotheses apart (the
+  map's views from there differ between them, views.py), it heads for the guide's waypoint; otherwise it
+  explores: it drives toward the most open direction it has not yet been towards. The scan's 60
   sectors are scored by their free range (up to 8 m), less 0.5 m per radian of turn to face them (of equally
   open ways, the one needing least turning) and 3 m for each time the robot has already faced that way from
   about here (cells of 2 m in the odometry frame, 8 headings; driving on in one cell and heading counts once):
@@ -25,6 +27,7 @@ import numpy as np
 
 from pimm_agents.active.primitives import STOP_CONE, STOP_RANGE
 from pimm_env.geometry import wrap_angle
+
 
 FORWARD, LEFT, RIGHT = 0, 1, 2
 #: the shipped policy (``trained``), beside the record of how it was trained (``.json``)
@@ -53,7 +56,8 @@ class RandomWalk:
 
 
 class Explorer:
-    """The ``greedy`` baseline (see the module docstring)."""
+    """The ``greedy`` baseline's exploring (see the module docstring); on its own, it is what ``greedy`` does
+    without a map."""
 
     name = "greedy"
     CELL_M = 2.0
@@ -101,6 +105,55 @@ class Explorer:
         return int(np.floor((wrap_angle(heading) + np.pi) / (2 * np.pi) * self.HEADINGS)) % self.HEADINGS
 
 
+class Greedy:
+    """The ``greedy`` baseline (see the module docstring): heads for the ``guide``'s waypoint when there is
+    one, else explores (:class:`Explorer`)."""
+
+    name = "greedy"
+    AHEAD = np.pi / 8 + np.radians(5.0)  # as the explorer: within half a turn, and a margin, counts as ahead
+    EXPLORE_STEPS = 4  # primitives it explores for when the way to the waypoint is blocked
+    SIDE_M = 0.35  # driving on needs this much room on either side (the body's radius, 0.25 m, and a margin)
+
+    def __init__(self, max_range: float = 20.0) -> None:
+        self.explorer = Explorer(max_range)
+        self.max_range = max_range
+        self.reset()
+
+    def reset(self, seed: int | None = None) -> None:
+        self.explorer.reset(seed)
+        self.last: int | None = None  # the action chosen last
+        self.explore_for = 0  # primitives left to explore before it follows the guide again
+
+    def __call__(self, observation: dict[str, np.ndarray]) -> int:
+        explore = self.explorer(observation)  # keeps its dead reckoning and what it has faced up to date
+        previous, self.last = self.last, explore
+        guide = np.asarray(observation.get("guide", np.zeros(4)), dtype=float)
+        if guide[3] < 0.5:
+            return explore
+        if self.explore_for > 0:
+            self.explore_for -= 1
+            return explore
+        bearing = float(np.arctan2(guide[0], guide[1]))
+        scan = np.asarray(observation["scan"], dtype=float) * self.max_range
+        sector = -np.pi + (np.arange(len(scan)) + 0.5) * 2 * np.pi / len(scan)
+        # the guide's path keeps its clearance from the map's walls, so the forward guard's own range is margin
+        # enough ahead (the explorer's larger one kept it out of doorways); and nothing may lie where the body
+        # sweeps in the next 0.5 m, beside it too, where the guard does not look
+        along, across = scan * np.cos(sector), scan * np.sin(sector)
+        swept = (along > -0.1) & (along < 0.5 + self.SIDE_M) & (np.abs(across) < self.SIDE_M)
+        clear = scan[np.abs(sector) <= STOP_CONE].min() > STOP_RANGE and not swept.any()
+        ahead = abs(bearing) <= self.AHEAD
+        action = FORWARD if ahead and clear else (LEFT if bearing > 0 else RIGHT)
+        if (ahead and not clear) or {action, previous} == {LEFT, RIGHT}:
+            # the way there is blocked by something the map (as the estimate places it) does not show, or the
+            # waypoint moved with the belief and it would turn back the way it just turned: it explores for a
+            # few primitives instead of turning to and fro, and then follows the guide again
+            self.explore_for = self.EXPLORE_STEPS
+            action = explore
+        self.last = action
+        return action
+
+
 class Trained:
     """A stable-baselines3 policy from a ``.zip``, acting deterministically; named ``trained`` when it is the
     shipped one, else by its file's name."""
@@ -141,5 +194,5 @@ def make_policy(name: str, max_range: float = 20.0) -> Policy:
     if name == "random":
         return RandomWalk()
     if name == "greedy":
-        return Explorer(max_range)
+        return Greedy(max_range)
     return Trained(SHIPPED_POLICY if name == "trained" else Path(name))

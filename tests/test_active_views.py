@@ -1,0 +1,106 @@
+"""The map-aware part of the ``greedy`` policy: predicted views, and the place that tells hypotheses apart."""
+
+import numpy as np
+
+from pimm_agents.active.policies import FORWARD, LEFT, RIGHT, Explorer, Greedy
+from pimm_agents.active.views import Guide, ViewPredictor, cast_ranges, distinct_hypotheses
+from pimm_agents.localizer import Hypothesis, PoseEstimate
+from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.world.grid import GridSpec
+
+
+def corridor(length: float = 20.0, width: float = 2.0, resolution: float = 0.05) -> OccupancyGrid:
+    """A closed corridor from x = 0 to ``length``, y = 0 to ``width``, walls one cell thick around it."""
+    grid = GridSpec((-0.5, -0.5), resolution, (int((width + 1) / resolution), int((length + 1) / resolution)))
+    gx, gy = grid.cell_centers()
+    inside = (gx > 0) & (gx < length) & (gy > 0) & (gy < width)
+    wall = ~inside & (gx > -0.1) & (gx < length + 0.1) & (gy > -0.1) & (gy < width + 0.1)
+    return OccupancyGrid(grid, wall, inside)
+
+
+def test_rays_stop_at_the_first_wall_and_at_the_view_range():
+    occ = corridor()
+    views = ViewPredictor(occ)
+    ranges = views.views(np.array([[4.0, 1.0, 0.0]]), np.array([0.0, np.pi / 2, np.pi]))[0]
+    assert abs(ranges[0] - views.config.view_range_m) < 0.06  # the east end is 16 m off: capped
+    assert abs(ranges[1] - 1.0) < 0.1  # the side wall
+    assert abs(ranges[2] - 4.0) < 0.1  # the west end
+    blocked = np.ones((3, 3), dtype=bool)
+    assert cast_ranges(np.zeros((1, 2)), np.zeros(1), np.zeros(1), blocked, -1.5, -1.5, 1.0, 5.0)[0, 0] == 0.0
+
+
+def test_the_telling_place_is_toward_the_nearer_end_that_only_one_hypothesis_would_see():
+    occ = corridor()
+    views = ViewPredictor(occ)
+    # twins 5 m apart along a featureless corridor: only its ends tell them apart; the estimate believes it is
+    # at x = 4, so the west end (4 m behind) is the nearest place where the two would see different things
+    estimate = np.array([4.0, 1.0, 0.0])
+    hypotheses = np.array([estimate, [9.0, 1.0, 0.0]])
+    found = views.best_waypoint(estimate, hypotheses, np.array([0.5, 0.5]), min_move=1.0)
+    assert found is not None
+    waypoint, place, score = found
+    assert place[0] < -1.0 and waypoint[0] < 0  # behind the robot, toward the west end
+    assert score > 0
+    # one place only, or twins that see the same everywhere reachable: nothing to go and see
+    assert views.best_waypoint(estimate, hypotheses[:1], np.array([1.0])) is None
+
+
+def test_hypotheses_within_the_right_margin_of_one_listed_before_are_one():
+    twin = Hypothesis(9.0, 1.0, 0.0, 0.3, np.eye(3))
+    estimate = PoseEstimate(
+        4.0, 1.0, 0.0, np.eye(3), status="ambiguous",
+        hypotheses=(Hypothesis(4.2, 1.0, 0.02, 0.7, np.eye(3)), twin, Hypothesis(9.3, 1.1, 0.0, 0.0, np.eye(3))),
+    )
+    poses, weights = distinct_hypotheses(estimate)
+    assert len(poses) == 2 and np.allclose(poses[0], [4.0, 1.0, 0.0]) and np.allclose(weights, [0.7, 0.3])
+
+
+BEARINGS = -np.pi + (np.arange(60) + 0.5) * 2 * np.pi / 60
+
+
+def seen(occ: OccupancyGrid, pose: np.ndarray) -> np.ndarray:
+    return ViewPredictor(occ).views(pose[None, :], BEARINGS)[0]
+
+
+def test_the_guide_points_toward_the_telling_place_only_while_ambiguous():
+    occ = corridor()
+    truth = np.array([9.0, 1.0, 0.0])
+    twins = (Hypothesis(4.0, 1.0, 0.0, 0.6, np.eye(3)), Hypothesis(9.0, 1.0, 0.0, 0.4, np.eye(3)))
+    ambiguous = PoseEstimate(4.0, 1.0, 0.0, np.eye(3), status="ambiguous", hypotheses=twins)
+    guide = Guide(occ)
+    shown = guide(ambiguous, seen(occ, truth), BEARINGS, np.zeros(3))
+    assert shown[3] == 1.0 and shown[1] < 0 and 0 < shown[2] <= 1  # behind the robot, toward the west end
+    localized = PoseEstimate(9.0, 1.0, 0.0, np.eye(3), status="localized", hypotheses=twins)
+    assert not guide(localized, seen(occ, truth), BEARINGS, np.zeros(3)).any()
+    # a listed rival whose view does not fit the scan is left out: in a room, from off its centre, half a turn
+    # looks different; with only the estimate left there is nothing to tell apart
+    room, here = corridor(length=6.0, width=4.0), np.array([1.5, 2.0, 0.0])
+    turned = (Hypothesis(*here, 0.6, np.eye(3)), Hypothesis(1.5, 2.0, np.pi, 0.4, np.eye(3)))
+    blind = PoseEstimate(*here, np.eye(3), status="ambiguous", hypotheses=turned)
+    assert not Guide(room)(blind, seen(room, here), BEARINGS, np.zeros(3)).any()
+
+
+def observation(occ: OccupancyGrid, pose: np.ndarray, guide: np.ndarray, max_range: float = 20.0) -> dict[str, np.ndarray]:
+    return {
+        "scan": (seen(occ, pose) / max_range).astype(np.float32),
+        "odom_delta": np.zeros(3, dtype=np.float32),
+        "hypotheses": np.zeros((5, 6), dtype=np.float32),
+        "status": np.array([0, 1, 0], dtype=np.float32),
+        "guide": guide.astype(np.float32),
+    }
+
+
+def test_greedy_follows_the_guide_and_explores_without_one():
+    occ = corridor()
+    truth = np.array([9.0, 1.0, 0.0])
+    behind = np.array([np.sin(3.0), np.cos(3.0), 0.5, 1.0])
+    greedy, explorer = Greedy(20.0), Explorer(20.0)
+    greedy.reset(0)
+    explorer.reset(0)
+    assert greedy(observation(occ, truth, behind)) in (LEFT, RIGHT)  # the guide says behind: it turns
+    assert explorer(observation(occ, truth, behind)) == FORWARD  # where exploring drives on
+    greedy.reset(0)
+    assert greedy(observation(occ, truth, np.zeros(4))) == FORWARD  # no guide: it explores
+    ahead_but_walled = np.array([0.0, 1.0, 0.5, 1.0])
+    greedy.reset(0)
+    assert greedy(observation(occ, np.array([19.6, 1.0, 0.0]), ahead_but_walled)) != FORWARD  # the wall, 0.4 m on
