@@ -408,6 +408,26 @@ def passive_bound_command(
         typer.echo(json.dumps(asdict(passive_bound(world, scenario, seed))))
 
 
+@command(app, "active-bound")
+def active_bound_command(
+    world: str = typer.Argument(..., help="a world name or world file"),
+    scenarios: list[str] = typer.Option([], "--scenarios", help="scenarios of that world (default: every route)"),
+    json_out: bool = typer.Option(False, "--json", help="print one JSON line per scenario"),
+) -> None:
+    """The shortest drive from each route's start to a place that tells it from every look-alike of it, and that
+    over 0.5 m/s (a bound for any active-localization policy's time; [benchmarks](docs/benchmarks.md))."""
+    from dataclasses import asdict
+
+    from pimm_agents.measurement.active_bound import active_bounds
+
+    for bound in active_bounds(world, list(scenarios) or None):
+        if json_out:
+            typer.echo(json.dumps(asdict(bound)))
+            continue
+        far = "none within 60 m" if bound.distance_m is None else f"{bound.distance_m:.1f} m, {bound.bound_s:.1f} s"
+        typer.echo(f"{bound.world} {bound.scenario}: {bound.twins} twins; {far}")
+
+
 @command(world_app, "import")
 def world_import(
     source: Path = typer.Argument(

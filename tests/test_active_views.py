@@ -48,7 +48,11 @@ def test_the_telling_place_is_toward_the_nearer_end_that_only_one_hypothesis_wou
 def test_hypotheses_within_the_right_margin_of_one_listed_before_are_one():
     twin = Hypothesis(9.0, 1.0, 0.0, 0.3, np.eye(3))
     estimate = PoseEstimate(
-        4.0, 1.0, 0.0, np.eye(3), status="ambiguous",
+        4.0,
+        1.0,
+        0.0,
+        np.eye(3),
+        status="ambiguous",
         hypotheses=(Hypothesis(4.2, 1.0, 0.02, 0.7, np.eye(3)), twin, Hypothesis(9.3, 1.1, 0.0, 0.0, np.eye(3))),
     )
     poses, weights = distinct_hypotheses(estimate)
@@ -80,7 +84,9 @@ def test_the_guide_points_toward_the_telling_place_only_while_ambiguous():
     assert not Guide(room)(blind, seen(room, here), BEARINGS, np.zeros(3)).any()
 
 
-def observation(occ: OccupancyGrid, pose: np.ndarray, guide: np.ndarray, max_range: float = 20.0) -> dict[str, np.ndarray]:
+def observation(
+    occ: OccupancyGrid, pose: np.ndarray, guide: np.ndarray, max_range: float = 20.0
+) -> dict[str, np.ndarray]:
     return {
         "scan": (seen(occ, pose) / max_range).astype(np.float32),
         "odom_delta": np.zeros(3, dtype=np.float32),
@@ -104,3 +110,14 @@ def test_greedy_follows_the_guide_and_explores_without_one():
     ahead_but_walled = np.array([0.0, 1.0, 0.5, 1.0])
     greedy.reset(0)
     assert greedy(observation(occ, np.array([19.6, 1.0, 0.0]), ahead_but_walled)) != FORWARD  # the wall, 0.4 m on
+
+
+def test_the_nearest_telling_place_is_where_the_views_first_differ_enough():
+    views = ViewPredictor(corridor())
+    here = np.array([4.0, 1.0, 0.0])
+    assert views.nearest_telling(here, np.zeros((0, 3)), 10.0, 0.1) == 0.0  # no twin: already told
+    # a twin 5 m east: at the start only the ray straight back (the west end at 4 m against 9 m) differs; nearer
+    # the west end the oblique rays reach it too, and from the twin's place 5 m on they still meet side walls
+    far = views.nearest_telling(here, np.array([[9.0, 1.0, 0.0]]), 10.0, 0.1)
+    assert far is not None and 0.5 <= far <= 4.0
+    assert views.nearest_telling(here, np.array([[9.0, 1.0, 0.0]]), 0.2, 0.1) is None  # out of reach

@@ -4,8 +4,9 @@ The robot starts where the scenario starts and, for as long as the route would h
 speed), drives the motion primitives a policy chooses (``random``, ``greedy``, ``trained`` or a ``.zip``,
 policies.py) from what the trial's localizer believes: the env stack's ``info["estimate"]`` (the
 :class:`~pimm_agents.experiments.recorder.LocalizationRecorder` puts it there), the 2D scan, the odometry and
-the map (the guide, views.py), built into the task env's observation (env.py). A kidnap scenario carries the robot to its kidnap pose after one
-such stretch and drives a second. The trial is recorded and scored as a route's is.
+the map (the guide, views.py), built into the task env's observation (env.py). A kidnap scenario carries the
+robot to its kidnap pose after one such stretch and drives a second. The trial is recorded and scored as a
+route's is.
 """
 
 from __future__ import annotations

@@ -28,7 +28,6 @@ import numpy as np
 from pimm_agents.active.primitives import STOP_CONE, STOP_RANGE
 from pimm_env.geometry import wrap_angle
 
-
 FORWARD, LEFT, RIGHT = 0, 1, 2
 #: the shipped policy (``trained``), beside the record of how it was trained (``.json``)
 SHIPPED_POLICY = Path(__file__).resolve().parent / "weights" / "active_ppo.zip"

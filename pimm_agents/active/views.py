@@ -58,7 +58,9 @@ class ViewConfig:
 def place(base: np.ndarray, offset: np.ndarray) -> np.ndarray:
     """``offset`` (N, 2), in the frame of pose ``base`` (x, y, theta), in the map frame."""
     c, s = math.cos(base[2]), math.sin(base[2])
-    return np.column_stack([base[0] + c * offset[:, 0] - s * offset[:, 1], base[1] + s * offset[:, 0] + c * offset[:, 1]])
+    return np.column_stack(
+        [base[0] + c * offset[:, 0] - s * offset[:, 1], base[1] + s * offset[:, 0] + c * offset[:, 1]]
+    )
 
 
 @njit(cache=True, nogil=True)
@@ -193,7 +195,7 @@ class ViewPredictor:
         if not valid[0] or not self.passable[rows[0], cols[0]]:
             return None
         dist = geodesic_from(self.passable, int(rows[0]), int(cols[0]), c.reach_m / g.resolution)
-        stride = max(1, int(round(c.spacing_m / g.resolution)))
+        stride = max(1, round(c.spacing_m / g.resolution))
         lattice = np.zeros_like(self.passable)
         lattice[rows[0] % stride :: stride, cols[0] % stride :: stride] = True
         cand_r, cand_c = np.nonzero(lattice & np.isfinite(dist))
@@ -205,7 +207,9 @@ class ViewPredictor:
         offsets = np.column_stack([ce * d[:, 0] + se * d[:, 1], -se * d[:, 0] + ce * d[:, 1]])
         w = np.maximum(np.asarray(weights, dtype=float), c.min_weight * float(np.max(weights)))
         offsets = np.vstack([np.zeros((1, 2)), offsets])  # where the robot is, first
-        views = np.stack([self.views(np.column_stack([place(h, offsets), np.full(len(offsets), h[2])])) for h in hypotheses])
+        views = np.stack(
+            [self.views(np.column_stack([place(h, offsets), np.full(len(offsets), h[2])])) for h in hypotheses]
+        )
         told = disagreement(views, w, c.range_gap_m)
         offsets, gain = offsets[1:], told[1:] - told[0]
         score = gain - c.distance_cost * dist[cand_r, cand_c] * g.resolution
@@ -223,6 +227,41 @@ class ViewPredictor:
         pd = point - estimate[:2]
         waypoint = np.array([ce * pd[0] + se * pd[1], -se * pd[0] + ce * pd[1]])
         return waypoint, offsets[best], float(gain[best])
+
+    def nearest_telling(self, pose: np.ndarray, twins: np.ndarray, reach_m: float, min_share: float) -> float | None:
+        """Path length (m) from ``pose`` to the nearest place (on the candidates' lattice) whose view differs
+        from the view at the same offset from every one of ``twins`` (K, 3) in at least ``min_share`` of the
+        bearings (each compared with the other's at it and its neighbours), or where a twin's place is not
+        passable; 0 with no twins; None when no place within ``reach_m`` does."""
+        if len(twins) == 0:
+            return 0.0
+        g = self.grid
+        rows, cols, valid = g.cells_of(np.asarray(pose, dtype=float)[None, :2])
+        if not valid[0] or not self.passable[rows[0], cols[0]]:
+            return None
+        dist = geodesic_from(self.passable, int(rows[0]), int(cols[0]), reach_m / g.resolution)
+        stride = max(1, round(self.config.spacing_m / g.resolution))
+        lattice = np.zeros_like(self.passable)
+        lattice[rows[0] % stride :: stride, cols[0] % stride :: stride] = True
+        cand_r, cand_c = np.nonzero(lattice & np.isfinite(dist))
+        order = np.argsort(dist[cand_r, cand_c], kind="stable")
+        cand_r, cand_c = cand_r[order], cand_c[order]
+        xy = np.column_stack([g.origin[0] + (cand_c + 0.5) * g.resolution, g.origin[1] + (cand_r + 0.5) * g.resolution])
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        d = xy - pose[:2]
+        offsets = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+        here = self.views(np.column_stack([xy, np.full(len(xy), pose[2])]))
+        told = np.ones(len(xy), dtype=bool)
+        for twin in np.asarray(twins, dtype=float).reshape(-1, 3):
+            places = place(twin, offsets)
+            r, q, inside = g.cells_of(places)
+            open_there = inside & self.passable[np.where(inside, r, 0), np.where(inside, q, 0)]
+            there = self.views(np.column_stack([places, np.full(len(places), twin[2])]))
+            nearest = np.min(np.stack([np.abs(here - np.roll(there, k, axis=1)) for k in (-1, 0, 1)]), axis=0)
+            told &= ~open_there | (np.mean(nearest > self.config.range_gap_m, axis=1) >= min_share)
+        if not told.any():
+            return None
+        return float(dist[cand_r[told][0], cand_c[told][0]] * g.resolution)
 
     def _path(self, dist: np.ndarray, row: int, col: int) -> np.ndarray:
         """The cells (as map points) from the geodesic field's source to (row, col), by steepest descent."""
@@ -242,10 +281,14 @@ class ViewPredictor:
             cells.append(best)
         cells.reverse()
         arr = np.array(cells, dtype=float)
-        return np.column_stack([g.origin[0] + (arr[:, 1] + 0.5) * g.resolution, g.origin[1] + (arr[:, 0] + 0.5) * g.resolution])
+        return np.column_stack(
+            [g.origin[0] + (arr[:, 1] + 0.5) * g.resolution, g.origin[1] + (arr[:, 0] + 0.5) * g.resolution]
+        )
 
 
-def distinct_hypotheses(estimate: PoseEstimate, right_m: float = 1.0, right_deg: float = 10.0) -> tuple[np.ndarray, np.ndarray]:
+def distinct_hypotheses(
+    estimate: PoseEstimate, right_m: float = 1.0, right_deg: float = 10.0
+) -> tuple[np.ndarray, np.ndarray]:
     """The estimate and its hypotheses that are not within ``right_m`` and ``right_deg`` of one listed before
     (poses (H, 3), weights (H,)); the estimate first, with the weight of its hypothesis; all 1 when every weight
     is 0."""
