@@ -46,11 +46,16 @@ def test_scan_sectors_keep_the_nearest_return():
     assert sectors.shape == (60,) and sectors[16] == pytest.approx(0.05) and sectors[0] == 1.0
 
 
-def test_the_forward_guard_looks_ahead_only():
+def test_the_forward_guard_looks_ahead_and_along_the_bodys_lane_only():
     bearings = np.radians(np.arange(360) - 180.0)
     scan = np.full(360, 10.0)
     scan[180 + 90] = 0.2  # something at the robot's left
     assert not blocked_ahead(scan, bearings)
+    scan[180 + 40] = 1.0  # a doorway's edge 40 deg off, a metre away: the body passes it by 0.64 m
+    assert not blocked_ahead(scan, bearings)
+    scan[180 + 40] = 0.45  # the same 0.45 m away, out of the cone but 0.29 m beside the lane: the body grazes it
+    assert blocked_ahead(scan, bearings)
+    scan[180 + 40] = 10.0
     scan[180 + 10] = 0.3  # something 10 deg off straight ahead
     assert blocked_ahead(scan, bearings)
 

@@ -4,10 +4,10 @@ Primitives rather than velocities: a policy choosing among "forward 0.5 m", "tur
 45 deg" sees the effect of each choice in the next belief (a velocity held for one 32 ms control step changes
 nothing a localizer can see), an episode is tens of decisions instead of thousands, and a guard can keep each
 one safe. The forward primitive stops when the 2D scan shows anything within ``stop_range`` in a 60 deg cone
-ahead (what a robot's own bumper-less safety layer does) and stands still for the rest of its second, so a
-policy cannot drive into a wall by choice and every primitive takes its time (a blocked forward that took none
-would let a policy that keeps choosing it stop the clock); a turn in place cannot hit anything the robot is
-not already touching.
+ahead (what a robot's own bumper-less safety layer does) or in the lane its body sweeps, and stands still for
+the rest of its second, so a policy cannot drive into a wall by choice and every primitive takes its time (a
+blocked forward that took none would let a policy that keeps choosing it stop the clock); a turn in place
+cannot hit anything the robot is not already touching.
 """
 
 from __future__ import annotations
@@ -36,12 +36,18 @@ PRIMITIVES: tuple[Primitive, ...] = (
 
 STOP_RANGE = 0.5  # m from the LiDAR: the forward primitive stops when anything ahead is closer
 STOP_CONE = np.radians(30.0)  # half-width of the cone ahead that the stop looks at
+#: half-width of the lane the body sweeps (its 0.25 m radius, robot.py, and 5 cm): the stop also looks along it,
+#: out of the cone, so that the body does not graze a doorway's edge it passes (a trained policy did, once)
+SWEPT_HALF_WIDTH = 0.3
 
 
 def blocked_ahead(scan: np.ndarray, bearings: np.ndarray, stop_range: float = STOP_RANGE) -> bool:
-    """Whether the 2D scan (ranges at ``bearings``, robot frame) sees anything within ``stop_range`` ahead."""
+    """Whether the 2D scan (ranges at ``bearings``, robot frame) sees anything within ``stop_range`` ahead: in
+    the cone ahead, or in the lane the body sweeps (ahead of the robot's centre, up to ``stop_range`` on)."""
     ahead = np.abs(np.arctan2(np.sin(bearings), np.cos(bearings))) <= STOP_CONE
-    return bool(np.any(scan[ahead] < stop_range))
+    along, across = scan * np.cos(bearings), scan * np.sin(bearings)
+    lane = (along > 0.05) & (along < stop_range) & (np.abs(across) < SWEPT_HALF_WIDTH)
+    return bool(np.any(scan[ahead] < stop_range) or np.any(lane))
 
 
 def drive(
