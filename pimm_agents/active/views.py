@@ -63,6 +63,13 @@ def place(base: np.ndarray, offset: np.ndarray) -> np.ndarray:
     )
 
 
+def in_frame(base: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Map points (N, 2) in the frame of pose ``base`` (x, y, theta): ``place``'s inverse."""
+    c, s = math.cos(base[2]), math.sin(base[2])
+    d = np.asarray(points, dtype=float) - np.asarray(base, dtype=float)[:2]
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+
+
 @njit(cache=True, nogil=True)
 def cast_ranges(
     origins: np.ndarray,
@@ -125,17 +132,22 @@ def geodesic_from(passable: np.ndarray, row: int, col: int, limit: float) -> np.
     return dist
 
 
+def differing(a: np.ndarray, b: np.ndarray, gap: float) -> np.ndarray:
+    """Per row of views ``a`` and ``b`` (..., B), the share of bearings whose ranges differ by more than ``gap``,
+    each bearing of ``a`` compared with ``b``'s at it and its two neighbours (a ray that grazes a door jamb in one
+    view and passes it in the other is not a difference)."""
+    nearest = np.min(np.stack([np.abs(a - np.roll(b, k, axis=-1)) for k in (-1, 0, 1)]), axis=0)
+    return np.mean(nearest > gap, axis=-1)
+
+
 def disagreement(views: np.ndarray, weights: np.ndarray, gap: float) -> np.ndarray:
     """How differently the hypotheses see each candidate: views (H, N, B) ranges, weights (H,); per candidate
-    the weighted mean over hypothesis pairs of the share of bearings whose ranges differ by more than ``gap``,
-    each bearing compared with the other's at it and its two neighbours (a ray that grazes a door jamb in one
-    view and passes it in the other is not a difference), 0..1."""
+    the weighted mean over hypothesis pairs of the share of bearings that differ (``differing``), 0..1."""
     total, pairs = np.zeros(views.shape[1]), 0.0
     for i in range(len(views)):
         for j in range(i + 1, len(views)):
             w = weights[i] * weights[j]
-            nearest = np.min(np.stack([np.abs(views[i] - np.roll(views[j], k, axis=1)) for k in (-1, 0, 1)]), axis=0)
-            total += w * np.mean(nearest > gap, axis=1)
+            total += w * differing(views[i], views[j], gap)
             pairs += w
     return total / pairs if pairs > 0 else total
 
@@ -191,20 +203,10 @@ class ViewPredictor:
         that the policy does not switch between places of about equal worth at every step. Places within
         ``min_move`` of the estimate are not candidates."""
         c, g = self.config, self.grid
-        rows, cols, valid = g.cells_of(np.asarray(estimate, dtype=float)[None, :2])
-        if not valid[0] or not self.passable[rows[0], cols[0]]:
+        found = self._candidates(estimate, c.reach_m)
+        if found is None:
             return None
-        dist = geodesic_from(self.passable, int(rows[0]), int(cols[0]), c.reach_m / g.resolution)
-        stride = max(1, round(c.spacing_m / g.resolution))
-        lattice = np.zeros_like(self.passable)
-        lattice[rows[0] % stride :: stride, cols[0] % stride :: stride] = True
-        cand_r, cand_c = np.nonzero(lattice & np.isfinite(dist))
-        if len(cand_r) == 0:
-            return None
-        xy = np.column_stack([g.origin[0] + (cand_c + 0.5) * g.resolution, g.origin[1] + (cand_r + 0.5) * g.resolution])
-        ce, se = math.cos(estimate[2]), math.sin(estimate[2])
-        d = xy - estimate[:2]
-        offsets = np.column_stack([ce * d[:, 0] + se * d[:, 1], -se * d[:, 0] + ce * d[:, 1]])
+        dist, cand_r, cand_c, offsets = found
         w = np.maximum(np.asarray(weights, dtype=float), c.min_weight * float(np.max(weights)))
         offsets = np.vstack([np.zeros((1, 2)), offsets])  # where the robot is, first
         views = np.stack(
@@ -224,8 +226,7 @@ class ViewPredictor:
         along = np.cumsum(np.r_[0.0, np.hypot(*np.diff(path, axis=0).T)]) if len(path) > 1 else np.zeros(1)
         # the path runs from the estimate to the place: the point about waypoint_m along it
         point = path[min(int(np.searchsorted(along, c.waypoint_m)), len(path) - 1)]
-        pd = point - estimate[:2]
-        waypoint = np.array([ce * pd[0] + se * pd[1], -se * pd[0] + ce * pd[1]])
+        waypoint = in_frame(estimate, point[None, :])[0]
         return waypoint, offsets[best], float(gain[best])
 
     def nearest_telling(self, pose: np.ndarray, twins: np.ndarray, reach_m: float, min_share: float) -> float | None:
@@ -236,6 +237,29 @@ class ViewPredictor:
         if len(twins) == 0:
             return 0.0
         g = self.grid
+        found = self._candidates(pose, reach_m)
+        if found is None:
+            return None
+        dist, cand_r, cand_c, offsets = found
+        here = self.views(np.column_stack([place(pose, offsets), np.full(len(offsets), pose[2])]))
+        told = np.ones(len(offsets), dtype=bool)
+        for twin in np.asarray(twins, dtype=float).reshape(-1, 3):
+            places = place(twin, offsets)
+            r, q, inside = g.cells_of(places)
+            open_there = inside & self.passable[np.where(inside, r, 0), np.where(inside, q, 0)]
+            there = self.views(np.column_stack([places, np.full(len(places), twin[2])]))
+            told &= ~open_there | (differing(here, there, self.config.range_gap_m) >= min_share)
+        if not told.any():
+            return None
+        return float(np.min(dist[cand_r[told], cand_c[told]]) * g.resolution)
+
+    def _candidates(
+        self, pose: np.ndarray, reach_m: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The places reachable from ``pose`` within ``reach_m`` of path, on a lattice of ``spacing_m`` through
+        its cell: the path-length field (cells), the places' rows and columns, and their offsets in the pose's
+        frame; None when the pose is not on a passable cell or nothing is reachable."""
+        g = self.grid
         rows, cols, valid = g.cells_of(np.asarray(pose, dtype=float)[None, :2])
         if not valid[0] or not self.passable[rows[0], cols[0]]:
             return None
@@ -244,24 +268,10 @@ class ViewPredictor:
         lattice = np.zeros_like(self.passable)
         lattice[rows[0] % stride :: stride, cols[0] % stride :: stride] = True
         cand_r, cand_c = np.nonzero(lattice & np.isfinite(dist))
-        order = np.argsort(dist[cand_r, cand_c], kind="stable")
-        cand_r, cand_c = cand_r[order], cand_c[order]
-        xy = np.column_stack([g.origin[0] + (cand_c + 0.5) * g.resolution, g.origin[1] + (cand_r + 0.5) * g.resolution])
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        d = xy - pose[:2]
-        offsets = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
-        here = self.views(np.column_stack([xy, np.full(len(xy), pose[2])]))
-        told = np.ones(len(xy), dtype=bool)
-        for twin in np.asarray(twins, dtype=float).reshape(-1, 3):
-            places = place(twin, offsets)
-            r, q, inside = g.cells_of(places)
-            open_there = inside & self.passable[np.where(inside, r, 0), np.where(inside, q, 0)]
-            there = self.views(np.column_stack([places, np.full(len(places), twin[2])]))
-            nearest = np.min(np.stack([np.abs(here - np.roll(there, k, axis=1)) for k in (-1, 0, 1)]), axis=0)
-            told &= ~open_there | (np.mean(nearest > self.config.range_gap_m, axis=1) >= min_share)
-        if not told.any():
+        if len(cand_r) == 0:
             return None
-        return float(dist[cand_r[told][0], cand_c[told][0]] * g.resolution)
+        xy = np.column_stack([g.origin[0] + (cand_c + 0.5) * g.resolution, g.origin[1] + (cand_r + 0.5) * g.resolution])
+        return dist, cand_r, cand_c, in_frame(pose, xy)
 
     def _path(self, dist: np.ndarray, row: int, col: int) -> np.ndarray:
         """The cells (as map points) from the geodesic field's source to (row, col), by steepest descent."""
