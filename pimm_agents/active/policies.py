@@ -25,7 +25,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from pimm_agents.active.primitives import STOP_CONE, STOP_RANGE
+from pimm_agents.active.primitives import STOP_CONE, STOP_RANGE, in_lane
 from pimm_env.geometry import wrap_angle
 
 FORWARD, LEFT, RIGHT = 0, 1, 2
@@ -138,9 +138,8 @@ class Greedy:
         # the guide's path keeps its clearance from the map's walls, so the forward guard's own range is margin
         # enough ahead (the explorer's larger one kept it out of doorways); and nothing may lie where the body
         # sweeps in the next 0.5 m, beside it too, where the guard does not look
-        along, across = scan * np.cos(sector), scan * np.sin(sector)
-        swept = (along > -0.1) & (along < 0.5 + self.SIDE_M) & (np.abs(across) < self.SIDE_M)
-        clear = scan[np.abs(sector) <= STOP_CONE].min() > STOP_RANGE and not swept.any()
+        swept = in_lane(scan, sector, -0.1, 0.5 + self.SIDE_M, self.SIDE_M)
+        clear = scan[np.abs(sector) <= STOP_CONE].min() > STOP_RANGE and not swept
         ahead = abs(bearing) <= self.AHEAD
         action = FORWARD if ahead and clear else (LEFT if bearing > 0 else RIGHT)
         if (ahead and not clear) or {action, previous} == {LEFT, RIGHT}:

@@ -45,9 +45,14 @@ def blocked_ahead(scan: np.ndarray, bearings: np.ndarray, stop_range: float = ST
     """Whether the 2D scan (ranges at ``bearings``, robot frame) sees anything within ``stop_range`` ahead: in
     the cone ahead, or in the lane the body sweeps (ahead of the robot's centre, up to ``stop_range`` on)."""
     ahead = np.abs(np.arctan2(np.sin(bearings), np.cos(bearings))) <= STOP_CONE
+    return bool(np.any(scan[ahead] < stop_range) or in_lane(scan, bearings, 0.05, stop_range, SWEPT_HALF_WIDTH))
+
+
+def in_lane(scan: np.ndarray, bearings: np.ndarray, start: float, end: float, half_width: float) -> bool:
+    """Whether any return of the 2D scan (ranges at ``bearings``, robot frame) lies in the lane ahead from
+    ``start`` to ``end`` metres along the heading and within ``half_width`` of it."""
     along, across = scan * np.cos(bearings), scan * np.sin(bearings)
-    lane = (along > 0.05) & (along < stop_range) & (np.abs(across) < SWEPT_HALF_WIDTH)
-    return bool(np.any(scan[ahead] < stop_range) or np.any(lane))
+    return bool(np.any((along > start) & (along < end) & (np.abs(across) < half_width)))
 
 
 def drive(
