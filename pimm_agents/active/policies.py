@@ -41,6 +41,11 @@ class Policy(Protocol):
     def __call__(self, observation: dict[str, np.ndarray]) -> int: ...
 
 
+def sector_bearings(n: int) -> np.ndarray:
+    """The centres of the ``scan`` observation's ``n`` sectors (robot frame, from behind, counter-clockwise)."""
+    return -np.pi + (np.arange(n) + 0.5) * 2 * np.pi / n
+
+
 class RandomWalk:
     name = "random"
 
@@ -81,7 +86,7 @@ class Explorer:
         self.pose = np.array([self.pose[0] + c * dx - s * dy, self.pose[1] + s * dx + c * dy, self.pose[2] + dtheta])
         scan = np.asarray(observation["scan"], dtype=float) * self.max_range
         n = len(scan)
-        bearings = -np.pi + (np.arange(n) + 0.5) * 2 * np.pi / n  # sector centres, robot frame
+        bearings = sector_bearings(n)
         cell = (int(np.floor(self.pose[0] / self.CELL_M)), int(np.floor(self.pose[1] / self.CELL_M)))
         # open range up to OPEN_M, less a little per radian off ahead: of directions equally open (beyond OPEN_M
         # many are), the one needing the least turning wins, instead of the first sector's (behind the robot)
@@ -126,15 +131,14 @@ class Greedy:
     def __call__(self, observation: dict[str, np.ndarray]) -> int:
         explore = self.explorer(observation)  # keeps its dead reckoning and what it has faced up to date
         previous, self.last = self.last, explore
-        guide = np.asarray(observation.get("guide", np.zeros(4)), dtype=float)
-        if guide[3] < 0.5:
+        if "guide" not in observation or observation["guide"][3] < 0.5:
             return explore
         if self.explore_for > 0:
             self.explore_for -= 1
             return explore
-        bearing = float(np.arctan2(guide[0], guide[1]))
+        bearing = float(np.arctan2(observation["guide"][0], observation["guide"][1]))
         scan = np.asarray(observation["scan"], dtype=float) * self.max_range
-        sector = -np.pi + (np.arange(len(scan)) + 0.5) * 2 * np.pi / len(scan)
+        sector = sector_bearings(len(scan))
         # the guide's path keeps its clearance from the map's walls, so the forward guard's own range is margin
         # enough ahead (the explorer's larger one kept it out of doorways); and nothing may lie where the body
         # sweeps in the next 0.5 m, beside it too, where the guard does not look

@@ -336,9 +336,7 @@ class Guide:
         the primitive's start), with the localizer's ``estimate`` and the 2D ``scan`` (ranges at ``bearings``)."""
         out = np.zeros(GUIDE_SIZE, dtype=np.float32)
         if self.target is not None:  # carried into the robot's frame after the primitive's motion
-            c, s = np.cos(delta[2]), np.sin(delta[2])
-            x, y = self.target[0] - delta[0], self.target[1] - delta[1]
-            self.target = np.array([c * x + s * y, -s * x + c * y])
+            self.target = in_frame(np.asarray(delta, dtype=float), self.target[None, :])[0]
         if estimate is None or estimate.status != "ambiguous":
             self.target = None
             return out

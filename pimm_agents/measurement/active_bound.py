@@ -16,8 +16,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-#: the forward primitive's speed (m/s, primitives.py)
-FORWARD_SPEED = 0.5
+from pimm_agents.active.primitives import PRIMITIVES
+
+#: the forward primitive's speed (m/s)
+FORWARD_SPEED = PRIMITIVES[0].linear
 
 
 @dataclass(frozen=True)
