@@ -5,9 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
+from numba import njit
 
 from pimm_agents.particles.kld import bin_indices
 
@@ -20,21 +18,53 @@ class PoseCluster:
 
 
 def cluster_labels(poses: np.ndarray, xy_size: float, theta_size: float) -> np.ndarray:
-    """A cluster label per pose: particles in bins that touch (26-neighbourhood, theta wraps) share one."""
+    """A cluster label per pose: particles in bins that touch (26-neighbourhood, theta wraps) share one. Clusters
+    are numbered in the order of their first bin in (x, y, theta) order, as ``scipy.ndimage.label`` numbers them
+    (the compiled flood fill replaced it and a wrap-joining pass: 1.8 ms a call on 10 000 particles, twice per
+    PIMM update; the test compares the two)."""
     ix, iy, it, n_theta = bin_indices(poses, xy_size, theta_size)
-    ix -= ix.min()
-    iy -= iy.min()
-    occupied = np.zeros((ix.max() + 1, iy.max() + 1, n_theta + 1), dtype=bool)
-    occupied[ix, iy, it] = True
-    occupied[:, :, n_theta] = occupied[:, :, 0]  # theta's last bin also touches the first
-    labels, count = ndimage.label(occupied, structure=np.ones((3, 3, 3), dtype=bool))
-    # A bin and its copy past the wrap are one bin: join their labels.
-    first, copy = labels[:, :, 0].ravel(), labels[:, :, n_theta].ravel()
-    pairs = (first > 0) & (copy > 0)
-    graph = coo_matrix((np.ones(pairs.sum()), (first[pairs], copy[pairs])), shape=(count + 1, count + 1))
-    _, merged = connected_components(graph, directed=False)
-    _, compact = np.unique(merged[labels[ix, iy, it]], return_inverse=True)
-    return compact
+    if len(ix) == 0:
+        return np.zeros(0, dtype=np.int64)
+    return _flood_labels(ix - ix.min(), iy - iy.min(), it, n_theta)
+
+
+@njit(cache=True, nogil=True)
+def _flood_labels(ix: np.ndarray, iy: np.ndarray, it: np.ndarray, n_theta: int) -> np.ndarray:
+    """Label of each bin's particles: the occupied bins' connected components (26-neighbourhood, theta index
+    wrapping at ``n_theta``), numbered by a scan of the bins in (x, y, theta) order."""
+    nx, ny = ix.max() + 1, iy.max() + 1
+    grid = np.zeros((nx, ny, n_theta), dtype=np.int32)  # -1 occupied and unlabelled, k + 1 labelled k
+    for i in range(len(ix)):
+        grid[ix[i], iy[i], it[i]] = -1
+    stack = np.empty((len(ix), 3), dtype=np.int64)  # each occupied bin is pushed at most once
+    around = np.empty(3, dtype=np.int64)  # a bin's theta index and its two neighbours, wrapping
+    count = 0
+    for x0 in range(nx):
+        for y0 in range(ny):
+            for t0 in range(n_theta):
+                if grid[x0, y0, t0] != -1:
+                    continue
+                count += 1
+                grid[x0, y0, t0] = count
+                stack[0, 0], stack[0, 1], stack[0, 2] = x0, y0, t0
+                top = 1
+                while top > 0:
+                    top -= 1
+                    x, y, t = stack[top, 0], stack[top, 1], stack[top, 2]
+                    around[0] = t - 1 if t > 0 else n_theta - 1
+                    around[1] = t
+                    around[2] = t + 1 if t < n_theta - 1 else 0
+                    for u in range(max(x - 1, 0), min(x + 2, nx)):
+                        for v in range(max(y - 1, 0), min(y + 2, ny)):
+                            for w in around:
+                                if grid[u, v, w] == -1:
+                                    grid[u, v, w] = count
+                                    stack[top, 0], stack[top, 1], stack[top, 2] = u, v, w
+                                    top += 1
+    labels = np.empty(len(ix), dtype=np.int64)
+    for i in range(len(ix)):
+        labels[i] = grid[ix[i], iy[i], it[i]] - 1
+    return labels
 
 
 def cluster_statistics(
