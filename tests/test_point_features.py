@@ -1,7 +1,17 @@
 import numpy as np
 import pytest
 
-from pimm_agents.perception.point_features import FEATURES, point_features, with_context
+from pimm_agents.perception.point_features import (
+    FEATURES,
+    NUM_FEATURES,
+    ROUGHNESS_CAP,
+    _shift,
+    _shift_ok,
+    organized,
+    point_features,
+    valid_returns,
+    with_context,
+)
 from pimm_env.sim.lidar import Lidar3DConfig, directions_3d
 
 L3 = Lidar3DConfig(layers=40, points_per_layer=36, vertical_fov_deg=120.0)
@@ -15,6 +25,93 @@ def box_room_cloud(half: float = 3.0, floor: float = -0.5, ceiling: float = 2.0)
         t_z = np.where(d[:, 2] > 0, ceiling / d[:, 2], np.where(d[:, 2] < 0, floor / d[:, 2], np.inf))
     t = np.minimum(t_wall, t_z)
     return (d * t[:, None]).astype(np.float32), np.ones(len(d), dtype=bool)
+
+
+def numpy_point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_layer: int) -> np.ndarray:
+    """The NumPy expression the compiled features replaced (point_features.py before it)."""
+    cloud = np.asarray(cloud, dtype=np.float32)
+    valid = valid_returns(cloud, mask)
+    ok = organized(valid, layers, points_per_layer)
+    p = [np.where(ok, organized(cloud[:, k], layers, points_per_layer), np.float32(0.0)) for k in range(3)]
+
+    tangents, sums = [], [np.zeros_like(p[0]) for _ in range(3)]
+    count = np.zeros(ok.shape, dtype=np.float32)
+    has_tangent = []
+    for axis in (1, 0):
+        ok_a, ok_b = _shift_ok(ok, axis, 1), _shift_ok(ok, axis, -1)
+        both, only_a, only_b = ok_a & ok_b, ok_a & ~ok_b, ~ok_a & ok_b
+        tangent = []
+        for k in range(3):
+            ahead, behind = _shift(p[k], axis, 1), _shift(p[k], axis, -1)
+            # central difference where both neighbours exist, one-sided otherwise
+            d = np.where(both, ahead - behind, np.float32(0.0))
+            d = np.where(only_a, ahead - p[k], d)
+            tangent.append(np.where(only_b, p[k] - behind, d))
+            sums[k] += np.where(both, ahead + behind, np.float32(0.0))
+        tangents.append(tangent)
+        has_tangent.append(ok_a | ok_b)
+        count += 2 * both
+    (ax, ay, az), (bx, by, bz) = tangents
+    n = [ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx]
+    norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    has_normal = (norm > 1e-9) & has_tangent[0] & has_tangent[1]
+    scale = np.where(has_normal, 1.0 / np.maximum(norm, 1e-9), np.float32(0.0))
+    n = [c * scale for c in n]
+
+    horizontal = np.hypot(p[0], p[1])
+    inv_h = np.where(horizontal > 1e-6, 1.0 / np.maximum(horizontal, 1e-6), np.float32(0.0))
+    radial = np.abs(n[0] * p[0] * inv_h + n[1] * p[1] * inv_h)
+    column_max = np.where(ok, horizontal, np.float32(0.0)).max(axis=0, keepdims=True)
+    column_top = np.where(ok, p[2], -np.inf).max(axis=0, keepdims=True)
+    column_top = np.where(np.isfinite(column_top), column_top, 0.0)
+    top = float(p[2][ok].max()) if ok.any() else 1.0
+
+    # roughness: how far the point is from the mean of its four grid neighbours, along its normal
+    divisor = np.maximum(count, 1)
+    offset = sum((p[k] - sums[k] / divisor) * n[k] for k in range(3))
+    rough = np.where(count > 0, np.abs(offset), ROUGHNESS_CAP)
+
+    features = np.stack(
+        [
+            p[2],
+            horizontal,
+            np.abs(n[2]),
+            radial,
+            horizontal / np.maximum(column_max, 1e-6),
+            p[2] / max(top, 1e-3),
+            np.minimum(rough, ROUGHNESS_CAP),
+            column_top - p[2],
+            column_max - horizontal,
+        ],
+        axis=-1,
+    ).reshape(-1, NUM_FEATURES)
+    features[~valid] = 0.0
+    return features.astype(np.float32)
+
+
+def test_compiled_features_equal_the_numpy_expression_to_the_bit():
+    """The simulator's scans (room, hall, corridor; some returns masked, some NaN), a one-layer and a tiny
+    scan: every feature of every point the same float32 value as the NumPy expression gives."""
+    from pimm_env.envs.iilab_env import IILabEnv
+
+    env = IILabEnv()
+    rng = np.random.default_rng(0)
+    clouds = []
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        cloud, mask = obs["cloud"].copy(), obs["cloud_mask"].copy()
+        mask &= rng.random(len(mask)) > 0.1
+        cloud[rng.integers(0, len(cloud), 50)] = np.nan
+        clouds.append((cloud, mask, 40, 360))  # the thesis LiDAR: 40 layers x 360
+    env.close()
+    small, small_mask = box_room_cloud()
+    clouds.append((small, small_mask, L3.layers, L3.points_per_layer))
+    clouds.append((small[:36], small_mask[:36], 1, 36))
+    clouds.append((small[:4], np.zeros(4, dtype=bool), 2, 2))
+    for cloud, mask, layers, points in clouds:
+        np.testing.assert_array_equal(
+            point_features(cloud, mask, layers, points), numpy_point_features(cloud, mask, layers, points)
+        )
 
 
 def test_normals_of_walls_floor_and_ceiling():

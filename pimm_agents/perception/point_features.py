@@ -9,6 +9,7 @@ heading by construction (the thesis had to teach that with random rotations).
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from pimm_agents.perception.point_arrays import finite_rows
 from pimm_env.errors import ObservationError
@@ -70,68 +71,110 @@ def point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_
     """Features (layers * points_per_layer, NUM_FEATURES) float32 of every point; rows of masked points are 0.
 
     ``cloud`` is the sensor-frame cloud in scan order, ``mask`` marks real returns; NaN points count as masked.
-    Coordinates are handled as three (layers, points) planes, so every operation runs on plain 2-D arrays.
+    Each point's normal is the cross product of its tangents along the azimuth (which wraps) and across the
+    layers (which do not), each a central difference where both neighbours are returns and one-sided where one
+    is; its roughness is its distance, along that normal, from the mean of those neighbours. Compiled
+    (``_grid_features``, float32 throughout, operation by operation as the NumPy expression it replaced: the
+    test compares the two to the bit; 1.5 ms -> 0.5 ms a 40 x 360 scan, point_features as a whole).
     """
     cloud = np.asarray(cloud, dtype=np.float32)
     if cloud.ndim != 2 or cloud.shape[1] != 3:
         raise ObservationError(f"cloud must be (N, 3), got shape {cloud.shape}")
     valid = valid_returns(cloud, mask)
     ok = organized(valid, layers, points_per_layer)
-    p = [np.where(ok, organized(cloud[:, k], layers, points_per_layer), np.float32(0.0)) for k in range(3)]
+    p = [
+        np.ascontiguousarray(np.where(ok, organized(cloud[:, k], layers, points_per_layer), np.float32(0.0)))
+        for k in range(3)
+    ]
+    horizontal = np.hypot(p[0], p[1])  # libm's hypotf, as before
+    return _grid_features(p[0], p[1], p[2], np.ascontiguousarray(ok), horizontal)
 
-    tangents, sums = [], [np.zeros_like(p[0]) for _ in range(3)]
-    count = np.zeros(ok.shape, dtype=np.float32)
-    has_tangent = []
-    for axis in (1, 0):
-        ok_a, ok_b = _shift_ok(ok, axis, 1), _shift_ok(ok, axis, -1)
-        both, only_a, only_b = ok_a & ok_b, ok_a & ~ok_b, ~ok_a & ok_b
-        tangent = []
-        for k in range(3):
-            ahead, behind = _shift(p[k], axis, 1), _shift(p[k], axis, -1)
-            # central difference where both neighbours exist, one-sided otherwise
-            d = np.where(both, ahead - behind, np.float32(0.0))
-            d = np.where(only_a, ahead - p[k], d)
-            tangent.append(np.where(only_b, p[k] - behind, d))
-            sums[k] += np.where(both, ahead + behind, np.float32(0.0))
-        tangents.append(tangent)
-        has_tangent.append(ok_a | ok_b)
-        count += 2 * both
-    (ax, ay, az), (bx, by, bz) = tangents
-    n = [ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx]
-    norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
-    has_normal = (norm > 1e-9) & has_tangent[0] & has_tangent[1]
-    scale = np.where(has_normal, 1.0 / np.maximum(norm, 1e-9), np.float32(0.0))
-    n = [c * scale for c in n]
 
-    horizontal = np.hypot(p[0], p[1])
-    inv_h = np.where(horizontal > 1e-6, 1.0 / np.maximum(horizontal, 1e-6), np.float32(0.0))
-    radial = np.abs(n[0] * p[0] * inv_h + n[1] * p[1] * inv_h)
-    column_max = np.where(ok, horizontal, np.float32(0.0)).max(axis=0, keepdims=True)
-    column_top = np.where(ok, p[2], -np.inf).max(axis=0, keepdims=True)
-    column_top = np.where(np.isfinite(column_top), column_top, 0.0)
-    top = float(p[2][ok].max()) if ok.any() else 1.0
-
-    # roughness: how far the point is from the mean of its four grid neighbours, along its normal
-    divisor = np.maximum(count, 1)
-    offset = sum((p[k] - sums[k] / divisor) * n[k] for k in range(3))
-    rough = np.where(count > 0, np.abs(offset), ROUGHNESS_CAP)
-
-    features = np.stack(
-        [
-            p[2],
-            horizontal,
-            np.abs(n[2]),
-            radial,
-            horizontal / np.maximum(column_max, 1e-6),
-            p[2] / max(top, 1e-3),
-            np.minimum(rough, ROUGHNESS_CAP),
-            column_top - p[2],
-            column_max - horizontal,
-        ],
-        axis=-1,
-    ).reshape(-1, NUM_FEATURES)
-    features[~valid] = 0.0
-    return features.astype(np.float32)
+@njit(cache=True, nogil=True)
+def _grid_features(
+    px: np.ndarray, py: np.ndarray, pz: np.ndarray, ok: np.ndarray, horizontal: np.ndarray
+) -> np.ndarray:  # pragma: no cover - compiled; tests/test_point_features.py compares it with NumPy
+    """The features of ``point_features`` from the organized coordinates (zero where not ``ok``) and their
+    horizontal ranges; rows of points not ``ok`` are 0."""
+    rows, cols = ok.shape
+    f32 = np.float32
+    zero, one, two = f32(0.0), f32(1.0), f32(2.0)
+    tiny_norm, tiny_range, tiny_column = f32(1e-9), f32(1e-6), f32(1e-6)
+    cap = f32(ROUGHNESS_CAP)
+    column_max = np.zeros(cols, dtype=np.float32)
+    column_top = np.full(cols, -np.inf, dtype=np.float32)
+    any_ok = False
+    top = f32(-np.inf)
+    for i in range(rows):
+        for j in range(cols):
+            if ok[i, j]:
+                column_max[j] = max(column_max[j], horizontal[i, j])
+                column_top[j] = max(column_top[j], pz[i, j])
+                top = max(top, pz[i, j])
+                any_ok = True
+    for j in range(cols):
+        if not np.isfinite(column_top[j]):
+            column_top[j] = zero
+    top_scale = f32(max(float(top), 1e-3)) if any_ok else f32(1.0)
+    out = np.zeros((rows * cols, NUM_FEATURES), dtype=np.float32)
+    p = (px, py, pz)
+    t = np.zeros((2, 3), dtype=np.float32)  # tangents along the azimuth, then across the layers
+    sums = np.zeros(3, dtype=np.float32)
+    n = np.zeros(3, dtype=np.float32)
+    for i in range(rows):
+        for j in range(cols):
+            if not ok[i, j]:
+                continue
+            count = zero
+            has_tangent = True
+            for axis in range(2):
+                if axis == 0:  # azimuth: wraps
+                    ia, ja, ib, jb = i, (j + 1) % cols, i, (j - 1) % cols
+                    ok_a, ok_b = ok[ia, ja], ok[ib, jb]
+                else:  # layers: none beyond the top or bottom
+                    ia, ja, ib, jb = (i + 1) % rows, j, (i - 1) % rows, j
+                    ok_a, ok_b = ok[ia, ja] and i + 1 < rows, ok[ib, jb] and i > 0
+                has_tangent = has_tangent and (ok_a or ok_b)
+                for k in range(3):
+                    here, ahead, behind = p[k][i, j], p[k][ia, ja], p[k][ib, jb]
+                    if ok_a and ok_b:
+                        t[axis, k] = ahead - behind
+                        if axis == 0:
+                            sums[k] = ahead + behind  # 0 + (ahead + behind)
+                        else:
+                            sums[k] = sums[k] + (ahead + behind)
+                    else:
+                        t[axis, k] = ahead - here if ok_a else (here - behind if ok_b else zero)
+                        if axis == 0:
+                            sums[k] = zero
+                if ok_a and ok_b:
+                    count += two
+            ax, ay, az = t[0, 0], t[0, 1], t[0, 2]
+            bx, by, bz = t[1, 0], t[1, 1], t[1, 2]
+            n[0], n[1], n[2] = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+            norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+            scale = one / max(norm, tiny_norm) if (norm > tiny_norm and has_tangent) else zero
+            for k in range(3):
+                n[k] = n[k] * scale
+            h = horizontal[i, j]
+            inv_h = one / max(h, tiny_range) if h > tiny_range else zero
+            radial = abs(n[0] * px[i, j] * inv_h + n[1] * py[i, j] * inv_h)
+            divisor = max(count, one)
+            offset = zero
+            for k in range(3):
+                offset = offset + (p[k][i, j] - sums[k] / divisor) * n[k]
+            rough = abs(offset) if count > zero else cap
+            row = i * cols + j
+            out[row, 0] = pz[i, j]
+            out[row, 1] = h
+            out[row, 2] = abs(n[2])
+            out[row, 3] = radial
+            out[row, 4] = h / max(column_max[j], tiny_column)
+            out[row, 5] = pz[i, j] / top_scale
+            out[row, 6] = min(rough, cap)
+            out[row, 7] = column_top[j] - pz[i, j]
+            out[row, 8] = column_max[j] - h
+    return out
 
 
 def with_context(
