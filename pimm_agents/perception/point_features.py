@@ -186,12 +186,26 @@ def with_context(
 ) -> np.ndarray:
     """Rows ``index`` of ``features`` with the features of their grid neighbours at ``offsets`` appended
     (azimuth wraps; a neighbour beyond the top or bottom layer, or without a return, contributes zeros)."""
-    index = np.asarray(index)
     steps = np.array([(0, 0), *offsets], dtype=np.int64).reshape(-1, 2)
-    rows, cols = np.divmod(index, points_per_layer)
-    r = rows[:, None] + steps[:, 0]
-    neighbour = np.clip(r, 0, layers - 1) * points_per_layer + (cols[:, None] + steps[:, 1]) % points_per_layer
-    # one gather for all neighbours, then zeros where a neighbour lies beyond the scan
-    gathered = np.asarray(features, dtype=np.float32).take(neighbour, axis=0)
-    gathered[(r < 0) | (r >= layers)] = 0.0
-    return gathered.reshape(len(index), -1)
+    index = np.asarray(index, dtype=np.int64).reshape(-1)
+    table = np.ascontiguousarray(features, dtype=np.float32)
+    return _gather_context(table, index, steps, layers, points_per_layer)
+
+
+@njit(cache=True, nogil=True)
+def _gather_context(
+    features: np.ndarray, index: np.ndarray, steps: np.ndarray, layers: int, points_per_layer: int
+) -> np.ndarray:  # pragma: no cover - compiled
+    """(len(index), len(steps) * channels): each row's features and those of its neighbours at ``steps``."""
+    channels = features.shape[1]
+    out = np.zeros((len(index), len(steps) * channels), dtype=np.float32)
+    for i in range(len(index)):
+        row, col = index[i] // points_per_layer, index[i] % points_per_layer
+        for k in range(len(steps)):
+            r = row + steps[k, 0]
+            if r < 0 or r >= layers:
+                continue
+            source = r * points_per_layer + (col + steps[k, 1]) % points_per_layer
+            for c in range(channels):
+                out[i, k * channels + c] = features[source, c]
+    return out
