@@ -39,3 +39,32 @@ def test_sample_count_stops_once_the_bound_for_the_bins_so_far_is_exceeded():
     assert kld_sample_count(ten_bins, 0.05, 0.99, 500, 2000) == 501  # min_particles wins
     # a new bin with every draw: the bound always stays ahead of the count
     assert kld_sample_count(np.arange(3000, dtype=np.int64), 0.05, 0.99, 10, 3000) == 3000
+
+
+def test_compiled_bins_equal_the_numpy_expression():
+    """Random poses far and near, and headings on the wrap's edges: the same bins as floor and NumPy's mod."""
+    from pimm_agents.particles.kld import bin_indices
+
+    rng = np.random.default_rng(0)
+    poses = np.column_stack([rng.normal(0, 50, (20_000, 2)), rng.uniform(-20, 20, 20_000)])
+    edges = [
+        0.0,
+        -0.0,
+        np.pi,
+        -np.pi,
+        2 * np.pi,
+        -2 * np.pi,
+        np.nextafter(-np.pi, 0),
+        np.nextafter(np.pi, 4),
+        1e-300,
+        -1e-300,
+    ]
+    poses[: len(edges), 2] = edges
+    poses[: len(edges), :2] = [[0.5, -0.5]] * len(edges)
+    for xy, theta in ((0.5, np.radians(10)), (0.25, np.radians(7)), (1.0, 1.0)):
+        ix, iy, it, n_theta = bin_indices(poses, xy, theta)
+        assert n_theta == int(np.ceil(2 * np.pi / theta))
+        np.testing.assert_array_equal(ix, np.floor(poses[:, 0] / xy).astype(np.int64))
+        np.testing.assert_array_equal(iy, np.floor(poses[:, 1] / xy).astype(np.int64))
+        expected = np.floor(np.mod(poses[:, 2], 2 * np.pi) / theta).astype(np.int64) % n_theta
+        np.testing.assert_array_equal(it, expected)
