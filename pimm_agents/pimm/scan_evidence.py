@@ -6,7 +6,11 @@ log-likelihood, and the lookups are summed; a scan whose robot pose falls off th
 penalty. The same arithmetic as the NumPy expression it replaced (the test compares the two), fused into one
 pass: in NumPy the K x P intermediate arrays made this 0.67 ms a call on a typical stack (25 000 pose-points),
 40 % of an active-localization step (``evaluate.py bench`` times both: ``rival_evidence_ms`` and
-``rival_evidence_numpy_ms``).
+``rival_evidence_numpy_ms``). The loop runs point by point with every candidate inside: the candidates are
+mostly a few places and their refinement steps, so one point's lookups fall in nearby cells, which stay in the
+cache (the map's table is larger than this machine's per-core cache). Each candidate's sum still runs in point
+order, so the figures are those of the pose-by-pose loop to the bit; the pose-by-pose loop took 1.8 times as
+long in PIMM's update while driving (docs/benchmarks.md#where-pimms-time-goes).
 """
 
 from __future__ import annotations
@@ -37,33 +41,36 @@ def summed_scan_evidence(
     scoring ``log_pz_off``; plus ``off_free`` per scan whose carried pose is not on a ``free`` cell."""
     k, s, p = poses.shape[0], motions.shape[0], points.shape[0]
     rows, cols = log_pz.shape
-    out = np.zeros(k)
-    tx = np.empty(s)
-    ty = np.empty(s)
-    ca = np.empty(s)
-    sa = np.empty(s)
+    # each scan's robot pose for every candidate, scan-major: the candidates of one point are read together
+    tx = np.empty((s, k))
+    ty = np.empty((s, k))
+    ca = np.empty((s, k))
+    sa = np.empty((s, k))
+    penalty = np.zeros(k)
     for i in range(k):
         c, sn = math.cos(poses[i, 2]), math.sin(poses[i, 2])
-        penalty = 0.0
         for j in range(s):
-            tx[j] = poses[i, 0] + c * motions[j, 0] - sn * motions[j, 1]
-            ty[j] = poses[i, 1] + sn * motions[j, 0] + c * motions[j, 1]
+            tx[j, i] = poses[i, 0] + c * motions[j, 0] - sn * motions[j, 1]
+            ty[j, i] = poses[i, 1] + sn * motions[j, 0] + c * motions[j, 1]
             heading = poses[i, 2] + motions[j, 2]
-            ca[j], sa[j] = math.cos(heading), math.sin(heading)
-            col = math.floor((tx[j] - origin_x) / resolution)
-            row = math.floor((ty[j] - origin_y) / resolution)
+            ca[j, i], sa[j, i] = math.cos(heading), math.sin(heading)
+            col = math.floor((tx[j, i] - origin_x) / resolution)
+            row = math.floor((ty[j, i] - origin_y) / resolution)
             if not (0 <= row < rows and 0 <= col < cols and free[int(row), int(col)]):
-                penalty += off_free
-        total = 0.0
-        for q in range(p):
-            j = scan_of[q]
-            x = tx[j] + ca[j] * points[q, 0] - sa[j] * points[q, 1]
-            y = ty[j] + sa[j] * points[q, 0] + ca[j] * points[q, 1]
+                penalty[i] += off_free
+    # point by point, every candidate in turn: nearby candidates (a place and its refinement steps) look up
+    # nearby cells one after another, which the cache keeps; each candidate's sum runs in point order as before
+    total = np.zeros(k)
+    for q in range(p):
+        j = scan_of[q]
+        px, py = points[q, 0], points[q, 1]
+        for i in range(k):
+            x = tx[j, i] + ca[j, i] * px - sa[j, i] * py
+            y = ty[j, i] + sa[j, i] * px + ca[j, i] * py
             col = math.floor((x - origin_x) / resolution)
             row = math.floor((y - origin_y) / resolution)
             if 0 <= row < rows and 0 <= col < cols:
-                total += log_pz[int(row), int(col)]
+                total[i] += log_pz[int(row), int(col)]
             else:
-                total += log_pz_off
-        out[i] = temperature * total + penalty
-    return out
+                total[i] += log_pz_off
+    return temperature * total + penalty
