@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numba import njit
@@ -113,13 +113,28 @@ def extract_planes(points: np.ndarray, params: PlaneParams, seed: int = 0, orien
     points = np.asarray(points, dtype=float)
     points = np.ascontiguousarray(points[finite_rows(points)])
     if params.method == "constrained":
-        draws = np.random.default_rng(seed).random((params.max_planes, params.iterations, 3))
+        draws = _draws(seed, params.max_planes, params.iterations)
         normals, offsets, rms, owner = _extract(
             points, draws, params.distance_threshold, _ORIENTATION_CODE[orientation], params.score_points,
             params.min_inliers,
         )  # fmt: skip
-        return [Plane(normals[k], float(offsets[k]), points[owner == k], float(rms[k])) for k in range(len(rms))]
+        # each plane's inliers in scan order: one stable sort of the owners instead of a mask per plane
+        small = owner.astype(np.int16) if len(rms) < 1 << 15 else owner  # a few owners: NumPy's radix sort
+        order = np.argsort(small, kind="stable")
+        ends = np.searchsorted(owner[order], np.arange(len(rms) + 1), side="left")
+        return [
+            Plane(normals[k], float(offsets[k]), points[order[ends[k] : ends[k + 1]]], float(rms[k]))
+            for k in range(len(rms))
+        ]
     return _open3d_planes(points, params, seed)
+
+
+@lru_cache(maxsize=8)
+def _draws(seed: int, planes: int, iterations: int) -> np.ndarray:
+    """The constrained RANSAC's uniform draws for ``seed`` (the same every scan: made once, read-only)."""
+    draws = np.random.default_rng(seed).random((planes, iterations, 3))
+    draws.setflags(write=False)
+    return draws
 
 
 def _open3d_planes(points: np.ndarray, params: PlaneParams, seed: int) -> list[Plane]:
