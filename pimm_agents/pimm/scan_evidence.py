@@ -8,9 +8,9 @@ pass: in NumPy the K x P intermediate arrays made this 0.67 ms a call on a typic
 40 % of an active-localization step (``evaluate.py bench`` times both: ``rival_evidence_ms`` and
 ``rival_evidence_numpy_ms``). The loop runs point by point with every candidate inside: the candidates are
 mostly a few places and their refinement steps, so one point's lookups fall in nearby cells, which stay in the
-cache (the map's table is larger than this machine's per-core cache). Each candidate's sum still runs in point
-order, so the figures are those of the pose-by-pose loop to the bit; the pose-by-pose loop took 1.8 times as
-long in PIMM's update while driving (docs/benchmarks.md#where-pimms-time-goes).
+cache (the iiLab's table, 2.6 MB, is larger than a core's cache here). Each candidate's sum still runs in point
+order, so the figures are those of the pose-by-pose loop to the bit; ``rival_evidence_ms`` went from 0.18 to 0.13-0.15
+in back-to-back bench runs (docs/benchmarks.md#speed).
 """
 
 from __future__ import annotations
