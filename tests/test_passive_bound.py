@@ -11,3 +11,5 @@ def test_the_bound_comes_once_enough_scans_are_kept_where_nothing_looks_alike():
     # area_a starts in a room of its own: the truth is unrivalled as soon as 20 scans are kept (a few seconds)
     assert bound.bound_s is not None and 1.0 < bound.bound_s < 10.0
     assert bound.pimm_s is not None and bound.pimm_s >= bound.bound_s - 1.0
+    # the wider margin at which a standing rival is let go comes no earlier
+    assert bound.drop_s is not None and bound.drop_s >= bound.bound_s
