@@ -136,23 +136,22 @@ class AmbiguityCheck:
             return reading, None
         decisive = self.tracker.decisive() if self.tracker.config.switch and not self.held else None
         if decisive is not None:
-            return self.move_mode(filt, pose, chosen, self.tracker.rivals[decisive].copy())
+            return self.move_mode(filt, pose, chosen, decisive)
         rivals = tuple(rival_hypothesis(r) for r in self.tracker.rivals)
         status = "ambiguous" if reading.status == "localized" else reading.status
         return BeliefReading(status, reading.covariance, reading.hypotheses + rivals, chosen), None
 
-    def move_mode(
-        self, filt: Any, pose: np.ndarray, chosen: int, target: np.ndarray
-    ) -> tuple[BeliefReading, np.ndarray]:
+    def move_mode(self, filt: Any, pose: np.ndarray, chosen: int, rival: int) -> tuple[BeliefReading, np.ndarray]:
         """Move the particles of the estimate's mode (``chosen``; those within 1 m and 30 deg of ``pose`` if it
-        is in none) rigidly from ``pose`` to ``target``, a rival the kept scans favour decisively; the place left
-        is held as a rival until they rule it out. Returns the reading there (``ambiguous``) and ``target``."""
+        is in none) rigidly from ``pose`` to the tracker's ``rival``, which the kept scans favour decisively; the
+        place left is held as a rival until they rule it out, and so are the other rivals that stood (the scans
+        led by one rival need not rule out the next). Returns the reading there (``ambiguous``) and the place."""
+        target = self.tracker.promote(rival)
         move_particles(filt, pose, chosen, target)
-        self.tracker.forget()
         self.tracker.keep(pose)
         reading = filt.read(target)
-        left = rival_hypothesis(pose)
-        return BeliefReading("ambiguous", reading.covariance, (*reading.hypotheses, left), reading.chosen), target
+        standing = tuple(rival_hypothesis(r) for r in self.tracker.rivals)
+        return BeliefReading("ambiguous", reading.covariance, (*reading.hypotheses, *standing), reading.chosen), target
 
 
 def move_particles(filt: Any, pose: np.ndarray, chosen: int, target: np.ndarray) -> None:

@@ -84,6 +84,9 @@ class RivalConfig:
     #: hold refuses at most ``switch_updates`` jumps before the held place is reported localized again (a kidnap
     #: to a place the scans cannot tell from the held one). False: the filter alone decides (``switch_radius_m``).
     hold: bool = True
+    #: the touch every rival (and, with ``fit_estimate``, the estimate's place) gets at each update against the
+    #: kept scans: 0.05 m and 1 deg steps (False), or those and then 0.02 m and 0.3 deg (True)
+    touch_deep: bool = False
 
     def __post_init__(self) -> None:
         if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:
@@ -105,6 +108,8 @@ REFINE_STEPS = (np.array([0.1, 0.1, np.radians(2.0)]), np.array([0.05, 0.05, np.
 FINE_STEP = (REFINE_STEPS[1],)
 #: Down to 2 cm and 0.3 deg: a fit to convergence, before a rival may take the estimate.
 DEEP_STEPS = (*REFINE_STEPS, np.array([0.02, 0.02, np.radians(0.3)]))
+#: The fine step and the deepest: a touch that keeps a place fitted to 2 cm and 0.3 deg as it is carried.
+DEEP_TOUCH = DEEP_STEPS[1:]
 
 
 @dataclass(frozen=True)
@@ -142,6 +147,10 @@ class RivalTracker:
         #: the estimate's place as fitted to the kept scans, carried and fitted a touch at every update like a
         #: rival, so that rivals and estimate are scored alike (None: not fitted yet, or the estimate moved)
         self._anchor: np.ndarray | None = None
+
+    @property
+    def _touch(self) -> tuple[np.ndarray, ...]:
+        return DEEP_TOUCH if self.config.touch_deep else FINE_STEP
 
     def reset(self) -> None:
         self._scans.clear()
@@ -280,6 +289,16 @@ class RivalTracker:
         kept = self.evidence(places, history)
         return bool(kept[0] - kept[1] >= c.drop_log_ratio)
 
+    def promote(self, index: int) -> np.ndarray:
+        """Take rival ``index`` out of the rivals (it becomes the estimate) and return it; the other rivals stand,
+        their margins to be scored against the new estimate at the next update."""
+        place = self.rivals[index].copy()
+        others = np.arange(len(self.rivals)) != index
+        self.rivals, self.margins = self.rivals[others], np.full(int(others.sum()), np.nan)
+        self._leader, self._lead = None, 0
+        self._anchor = None
+        return place
+
     def keep(self, place: np.ndarray) -> None:
         """Hold ``place`` (3,) as a rival until the scans rule it out (the place an estimate jumped away from)."""
         self.rivals = np.vstack([self.rivals, np.asarray(place, dtype=float).reshape(1, 3)])
@@ -336,7 +355,7 @@ class RivalTracker:
         # then every one by a touch against all the kept scans it is scored on: fitted to the newest alone, a
         # place a degree off in heading would carry back metres off along 15 m of history and lose a rival
         history = self.stack(odom_now)
-        refined = self.refine(refined, history, rounds=1, steps=FINE_STEP)
+        refined = self.refine(refined, history, rounds=1, steps=self._touch)
         # the estimate as the filter left it, and (fit_estimate) its place fitted as the rivals are: scored once each
         places = [estimate, self._fit_estimate(estimate, recent, history)] if c.fit_estimate else [estimate]
         scores = self.evidence(np.vstack([*places, refined]), history)
@@ -364,7 +383,7 @@ class RivalTracker:
         twins by up to 500 nats on a development building (gen-970 route 2) and stayed ``ambiguous``."""
         if self._anchor is None or not self._known(self._anchor, [estimate]):
             self._anchor = self.refine(estimate[None, :], recent, rounds=3)[0]
-        self._anchor = self.refine(self._anchor[None, :], history, rounds=1, steps=FINE_STEP)[0]
+        self._anchor = self.refine(self._anchor[None, :], history, rounds=1, steps=self._touch)[0]
         return self._anchor
 
     def _follow_leader(self, estimate: np.ndarray, history: ScanStack) -> None:
