@@ -10,6 +10,7 @@ from training.buildings import (
     LOCALIZER_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
+    LOOKALIKE_SECOND_HELD_OUT_SEEDS,
     NEVER_TRAIN_SEEDS,
     TRAINING_SEEDS,
     building_spec,
@@ -25,6 +26,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     looked_at = set(TRAINING_SEEDS) | set(DEVELOPMENT_SEEDS) | set(HELD_OUT_SEEDS) | set(LOOKALIKE_DEVELOPMENT_SEEDS)
     assert not looked_at & (set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS))
     assert {draw_plan(seed)[0] for seed in LOOKALIKE_HELD_OUT_SEEDS} <= {"periodic", "mirror"}
+    second = set(LOOKALIKE_SECOND_HELD_OUT_SEEDS)
+    assert {draw_plan(seed)[0] for seed in second} <= {"periodic", "mirror"} and second <= set(NEVER_TRAIN_SEEDS)
+    assert not second & (looked_at | set(LOOKALIKE_HELD_OUT_SEEDS) | set(LOCALIZER_HELD_OUT_SEEDS))
     seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
     assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
     assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))
