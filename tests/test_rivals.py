@@ -173,3 +173,18 @@ def test_the_scan_that_moved_the_filter_is_judged_too():
     first = rays_from(twin_rooms(), there, 10.0)  # its first scan there, not kept yet
     assert tracker.holds(now, there, now), "on the kept scans alone the kidnap does not show"
     assert not tracker.holds(now, there, now, first), "its first scan marks it"
+
+
+def test_the_rival_that_takes_the_estimate_leaves_the_others_standing():
+    """A switch to one rival is no ruling on the rest: they stand, to be scored against the new estimate."""
+    truths = west_half_drive()
+    tracker = tracker_along(truths)
+    now = truths[-1]
+    twin = now - np.array([12.0, 0.0, 0.0])
+    other = np.array([18.0, 3.0, np.pi])
+    tracker.keep(twin)
+    tracker.keep(other)
+    taken = tracker.promote(0)
+    np.testing.assert_allclose(taken, twin)
+    assert len(tracker.rivals) == 1 and np.allclose(tracker.rivals[0], other) and np.isnan(tracker.margins[0])
+    assert tracker.decisive() is None  # the lead is counted anew
