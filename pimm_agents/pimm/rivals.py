@@ -69,10 +69,10 @@ class RivalConfig:
     #: the lead (summed log-likelihood, both fitted to convergence) at which a rival counts as ahead for the switch
     switch_log_ratio: float = float(np.log(1e6))
     #: score the estimate as the rivals are (its place fitted to the kept scans and carried, a touch per update)
-    #: instead of as the filter left it. Off: with it (and the switch at ln 1000) development trials were localized
-    #: far sooner (gen-970 route 2: 146 -> 12 s), but a held-out look-alike trial was localized while wrong for
-    #: 3.3 s, where the margins as they are had kept every held-out trial free of it (design.md)
-    fit_estimate: bool = False
+    #: instead of as the filter left it: carried back along 150 scans of drifting odometry, the filter's place
+    #: trailed twins fitted to them by 100-500 nats while right to 2 cm (development gen-973 route 4), so the
+    #: margins measured the fit, not the place. False: as the filter left it (a bias towards ``ambiguous``)
+    fit_estimate: bool = True
     #: a held estimate (reported localized since it last jumped) does not jump to the filter's new best place while
     #: the kept scans rule that place out as they rule out a rival (``drop_log_ratio``) and the newest
     #: ``refine_scans`` do not favour it by ``log_ratio``; the new place's particles are moved onto the held one
@@ -85,8 +85,9 @@ class RivalConfig:
     #: to a place the scans cannot tell from the held one). False: the filter alone decides (``switch_radius_m``).
     hold: bool = True
     #: the touch every rival (and, with ``fit_estimate``, the estimate's place) gets at each update against the
-    #: kept scans: 0.05 m and 1 deg steps (False), or those and then 0.02 m and 0.3 deg (True)
-    touch_deep: bool = False
+    #: kept scans: 0.05 m and 1 deg steps, then 0.02 m and 0.3 deg (True), or the first alone (False); a degree
+    #: of heading carries 15 m of history 0.26 m
+    touch_deep: bool = True
 
     def __post_init__(self) -> None:
         if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:
