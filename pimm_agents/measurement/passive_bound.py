@@ -40,7 +40,7 @@ class PassiveBound:
 def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
     """The bound of one trial (see the module docstring), beside PIMM's first right ``localized`` time."""
     from pimm_agents.experiments.runner import run_shared
-    from pimm_agents.pimm.rivals import FINE_STEP, RivalTracker
+    from pimm_agents.pimm.rivals import RivalTracker
     from pimm_agents.pimm.twins import MapTwins
     from pimm_agents.scoring.trial import TrialSpec
     from pimm_env.mapping.derived_maps import load_derived_maps
@@ -76,7 +76,9 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
         lead = np.inf  # how far the truth leads its nearest twin over the kept scans
         if len(twins):
             history = ours.stack(odom)
-            twins = ours.refine(ours.refine(twins, ours.recent(odom), rounds=3), history, rounds=1, steps=FINE_STEP)
+            twins = ours.refine(
+                ours.refine(twins, ours.recent(odom), rounds=3), history, rounds=1, steps=ours.touch_steps
+            )
             scores = ours.evidence(np.vstack([truth[None], twins]), history)
             lead = float(scores[0] - scores[1:].max())
         if state["bound"] is None and lead >= ours.config.log_ratio:

@@ -150,7 +150,8 @@ class RivalTracker:
         self._anchor: np.ndarray | None = None
 
     @property
-    def _touch(self) -> tuple[np.ndarray, ...]:
+    def touch_steps(self) -> tuple[np.ndarray, ...]:
+        """The steps of the touch a standing rival gets at each update (``RivalConfig.touch_deep``)."""
         return DEEP_TOUCH if self.config.touch_deep else FINE_STEP
 
     def reset(self) -> None:
@@ -356,7 +357,7 @@ class RivalTracker:
         # then every one by a touch against all the kept scans it is scored on: fitted to the newest alone, a
         # place a degree off in heading would carry back metres off along 15 m of history and lose a rival
         history = self.stack(odom_now)
-        refined = self.refine(refined, history, rounds=1, steps=self._touch)
+        refined = self.refine(refined, history, rounds=1, steps=self.touch_steps)
         # the estimate as the filter left it, and (fit_estimate) its place fitted as the rivals are: scored once each
         places = [estimate, self._fit_estimate(estimate, recent, history)] if c.fit_estimate else [estimate]
         scores = self.evidence(np.vstack([*places, refined]), history)
@@ -384,7 +385,7 @@ class RivalTracker:
         twins by up to 500 nats on a development building (gen-970 route 2) and stayed ``ambiguous``."""
         if self._anchor is None or not self._known(self._anchor, [estimate]):
             self._anchor = self.refine(estimate[None, :], recent, rounds=3)[0]
-        self._anchor = self.refine(self._anchor[None, :], history, rounds=1, steps=self._touch)[0]
+        self._anchor = self.refine(self._anchor[None, :], history, rounds=1, steps=self.touch_steps)[0]
         return self._anchor
 
     def _follow_leader(self, estimate: np.ndarray, history: ScanStack) -> None:
