@@ -5,8 +5,6 @@ from pimm_agents.perception.point_features import (
     FEATURES,
     NUM_FEATURES,
     ROUGHNESS_CAP,
-    _shift,
-    _shift_ok,
     organized,
     point_features,
     valid_returns,
@@ -25,6 +23,19 @@ def box_room_cloud(half: float = 3.0, floor: float = -0.5, ceiling: float = 2.0)
         t_z = np.where(d[:, 2] > 0, ceiling / d[:, 2], np.where(d[:, 2] < 0, floor / d[:, 2], np.inf))
     t = np.minimum(t_wall, t_z)
     return (d * t[:, None]).astype(np.float32), np.ones(len(d), dtype=bool)
+
+
+def _shift(grid: np.ndarray, axis: int, step: int) -> np.ndarray:
+    """Each cell's neighbour ``step`` cells along ``axis`` (azimuth wraps; layers wrap too, see _shift_ok)."""
+    return np.roll(grid, -step, axis=axis)
+
+
+def _shift_ok(ok: np.ndarray, axis: int, step: int) -> np.ndarray:
+    """Whether that neighbour is a return; beyond the top or bottom layer there is none."""
+    shifted = np.roll(ok, -step, axis=axis)
+    if axis == 0:
+        shifted[-1 if step > 0 else 0] = False
+    return shifted
 
 
 def numpy_point_features(cloud: np.ndarray, mask: np.ndarray, layers: int, points_per_layer: int) -> np.ndarray:

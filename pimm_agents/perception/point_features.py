@@ -46,19 +46,6 @@ def organized(values: np.ndarray, layers: int, points_per_layer: int) -> np.ndar
     return values.reshape(layers, points_per_layer, *values.shape[1:])
 
 
-def _shift(grid: np.ndarray, axis: int, step: int) -> np.ndarray:
-    """Each cell's neighbour ``step`` cells along ``axis`` (azimuth wraps; layers wrap too, see _shift_ok)."""
-    return np.roll(grid, -step, axis=axis)
-
-
-def _shift_ok(ok: np.ndarray, axis: int, step: int) -> np.ndarray:
-    """Whether that neighbour is a return; beyond the top or bottom layer there is none."""
-    shifted = np.roll(ok, -step, axis=axis)
-    if axis == 0:
-        shifted[-1 if step > 0 else 0] = False
-    return shifted
-
-
 def valid_returns(cloud: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """(N,) bool: the rows of the (N, 3) ``cloud`` that are returns, marked in ``mask`` and finite."""
     mask = np.asarray(mask, dtype=bool).reshape(-1)

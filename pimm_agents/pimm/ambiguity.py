@@ -137,9 +137,12 @@ class AmbiguityCheck:
         decisive = self.tracker.decisive() if self.tracker.config.switch and not self.held else None
         if decisive is not None:
             return self.move_mode(filt, pose, chosen, decisive)
-        rivals = tuple(rival_hypothesis(r) for r in self.tracker.rivals)
         status = "ambiguous" if reading.status == "localized" else reading.status
-        return BeliefReading(status, reading.covariance, reading.hypotheses + rivals, chosen), None
+        return BeliefReading(status, reading.covariance, reading.hypotheses + self.standing(), chosen), None
+
+    def standing(self) -> tuple[Hypothesis, ...]:
+        """The standing rivals as hypotheses (``rival_hypothesis``)."""
+        return tuple(rival_hypothesis(r) for r in self.tracker.rivals)
 
     def move_mode(self, filt: Any, pose: np.ndarray, chosen: int, rival: int) -> tuple[BeliefReading, np.ndarray]:
         """Move the particles of the estimate's mode (``chosen``; those within 1 m and 30 deg of ``pose`` if it
@@ -150,8 +153,9 @@ class AmbiguityCheck:
         move_particles(filt, pose, chosen, target)
         self.tracker.keep(pose)
         reading = filt.read(target)
-        standing = tuple(rival_hypothesis(r) for r in self.tracker.rivals)
-        return BeliefReading("ambiguous", reading.covariance, (*reading.hypotheses, *standing), reading.chosen), target
+        return BeliefReading(
+            "ambiguous", reading.covariance, reading.hypotheses + self.standing(), reading.chosen
+        ), target
 
 
 def move_particles(filt: Any, pose: np.ndarray, chosen: int, target: np.ndarray) -> None:

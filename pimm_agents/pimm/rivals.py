@@ -294,11 +294,9 @@ class RivalTracker:
     def promote(self, index: int) -> np.ndarray:
         """Take rival ``index`` out of the rivals (it becomes the estimate) and return it; the other rivals stand,
         their margins to be scored against the new estimate at the next update."""
-        place = self.rivals[index].copy()
-        others = np.arange(len(self.rivals)) != index
-        self.rivals, self.margins = self.rivals[others], np.full(int(others.sum()), np.nan)
-        self._leader, self._lead = None, 0
-        self._anchor = None
+        place, others = self.rivals[index].copy(), np.delete(self.rivals, index, axis=0)
+        self.forget()
+        self.rivals, self.margins = others, np.full(len(others), np.nan)
         return place
 
     def keep(self, place: np.ndarray) -> None:
