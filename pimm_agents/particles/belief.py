@@ -136,13 +136,14 @@ class Confirmation:
     def reset(self) -> None:
         self.streak = 0
 
-    def __call__(self, status: str, moved_place: bool) -> str:
+    def __call__(self, status: str, moved_place: bool, earned: int = 0) -> str:
         """The status to report for a reading ``status`` at an update; ``moved_place``: the estimate jumped to
-        another place at this update."""
+        another place at this update, which has already held for ``earned`` updates (a rival that led that
+        long, ``pimm/ambiguity.py``)."""
         if status != "localized":
             self.streak = 0
             return status
-        self.streak = 1 if moved_place else self.streak + 1
+        self.streak = 1 + earned if moved_place else self.streak + 1
         return "localized" if self.streak >= self.updates else "ambiguous"
 
 

@@ -396,6 +396,7 @@ class FeatureFilter:
                     estimate = None  # a held place the kept scans favour: its rival's particles were moved onto it
         pose = estimate if estimate is not None else previous
         reading = self.read(pose)
+        own, switched = reading.status, False  # the belief's own status, before the rival check
         jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
         if self.ambiguity is not None and self._odom_ref is not None:
             left = previous if jumped else None
@@ -403,14 +404,25 @@ class FeatureFilter:
                 self, self._odom_ref, pose, reading, wall_points, left, suggestions
             )
             if moved_to is not None:
-                estimate, jumped = moved_to, True
-        self.reading = BeliefReading(self.confirmation(reading.status, jumped), reading.covariance, reading.hypotheses)
+                estimate, jumped, switched = moved_to, True, True
+        status = self.confirmed(own, reading.status, jumped, switched)
+        self.reading = BeliefReading(status, reading.covariance, reading.hypotheses)
         if self.ambiguity is not None:
             self.ambiguity.after(self.reading.status, jumped)
         self.resample_if_degenerate()
         if self.informed:
             self.inject(suggestions)
         return estimate
+
+    def confirmed(self, own: str, checked: str, jumped: bool, switched: bool) -> str:
+        """The status to report: the rival check's reading ``checked`` held back by the confirmation, counted on
+        it or, with ``rivals.veto_only``, on the belief's own reading ``own`` (the check then only vetoes), a
+        switch to a rival (``switched``) counting the updates that rival led in a row."""
+        if self.ambiguity is None or not self.ambiguity.tracker.config.veto_only:
+            return self.confirmation(checked, jumped)
+        earned = self.ambiguity.tracker.config.switch_updates if switched else 0
+        status = self.confirmation(own, jumped, earned)
+        return checked if checked != "localized" else status
 
     # ------------------------------------------------------------------ estimate
     def read(self, pose: np.ndarray | None) -> BeliefReading:

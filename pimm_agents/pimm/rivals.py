@@ -88,6 +88,12 @@ class RivalConfig:
     #: kept scans: 0.05 m and 1 deg steps, then 0.02 m and 0.3 deg (True), or the first alone (False); a degree
     #: of heading carries 15 m of history 0.26 m
     touch_deep: bool = True
+    #: a rival standing (or too few scans kept) keeps a localized reading from being reported without restarting
+    #: its confirmation (``belief.confirm_updates``, counted on the filter's own reading): once the belief has
+    #: been compact at one place that long, the status is localized at the first update no rival stands. False:
+    #: the confirmation counts from the update the last rival fell (10 updates, about 2 s, after the scans had
+    #: told the places apart)
+    veto_only: bool = False
 
     def __post_init__(self) -> None:
         if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:
