@@ -111,6 +111,12 @@ def test_confirmation_holds_localized_back_and_restarts_after_a_jump():
     assert confirm("lost", False) == "lost" and confirm.streak == 0
 
 
+def test_a_switch_counts_the_updates_its_rival_led():
+    confirm = Confirmation(10)
+    assert confirm("localized", True, earned=10) == "localized" and confirm.streak == 11
+    assert confirm("localized", True) == "ambiguous" and confirm.streak == 1
+
+
 def test_bad_settings_are_named():
     with pytest.raises(ValueError, match="rival_ratio"):
         BeliefConfig(rival_ratio=1.5)

@@ -479,3 +479,29 @@ def test_a_held_estimate_stays_for_at_most_switch_updates_refusals_until_it_is_l
     filt.particles[:500] = twin
     filt.belief = read_belief(filt.particles, filt.weights, BeliefConfig())
     assert check.keeps(filt, held, twin, np.zeros(3))
+
+
+def test_with_veto_only_the_rival_check_holds_localized_back_without_restarting_the_confirmation():
+    occupancy = twin_rooms()
+    corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
+    turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
+    truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 20.0, 0.12)]])
+    first = {}
+    for veto_only in (False, True):
+        filt = FeatureFilter(
+            occupancy,
+            corners,
+            FeatureFilterConfig(num_particles=10_000),
+            wall_field_for(occupancy),
+            0.2,
+            rivals=RivalConfig(veto_only=veto_only),
+        )
+        filt.reset(np.random.default_rng(0))
+        updates = track(filt, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
+        # never localized while the twin room cannot be told apart, and right once localized
+        assert "localized" not in [status for status, _, pose in updates if pose[0] < 15.5]
+        localized = [np.hypot(*(e[:2] - p[:2])) for s, e, p in updates if s == "localized"]
+        assert localized and max(localized) < 0.3
+        first[veto_only] = [s for s, _, _ in updates].index("localized")
+    # the belief had been compact for far longer than confirm_updates: localized once the twin falls
+    assert first[True] < first[False]
