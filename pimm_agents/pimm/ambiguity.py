@@ -128,7 +128,8 @@ class AmbiguityCheck:
             # the map's look-alikes of a place about to be called localized, and every few updates while it is
             self._twin_updates += 1
             if filt.reading.status != "localized" or self._twin_updates >= self.twins.config.every_updates:
-                first = np.vstack([first, self.twins.of(pose)])
+                about_to = filt.reading.status != "localized" and self.tracker.config.veto_only
+                first = np.vstack([first, self.twins.around(pose) if about_to else self.twins.of(pose)])
                 self._twin_updates = 0
         if self.tracker.update(pose, odom, candidates, first, lead=not self.held) == 0:
             if reading.status == "localized" and not self.tracker.settled:

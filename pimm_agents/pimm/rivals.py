@@ -48,8 +48,9 @@ class RivalConfig:
     #: a periodic corridor), while scans that tell places apart move it by tens to hundreds.
     drop_log_ratio: float = float(np.log(1e6))
     #: no place is called localized before this many scans are kept since the estimate was last lost or jumped:
-    #: the candidates get that long to be found and fitted
-    settle_scans: int = 20  # twice refine_scans
+    #: the candidates get that long to be found and fitted (as many as a new candidate is first fitted to; twice
+    #: that held every right estimate back 2 s more and kept no wrong one out, docs/design.md)
+    settle_scans: int = 10
     candidates: int = 2  # new candidates refined per update (the best fits of the newest scans among those offered)
     max_rivals: int = 5
     distinct_m: float = 1.0  # a candidate closer than this (and distinct_deg) to the estimate or a rival is that place
@@ -93,7 +94,7 @@ class RivalConfig:
     #: been compact at one place that long, the status is localized at the first update no rival stands. False:
     #: the confirmation counts from the update the last rival fell (10 updates, about 2 s, after the scans had
     #: told the places apart)
-    veto_only: bool = False
+    veto_only: bool = True
 
     def __post_init__(self) -> None:
         if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:

@@ -90,6 +90,34 @@ class MapTwins:
             [found[:, 0] + cos * dx - sin * dy, found[:, 1] + sin * dx + cos * dy, wrap_angle(pose[2] + turn)]
         )
 
+    def around(self, pose: np.ndarray) -> np.ndarray:
+        """Twin poses of ``pose`` as seen from its cell and the three cells nearest it (the 2 x 2 block of cells
+        whose centres surround it), those of its own cell first, none within 1.5 m of an earlier one: a place
+        near a cell's edge is compared with the walls about both sides of it."""
+        c = self.config
+        pose = np.asarray(pose, dtype=float)
+        fx, fy = pose[0] / c.cell_m - 0.5, pose[1] / c.cell_m - 0.5  # cell-centre coordinates
+        x0, y0 = int(np.floor(fx)), int(np.floor(fy))
+        own = (int(np.floor(pose[0] / c.cell_m)), int(np.floor(pose[1] / c.cell_m)))
+        cells = [own] + [(x0 + i, y0 + j) for i in (0, 1) for j in (0, 1) if (x0 + i, y0 + j) != own]
+        kept: list[np.ndarray] = []
+        for cx, cy in cells:
+            at = np.array([(cx + 0.5) * c.cell_m, (cy + 0.5) * c.cell_m, 0.0])
+            for twin in self.of(at):
+                # the cell centre's twin carried to the pose: the turn about the centre applied to the offset
+                turn = twin[2]
+                d = pose[:2] - at[:2]
+                place = np.array(
+                    [
+                        twin[0] + np.cos(turn) * d[0] - np.sin(turn) * d[1],
+                        twin[1] + np.sin(turn) * d[0] + np.cos(turn) * d[1],
+                        wrap_angle(pose[2] + turn),
+                    ]
+                )
+                if all(np.hypot(*(place[:2] - k[:2])) >= 1.5 for k in kept):
+                    kept.append(place)
+        return np.array(kept).reshape(-1, 3)
+
     def _twins_at(self, centre: np.ndarray) -> np.ndarray:
         c, res, reach = self.config, self.resolution, self._reach
         ys, xs = np.nonzero(self.walls)
