@@ -69,12 +69,12 @@ def test_bad_settings_are_named(bad):
         TwinConfig(**bad)
 
 
-def started_at_the_truth(twins: bool) -> list[tuple[str, np.ndarray, np.ndarray]]:
+def started_at_the_truth(twins: bool, cells: int = 2) -> list[tuple[str, np.ndarray, np.ndarray]]:
     """A filter that starts around the true pose in the second room (no particle in the first), driven as in
     the twin-rooms test: east through the door, the block in sight from x = 15.6, on to x = 21."""
     occupancy = twin_rooms()
     corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
-    rivals = RivalConfig(twins=TwinConfig(enabled=twins))
+    rivals = RivalConfig(twins=TwinConfig(enabled=twins, looked_from_cells=cells))
     filt = FeatureFilter(
         occupancy, corners, FeatureFilterConfig(num_particles=2000), wall_field_for(occupancy), 0.2, rivals=rivals
     )
@@ -92,6 +92,13 @@ def test_a_twin_the_filter_never_held_keeps_the_place_ambiguous_until_the_block_
     # without the map's twins nothing offers the first room, and the place is called localized before the block
     without = [status for status, _, pose in started_at_the_truth(twins=False) if pose[0] < 15.5]
     assert "localized" in without
+
+
+def test_a_place_is_called_localized_only_once_its_twins_were_looked_for_from_two_cells():
+    # turning on one spot, the twin search from its one cell offers shifted near-copies, not the other room:
+    # looked for from that cell alone, the place is called localized before the robot has moved
+    one_cell = [status for status, _, pose in started_at_the_truth(twins=True, cells=1) if pose[0] < 15.5]
+    assert "localized" in one_cell
 
 
 def test_the_twins_are_set_from_a_params_section():

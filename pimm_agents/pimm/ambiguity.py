@@ -44,6 +44,8 @@ class AmbiguityCheck:
         self.twins = MapTwins(occupancy, config.twins) if config.twins.enabled else None
         self._odom: np.ndarray | None = None  # the odometry the rivals were last carried to
         self._twin_updates = 0  # localized updates since the twins were last offered
+        #: the cells the twins were looked for from since the estimate was last lost or jumped
+        self._twin_cells: set[tuple[int, int]] = set()
         #: whether the estimate has been reported localized since it last jumped: a held place is not moved by the
         #: rival check (its margins over 150 scans are not enough to overturn a place the scans confirmed)
         self.held = False
@@ -53,6 +55,7 @@ class AmbiguityCheck:
         self.tracker.reset()
         self._odom = None
         self._twin_updates = 0
+        self._twin_cells.clear()
         self.held = False
         self._kept = 0
 
@@ -108,9 +111,11 @@ class AmbiguityCheck:
         self._odom = odom.copy()
         if reading.status == "lost":
             self.tracker.reset()
+            self._twin_cells.clear()
         elif left is not None and pose is not None:
             self.tracker.reset()
             self.tracker.keep(left)
+            self._twin_cells.clear()
         if pose is None or filt.belief is None or reading.status == "lost":
             return reading, None
         if wall_points is not None:
@@ -128,11 +133,11 @@ class AmbiguityCheck:
             # the map's look-alikes of a place about to be called localized, and every few updates while it is
             self._twin_updates += 1
             if filt.reading.status != "localized" or self._twin_updates >= self.twins.config.every_updates:
-                about_to = filt.reading.status != "localized" and self.tracker.config.veto_only
-                first = np.vstack([first, self.twins.around(pose) if about_to else self.twins.of(pose)])
+                first = np.vstack([first, self.twins.of(pose)])
                 self._twin_updates = 0
+                self._twin_cells.add(self.twins.cell_of(pose))
         if self.tracker.update(pose, odom, candidates, first, lead=not self.held) == 0:
-            if reading.status == "localized" and not self.tracker.settled:
+            if reading.status == "localized" and not (self.tracker.settled and self.twins_looked()):
                 return BeliefReading("ambiguous", reading.covariance, reading.hypotheses, chosen), None
             return reading, None
         decisive = self.tracker.decisive() if self.tracker.config.switch and not self.held else None
@@ -140,6 +145,10 @@ class AmbiguityCheck:
             return self.move_mode(filt, pose, chosen, decisive)
         status = "ambiguous" if reading.status == "localized" else reading.status
         return BeliefReading(status, reading.covariance, reading.hypotheses + self.standing(), chosen), None
+
+    def twins_looked(self) -> bool:
+        """Whether the map's twins of the place have been looked for from enough cells (``looked_from_cells``)."""
+        return self.twins is None or len(self._twin_cells) >= self.twins.config.looked_from_cells
 
     def standing(self) -> tuple[Hypothesis, ...]:
         """The standing rivals as hypotheses (``rival_hypothesis``)."""
@@ -151,6 +160,7 @@ class AmbiguityCheck:
         place left is held as a rival until they rule it out, and so are the other rivals that stood (the scans
         led by one rival need not rule out the next). Returns the reading there (``ambiguous``) and the place."""
         target = self.tracker.promote(rival)
+        self._twin_cells.clear()
         move_particles(filt, pose, chosen, target)
         self.tracker.keep(pose)
         reading = filt.read(target)

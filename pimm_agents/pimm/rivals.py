@@ -12,11 +12,12 @@ look-alikes of it (twins.py), which the map cannot miss the way the filter can. 
 its summed evidence is within ``log_ratio`` of the estimate's; rivals are kept, carried by the odometry and re-scored at
 every update, until the scans favour the estimate over them by ``drop_log_ratio`` (a wider margin, so that a twin
 does not flicker in and out). While any rival stands, and until ``settle_scans`` scans are kept, the status is
-``ambiguous``. The filter is not fed from the check (particles injected at every rival made the estimate wander
-between twins, docs/design.md), with one exception: a rival the scans favour over the estimate by
-``drop_log_ratio``, both fitted to them to convergence, at ``switch_updates`` updates in a row takes the mode
-of an estimate not reported localized since it last jumped (``switch``; ambiguity.py moves it):
-by the check's own rule the estimate would be ruled out were the two the other way round.
+``ambiguous`` (a veto: the belief's own confirmation goes on counting, ``veto_only``). The filter is not fed
+from the check (particles injected at every rival made the estimate wander between twins, docs/design.md), with
+one exception: a rival the scans favour over the estimate by ``drop_log_ratio``, both fitted to them to
+convergence, at ``switch_updates`` updates in a row takes the mode of an estimate not reported localized since
+it last jumped (``switch``; ambiguity.py moves it): by the check's own rule the estimate would be ruled out were
+the two the other way round.
 """
 
 from __future__ import annotations

@@ -37,6 +37,11 @@ class TwinConfig:
     #: the twins are offered when an estimate is about to be called localized, and again at this many updates'
     #: interval while it is (2 s of 10 Hz scans): a twin the scans had ruled out is not re-offered at once
     every_updates: int = 20
+    #: a place is called localized only once its twins have been looked for from this many cells: a search
+    #: from one cell can miss a twin that the next cell's finds (in a periodic room the six best matches of one
+    #: cell were shifted near-copies, tests/test_twins.py), so a robot turning on one spot stays ambiguous
+    #: until it has moved into a second cell
+    looked_from_cells: int = 2
 
     def __post_init__(self) -> None:
         if self.radius_m <= 0 or self.resolution_m <= 0 or self.cell_m <= 0:
@@ -45,6 +50,8 @@ class TwinConfig:
             raise LocalizerError(f"twins: angle_step_deg must divide 90, got {self.angle_step_deg}")
         if not 0 < self.min_overlap <= 1 or self.max_twins < 0 or self.every_updates < 1:
             raise LocalizerError("twins: min_overlap must lie in (0, 1], max_twins >= 0, every_updates >= 1")
+        if self.looked_from_cells < 0:
+            raise LocalizerError(f"twins: looked_from_cells must be at least 0, got {self.looked_from_cells}")
 
 
 class MapTwins:
@@ -71,13 +78,17 @@ class MapTwins:
         self._target_fft = np.fft.rfft2(padded)
         self._cache: dict[tuple[int, int], np.ndarray] = {}
 
+    def cell_of(self, pose: np.ndarray) -> tuple[int, int]:
+        """The ``cell_m`` cell whose twins ``of`` gives for ``pose``."""
+        return (int(np.floor(pose[0] / self.config.cell_m)), int(np.floor(pose[1] / self.config.cell_m)))
+
     def of(self, pose: np.ndarray) -> np.ndarray:
         """Twin poses (K, 3) of ``pose`` (x, y, heading), best match first; none where the place sees too few
         walls to compare."""
         c = self.config
         if not c.enabled or c.max_twins == 0:
             return np.zeros((0, 3))
-        key = (int(np.floor(pose[0] / c.cell_m)), int(np.floor(pose[1] / c.cell_m)))
+        key = self.cell_of(pose)
         if key not in self._cache:
             self._cache[key] = self._twins_at(np.array([(key[0] + 0.5) * c.cell_m, (key[1] + 0.5) * c.cell_m]))
         found = self._cache[key]  # (K, 5): centre x, y, turn, the cell centre's x, y
@@ -89,34 +100,6 @@ class MapTwins:
         return np.column_stack(
             [found[:, 0] + cos * dx - sin * dy, found[:, 1] + sin * dx + cos * dy, wrap_angle(pose[2] + turn)]
         )
-
-    def around(self, pose: np.ndarray) -> np.ndarray:
-        """Twin poses of ``pose`` as seen from its cell and the three cells nearest it (the 2 x 2 block of cells
-        whose centres surround it), those of its own cell first, none within 1.5 m of an earlier one: a place
-        near a cell's edge is compared with the walls about both sides of it."""
-        c = self.config
-        pose = np.asarray(pose, dtype=float)
-        fx, fy = pose[0] / c.cell_m - 0.5, pose[1] / c.cell_m - 0.5  # cell-centre coordinates
-        x0, y0 = int(np.floor(fx)), int(np.floor(fy))
-        own = (int(np.floor(pose[0] / c.cell_m)), int(np.floor(pose[1] / c.cell_m)))
-        cells = [own] + [(x0 + i, y0 + j) for i in (0, 1) for j in (0, 1) if (x0 + i, y0 + j) != own]
-        kept: list[np.ndarray] = []
-        for cx, cy in cells:
-            at = np.array([(cx + 0.5) * c.cell_m, (cy + 0.5) * c.cell_m, 0.0])
-            for twin in self.of(at):
-                # the cell centre's twin carried to the pose: the turn about the centre applied to the offset
-                turn = twin[2]
-                d = pose[:2] - at[:2]
-                place = np.array(
-                    [
-                        twin[0] + np.cos(turn) * d[0] - np.sin(turn) * d[1],
-                        twin[1] + np.sin(turn) * d[0] + np.cos(turn) * d[1],
-                        wrap_angle(pose[2] + turn),
-                    ]
-                )
-                if all(np.hypot(*(place[:2] - k[:2])) >= 1.5 for k in kept):
-                    kept.append(place)
-        return np.array(kept).reshape(-1, 3)
 
     def _twins_at(self, centre: np.ndarray) -> np.ndarray:
         c, res, reach = self.config, self.resolution, self._reach
