@@ -408,20 +408,23 @@ def test_the_reported_covariance_is_consistent_with_the_error_on_a_tracked_run()
     assert max(traces) < 0.5  # the estimate's mode, not the whole particle set (the L room: ~8 m^2)
 
 
+def checked_filter(
+    occupancy: OccupancyGrid, corners: NearestCornerGrid, particles: int, rivals: RivalConfig
+) -> FeatureFilter:
+    """A filter with the wall field (temperature 0.2) and a rival check of ``rivals``, reset with seed 0."""
+    filt = FeatureFilter(
+        occupancy, corners, FeatureFilterConfig(num_particles=particles), wall_field_for(occupancy), 0.2, rivals=rivals
+    )
+    filt.reset(np.random.default_rng(0))
+    return filt
+
+
 def test_no_place_is_localized_before_the_rival_check_has_kept_settle_scans():
     occupancy, corners = l_room()
     poses = path()
     first = {}
     for settle in (0, 25):
-        filt = FeatureFilter(
-            occupancy,
-            corners,
-            FeatureFilterConfig(num_particles=3000),
-            wall_field_for(occupancy),
-            0.2,
-            rivals=RivalConfig(settle_scans=settle),
-        )
-        filt.reset(np.random.default_rng(0))
+        filt = checked_filter(occupancy, corners, 3000, RivalConfig(settle_scans=settle))
         statuses = [s for s, _, _ in track(filt, poses, poses, lambda p: (features_from(p), walls_seen_from(p)))]
         first[settle] = statuses.index("localized")
     # without it the first claim comes once 10 updates confirm it; with it, not before 25 scans are kept
@@ -488,15 +491,7 @@ def test_with_veto_only_the_rival_check_holds_localized_back_without_restarting_
     truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 20.0, 0.12)]])
     first = {}
     for veto_only in (False, True):
-        filt = FeatureFilter(
-            occupancy,
-            corners,
-            FeatureFilterConfig(num_particles=10_000),
-            wall_field_for(occupancy),
-            0.2,
-            rivals=RivalConfig(veto_only=veto_only),
-        )
-        filt.reset(np.random.default_rng(0))
+        filt = checked_filter(occupancy, corners, 10_000, RivalConfig(veto_only=veto_only))
         updates = track(filt, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
         # never localized while the twin room cannot be told apart, and right once localized
         assert "localized" not in [status for status, _, pose in updates if pose[0] < 15.5]

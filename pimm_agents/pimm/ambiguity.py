@@ -110,12 +110,10 @@ class AmbiguityCheck:
             self.tracker.move(self._odom, odom)
         self._odom = odom.copy()
         if reading.status == "lost":
-            self.tracker.reset()
-            self._twin_cells.clear()
+            self._forget_place()
         elif left is not None and pose is not None:
-            self.tracker.reset()
+            self._forget_place()
             self.tracker.keep(left)
-            self._twin_cells.clear()
         if pose is None or filt.belief is None or reading.status == "lost":
             return reading, None
         if wall_points is not None:
@@ -145,6 +143,12 @@ class AmbiguityCheck:
             return self.move_mode(filt, pose, chosen, decisive)
         status = "ambiguous" if reading.status == "localized" else reading.status
         return BeliefReading(status, reading.covariance, reading.hypotheses + self.standing(), chosen), None
+
+    def _forget_place(self) -> None:
+        """The estimate was lost or jumped: drop the kept scans, the rivals and the cells the twins were looked
+        for from."""
+        self.tracker.reset()
+        self._twin_cells.clear()
 
     def twins_looked(self) -> bool:
         """Whether the map's twins of the place have been looked for from enough cells (``looked_from_cells``)."""
