@@ -317,6 +317,7 @@ def perception_table_command(
     layouts_world: str | None = typer.Option(None, help="a world to segment every LiDAR layout in"),
     count: int = typer.Option(20, "--scans-per-world", min=1, help="fresh scans per world and layout"),
     seed: int = typer.Option(1, help="seed of the scan poses (keep it apart from training seeds)"),
+    by_object: bool = typer.Option(False, help="also list each world's objects whose returns were labelled wrong"),
     json_out: bool = JSON,
 ) -> None:
     """One network's segmentation on real scans, worlds and every LiDAR layout (docs/perception.md)."""
@@ -324,7 +325,7 @@ def perception_table_command(
     from pimm_agents.perception.files import SHIPPED_CLOUD_WEIGHTS
     from pimm_agents.results.markdown import perception_table_markdown
 
-    table = perception_table(weights or SHIPPED_CLOUD_WEIGHTS, scans, worlds, layouts_world, count, seed)
+    table = perception_table(weights or SHIPPED_CLOUD_WEIGHTS, scans, worlds, layouts_world, count, seed, by_object)
     typer.echo(json.dumps(table) if json_out else perception_table_markdown(table, _command_line()))
 
 

@@ -90,3 +90,15 @@ def test_prism_caster_single_box_range(room_file):
     assert labels[0, 0] == 3 and labels[0, 1] == 0
     ranges, labels = PrismRayCaster(world).cast(np.array([3.0, 2.0, 1.0]), np.zeros(1), np.array([-np.pi / 4]), 10.0)
     assert ranges[0, 0] == pytest.approx(np.sqrt(2.0)) and labels[0, 0] == 2  # the floor
+
+
+def test_embree_names_the_element_each_ray_hits_first(room_file):
+    world = load_world(room_file)
+    caster = EmbreeRayCaster(world)
+    origin = np.array([3.0, 2.0, 1.0])
+    directions = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
+    ranges, labels = caster.cast_directions(origin, directions, 10.0)
+    elements = caster.cast_elements(origin, directions, 10.0)
+    assert [world.elements[i].name for i in elements] == ["post", "west", "floor", "ceiling"]
+    assert [world.elements[i].semantic for i in elements] == list(labels)
+    assert caster.cast_elements(origin, directions, 0.5).tolist() == [-1] * 4  # nothing within 0.5 m

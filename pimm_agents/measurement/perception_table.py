@@ -3,7 +3,8 @@
 - real scans (``scans``): against their plane-fit reference (``plane_reference.py``), with the room corners
   found within 0.2 m;
 - simulated worlds (``worlds``: the iiLab, imported furnished buildings, generated held-out buildings):
-  ``count`` fresh scans of the thesis's LiDAR at 0.5 m, IoU over every return (``layout_quality.py``);
+  ``count`` fresh scans of the thesis's LiDAR at 0.5 m, IoU over every return (``layout_quality.py``), and
+  where asked, the objects whose returns were labelled wrong most often;
 - every LiDAR layout and two mount heights in one world (``layouts_world``), the height measured from the
   floor and given.
 """
@@ -37,13 +38,16 @@ def perception_table(
     layouts_world: str | None,
     count: int,
     seed: int,
+    by_object: bool = False,
 ) -> dict[str, Any]:
+    """The table's figures (``by_object``: each world's objects whose returns were labelled wrong most often)."""
     from pimm_agents.measurement.layout_quality import measure_layouts
 
     table: dict[str, Any] = {"weights": str(weights), "scans_per_world": count, "seed": seed}
     table["real_scans"] = {str(path): real_scan_scores(path, weights, seed) for path in scans}
     table["worlds"] = {
-        world: measure_layouts(world, weights, count, seed, layouts=("thesis",))["thesis@0.5m"] for world in worlds
+        world: measure_layouts(world, weights, count, seed, layouts=("thesis",), by_object=by_object)["thesis@0.5m"]
+        for world in worlds
     }
     if layouts_world is not None:
         table["layouts"] = {

@@ -161,6 +161,16 @@ def bench_markdown(figures: dict[str, float], command: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _object_errors_markdown(world: str, objects: list[dict[str, Any]], classes: tuple[str, ...]) -> list[str]:
+    """The objects of ``world`` whose returns were labelled wrong most often, one row each."""
+    lines = [f"Objects of {world} labelled wrong most often (returns labelled each class):", ""]
+    lines += ["| object | class | returns | wrong | " + " | ".join(classes) + " |", "|---|---|" + "---:|" * 6]
+    for row in objects:
+        counts = " | ".join(str(row["labelled"][name]) for name in classes)
+        lines.append(f"| `{row['name']}` | {row['class']} | {row['returns']} | {row['wrong']} | {counts} |")
+    return [*lines, ""]
+
+
 def perception_table_markdown(table: dict[str, Any], command: str) -> str:
     """``evaluate.py perception-table``: real scans, worlds and LiDAR layouts as Markdown tables."""
     classes = ("wall", "ceiling", "floor", "clutter")
@@ -192,6 +202,9 @@ def perception_table_markdown(table: dict[str, Any], command: str) -> str:
                 )
             )
         lines.append("")
+        for world, scores in table["worlds"].items():
+            if scores.get("objects"):
+                lines += _object_errors_markdown(world, scores["objects"], classes)
     if "layouts" in table:
         layouts = table["layouts"]
         lines += [f"Every layout in {layouts['world']} ({table['scans_per_world']} scans each), mean IoU:", ""]

@@ -298,16 +298,28 @@ class LidarRobotEnv(gym.Env):
         sensors). No noise is added."""
         if not hasattr(self.caster, "cast_directions"):
             raise EnvError(f"ray caster {self.config.ray_caster!r} casts no arbitrary rays; use embree or bullet")
+        origin, world_directions = self._sensor_rays(directions, mount)
+        ranges, labels = self.caster.cast_directions(origin, world_directions, mount.max_range)  # type: ignore[attr-defined]
+        if self.movers is None:
+            return ranges, labels
+        return self.movers.occlude(origin, world_directions, ranges, labels, mount.max_range, self.world.floor_z)
+
+    def sensor_ray_elements(self, directions: np.ndarray, mount: Lidar3DConfig) -> np.ndarray:
+        """Which of the world's elements (index into ``world.elements``; -1: none within ``mount.max_range``)
+        each ray of ``cast_sensor_rays`` hits first, walkers left out: what a segmentation error lies on."""
+        if not hasattr(self.caster, "cast_elements"):
+            raise EnvError(f"ray caster {self.config.ray_caster!r} does not name the elements it hits; use embree")
+        origin, world_directions = self._sensor_rays(directions, mount)
+        return self.caster.cast_elements(origin, world_directions, mount.max_range)  # type: ignore[attr-defined]
+
+    def _sensor_rays(self, directions: np.ndarray, mount: Lidar3DConfig) -> tuple[np.ndarray, np.ndarray]:
+        """The sensor's origin and ``directions`` (its frame) in the world frame, mounted as ``mount``."""
         x, y, theta = self.robot.pose
         c, s = np.cos(theta), np.sin(theta)
         origin = np.array([x + c * mount.mount_x - s * mount.mount_y, y + s * mount.mount_x + c * mount.mount_y, 0.0])
         origin[2] = self.world.floor_z + mount.height
         turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ mount_rotation(mount)
-        world_directions = np.asarray(directions, dtype=float) @ turn.T
-        ranges, labels = self.caster.cast_directions(origin, world_directions, mount.max_range)  # type: ignore[attr-defined]
-        if self.movers is None:
-            return ranges, labels
-        return self.movers.occlude(origin, world_directions, ranges, labels, mount.max_range, self.world.floor_z)
+        return origin, np.asarray(directions, dtype=float) @ turn.T
 
     def _sense(self) -> None:
         """Take the scans that are due at the current time."""

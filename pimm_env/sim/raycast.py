@@ -178,16 +178,18 @@ class EmbreeRayCaster:
 
         self.scene = o3d.t.geometry.RaycastingScene()
         labels: dict[int, int] = {}
-        for element in world.elements:
+        elements: dict[int, int] = {}
+        for index, element in enumerate(world.elements):
             vertices, triangles = shape_mesh(element.shape)
             geometry = self.scene.add_triangles(
                 o3d.core.Tensor.from_numpy(vertices.astype(np.float32)),
                 o3d.core.Tensor.from_numpy(triangles.astype(np.uint32)),
             )
-            labels[int(geometry)] = int(element.semantic)
+            labels[int(geometry)], elements[int(geometry)] = int(element.semantic), index
         self.labels = np.full(max(labels) + 2, -1, dtype=np.int8)  # the last entry: Open3D's "no geometry"
+        self.elements = np.full(max(labels) + 2, -1, dtype=np.int64)  # geometry id -> index in world.elements
         for geometry, semantic in labels.items():
-            self.labels[geometry] = semantic
+            self.labels[geometry], self.elements[geometry] = semantic, elements[geometry]
 
     def cast(self, origin, azimuths, elevations, max_range):
         ranges, labels = self.cast_directions(origin, _directions(azimuths, elevations).reshape(-1, 3), max_range)
@@ -195,15 +197,25 @@ class EmbreeRayCaster:
         return ranges.reshape(shape), labels.reshape(shape)
 
     def cast_directions(self, origin, directions, max_range):
+        t_hit, geometry = self._first_hits(origin, directions)
+        hit = np.isfinite(t_hit) & (t_hit <= max_range)
+        ranges = np.where(hit, t_hit.astype(float), np.inf)
+        labels = np.where(hit, self.labels[np.clip(geometry, 0, len(self.labels) - 1)], -1).astype(np.int8)
+        return ranges, labels
+
+    def cast_elements(self, origin, directions, max_range):
+        """Per ray along ``directions`` from ``origin``, the index in ``world.elements`` of what it hits first
+        within ``max_range`` (-1: nothing)."""
+        t_hit, geometry = self._first_hits(origin, directions)
+        hit = np.isfinite(t_hit) & (t_hit <= max_range)
+        return np.where(hit, self.elements[np.clip(geometry, 0, len(self.elements) - 1)], -1)
+
+    def _first_hits(self, origin, directions) -> tuple[np.ndarray, np.ndarray]:
+        """Distance to the first hit (float32, inf: none) and Open3D's geometry id of it, per ray."""
         import open3d as o3d
 
         rays = np.empty((len(directions), 6), dtype=np.float32)
         rays[:, :3] = origin
         rays[:, 3:] = directions
         answer = self.scene.cast_rays(o3d.core.Tensor.from_numpy(rays))
-        t_hit = answer["t_hit"].numpy()
-        geometry = answer["geometry_ids"].numpy().astype(np.int64)
-        hit = np.isfinite(t_hit) & (t_hit <= max_range)
-        ranges = np.where(hit, t_hit.astype(float), np.inf)
-        labels = np.where(hit, self.labels[np.clip(geometry, 0, len(self.labels) - 1)], -1).astype(np.int8)
-        return ranges, labels
+        return answer["t_hit"].numpy(), answer["geometry_ids"].numpy().astype(np.int64)
