@@ -7,6 +7,8 @@ from training.buildings import (
     FURNISHED_HELD_OUT_SEEDS,
     FURNISHED_TRAINING_SEEDS,
     HELD_OUT_SEEDS,
+    LINTEL_HELD_OUT_SEEDS,
+    LINTEL_TRAINING_SEEDS,
     LOCALIZER_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
@@ -32,6 +34,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
     assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
     assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))
+    lintels = set(LINTEL_TRAINING_SEEDS)
+    assert not lintels & (seen | set(FURNISHED_HELD_OUT_SEEDS) | set(NEVER_TRAIN_SEEDS))
+    assert set(LINTEL_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS) and not set(LINTEL_HELD_OUT_SEEDS) & (seen | lintels)
 
 
 def test_generated_buildings_cover_the_families_low_ceilings_and_look_alike_rooms():
@@ -72,3 +77,21 @@ def test_furnished_buildings_stand_their_furniture_against_the_walls_and_leave_t
         assert any(e.semantic == SemanticClass.WALL and e.name.startswith("glass") for e in world.elements) == (
             family == "ward"
         )
+
+
+def test_lintel_buildings_close_most_doorways_above_door_height_and_leave_the_other_seeds_as_they_were():
+    assert {draw_plan(seed)[0] for seed in LINTEL_TRAINING_SEEDS} == set(FURNISHED_FAMILIES)
+    for seed in LINTEL_TRAINING_SEEDS[:6]:
+        _, plan = draw_plan(seed)
+        spec = building_spec(seed)
+        lintels = [e for e in spec["elements"] if e["name"].startswith("lintel")]
+        assert len(lintels) >= 0.5 * len(plan.doors) and lintels, seed
+        for element in lintels:
+            (x0, y0, z0), (x1, y1, z1) = element["box"]["min"], element["box"]["max"]
+            assert element["class"] == "wall" and element["occupancy"] is False
+            assert 2.0 <= z0 <= 2.3 and z1 - z0 >= 0.2
+            assert any(abs(x0 - d[0]) < 1e-3 and abs(y1 - d[3]) < 1e-3 for d in plan.doors)  # over a doorway
+            assert z1 in {round(r.ceiling, 3) for r in plan.rooms}  # up to a ceiling: no gap above it
+        world = world_from_spec(spec, f"<building {seed}>")
+        assert not any(e.occupancy for e in world.elements if e.name.startswith("lintel"))
+    assert not any(e["name"].startswith("lintel") for e in building_spec(FURNISHED_TRAINING_SEEDS[0])["elements"])

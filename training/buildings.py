@@ -11,7 +11,8 @@ The plan is drawn as free-space rectangles on a 0.05 m raster and turned into a 
 that reads ROS maps, so a generated building is exactly what a user's imported floor plan becomes.
 
 Three furnished families (``training/furnished.py``) are drawn only for their own seeds
-(``FURNISHED_TRAINING_SEEDS``, ``FURNISHED_HELD_OUT_SEEDS``): ``home`` (a hallway with living rooms,
+(``FURNISHED_TRAINING_SEEDS``, ``FURNISHED_HELD_OUT_SEEDS``; and with lintels over their doorways,
+``LINTEL_TRAINING_SEEDS``, ``LINTEL_HELD_OUT_SEEDS``): ``home`` (a hallway with living rooms,
 bedrooms, kitchens and bathrooms on both sides), ``shop`` (a sales floor with shelving along its walls,
 free-standing shelf rows and a counter, and a store room behind it) and ``ward`` (a corridor of patient rooms,
 alike as a ward's are, and a nurses' station behind a glass partition). Their rooms are furnished by kind
@@ -36,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from training.furnished import draw_home, draw_shop, draw_ward, furnish
+from training.furnished import draw_home, draw_shop, draw_ward, furnish, lintels
 from training.plans import DOOR, RES, Plan, Room
 
 #: Buildings the shipped network is trained on (with the iilab).
@@ -74,6 +75,14 @@ FURNISHED_TRAINING_SEEDS = tuple(range(130, 160))
 #: any run on them).
 FURNISHED_HELD_OUT_SEEDS = tuple(range(990, 998))
 FURNISHED_FAMILIES = ("home", "shop", "ward")
+#: Furnished buildings whose doorways stop short of the ceiling: a strip of wall (a lintel) over most doors,
+#: as in most real buildings, where the seeds above have openings that run to the ceiling (in a public Gazebo
+#: house the walls over its openings were the network's worst-labelled returns, docs/perception.md). Drawn
+#: only for their own seeds, so that every building above stays as it was (fixed 2026-11-26).
+LINTEL_TRAINING_SEEDS = tuple(range(160, 190))
+#: Buildings of the same kind no training, tuning or choice of settings may use or look at (fixed 2026-11-26,
+#: before any run on them).
+LINTEL_HELD_OUT_SEEDS = tuple(range(1010, 1018))
 #: Every building no network may be trained on.
 NEVER_TRAIN_SEEDS = (
     HELD_OUT_SEEDS
@@ -81,6 +90,7 @@ NEVER_TRAIN_SEEDS = (
     + LOOKALIKE_HELD_OUT_SEEDS
     + LOOKALIKE_SECOND_HELD_OUT_SEEDS
     + FURNISHED_HELD_OUT_SEEDS
+    + LINTEL_HELD_OUT_SEEDS
 )
 
 
@@ -187,7 +197,8 @@ def _mirror(rng: np.random.Generator, plan: Plan, ceiling: float) -> None:
 def draw_plan(seed: int) -> tuple[str, Plan]:
     """The rooms and doors of building ``seed``."""
     rng = np.random.default_rng(seed)
-    if seed in FURNISHED_TRAINING_SEEDS or seed in FURNISHED_HELD_OUT_SEEDS:
+    furnished = FURNISHED_TRAINING_SEEDS + FURNISHED_HELD_OUT_SEEDS + LINTEL_TRAINING_SEEDS + LINTEL_HELD_OUT_SEEDS
+    if seed in furnished:
         family = FURNISHED_FAMILIES[int(rng.integers(len(FURNISHED_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
         {"home": draw_home, "shop": draw_shop, "ward": draw_ward}[family](rng, plan, float(rng.uniform(2.4, 3.0)))
@@ -352,6 +363,8 @@ def building_spec(seed: int) -> dict[str, Any]:
     default = max(r.ceiling for r in plan.rooms if r.kind == "corridor" or family == "shop")
     spec = world_spec(f"{family}-{seed}", floor_plan, default, ceilings)
     spec["elements"] += _hall_fixtures(plan, rng) + _room_furniture(plan, rng) + _pillars(plan) + furnish(plan, rng)
+    if seed in LINTEL_TRAINING_SEEDS + LINTEL_HELD_OUT_SEEDS:
+        spec["elements"] += lintels(plan, np.random.default_rng([seed, 2]))
     return spec
 
 

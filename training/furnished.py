@@ -1,7 +1,7 @@
 """The furnished families of generated buildings: homes, shops and hospital wards, their rooms furnished by kind
 against the walls (beds, wardrobes, sofas, shelves, kitchen units, lockers, shelving) with every doorway left
-free, and a ward's nurses' station behind a glass partition (class wall, as the iilab's glass). Drawn by
-``training/buildings.py`` for the furnished seeds only."""
+free, and a ward's nurses' station behind a glass partition (class wall, as the iilab's glass); for the lintel
+seeds, lintels over the doorways. Drawn by ``training/buildings.py`` for the furnished seeds only."""
 
 from __future__ import annotations
 
@@ -228,3 +228,34 @@ def _kitchen(name: str, room: Room, side: str, lo: float, hi: float, rng: np.ran
     base = _against(f"{name}_base", room.box, side, lo, length, 0.6, 0.9)
     upper = _against(f"{name}_upper", room.box, side, lo, length, 0.35, 0.7, z0=1.45)
     return [base, upper]
+
+
+#: Chance that a doorway gets a lintel, and the height range (m) of the lintel's underside: doors are 2.0-2.3 m
+#: high in most buildings; a strip under 0.2 m is left out.
+LINTEL_CHANCE = 0.8
+LINTEL_UNDERSIDE_M = (2.0, 2.3)
+
+
+def lintels(plan: Plan, rng: np.random.Generator) -> list[dict[str, Any]]:
+    """A strip of wall (class wall) over most doorways of ``plan``, from 2.0-2.3 m up to the higher ceiling of
+    the rooms the doorway joins, the wall's thickness: the doorway's opening then stops short of the ceiling, as
+    in most real buildings. Not in the occupancy map (``occupancy: false``): above the LiDAR's and the robot's
+    reach, like the map a user draws of such a building."""
+    elements: list[dict[str, Any]] = []
+    for k, (x0, y0, x1, y1) in enumerate(plan.doors):
+        underside = float(rng.uniform(*LINTEL_UNDERSIDE_M))
+        if rng.random() >= LINTEL_CHANCE:
+            continue
+        reach = plan.wall + 0.01
+        joined = [
+            r.ceiling
+            for r in plan.rooms
+            if r.box[0] < x1 + reach and x0 - reach < r.box[2] and r.box[1] < y1 + reach and y0 - reach < r.box[3]
+        ]
+        top = max(joined, default=0.0)
+        if top - underside < 0.2:
+            continue
+        element = _box(f"lintel_{k}", (x0, y0, underside), (x1, y1, top), "wall")
+        element["occupancy"] = False
+        elements.append(element)
+    return elements
