@@ -1,3 +1,5 @@
+import numpy as np
+
 from pimm_env.world.files import world_from_spec
 from pimm_env.world.semantics import SemanticClass
 from training.buildings import (
@@ -90,7 +92,7 @@ def test_lintel_buildings_close_most_doorways_above_door_height_and_leave_the_ot
             (x0, y0, z0), (x1, y1, z1) = element["box"]["min"], element["box"]["max"]
             assert element["class"] == "wall" and element["occupancy"] is False
             assert 2.0 <= z0 <= 2.3 and z1 - z0 >= 0.2
-            assert any(abs(x0 - d[0]) < 1e-3 and abs(y1 - d[3]) < 1e-3 for d in plan.doors)  # over a doorway
+            assert any(np.allclose((x0, y0, x1, y1), door, atol=1e-3) for door in plan.doors)  # over a doorway
             assert z1 in {round(r.ceiling, 3) for r in plan.rooms}  # up to a ceiling: no gap above it
         world = world_from_spec(spec, f"<building {seed}>")
         assert not any(e.occupancy for e in world.elements if e.name.startswith("lintel"))

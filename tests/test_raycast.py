@@ -97,7 +97,7 @@ def test_embree_names_the_element_each_ray_hits_first(room_file):
     caster = EmbreeRayCaster(world)
     origin = np.array([3.0, 2.0, 1.0])
     directions = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
-    ranges, labels = caster.cast_directions(origin, directions, 10.0)
+    _, labels = caster.cast_directions(origin, directions, 10.0)
     elements = caster.cast_elements(origin, directions, 10.0)
     assert [world.elements[i].name for i in elements] == ["post", "west", "floor", "ceiling"]
     assert [world.elements[i].semantic for i in elements] == list(labels)

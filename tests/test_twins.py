@@ -1,10 +1,11 @@
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.pimm.rivals import RivalConfig
-from pimm_agents.pimm.twins import MapTwins, TwinConfig
+from pimm_agents.pimm.twins import MapTwins, TwinConfig, local_peaks
 from pimm_env.errors import LocalizerError, ParamsError
 from pimm_env.geometry import carry, wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
@@ -162,3 +163,14 @@ def test_a_place_reported_localized_is_not_moved_by_the_rival_check():
     assert estimate is not None and np.hypot(*(estimate[:2] - (truth[-1, :2] - [12.0, 0.0]))) < 0.5
     assert filt.reading.status != "localized"
     assert any(np.hypot(h.x - truth[-1, 0], h.y - truth[-1, 1]) < 0.5 for h in filt.reading.hypotheses)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_local_peaks_are_the_maximum_filters_peaks_to_the_cell(seed):
+    rng = np.random.default_rng(seed)
+    score = np.round(rng.random((37, 53)), 1)  # coarse values: plateaus of equal cells, at the edges too
+    score[:3, :3] = 0.9  # a plateau in a corner
+    expected = np.nonzero((score >= 0.6) & (score == ndimage.maximum_filter(score, size=5)))
+    rows, cols = local_peaks(score, 0.6)
+    assert np.array_equal(rows, expected[0]) and np.array_equal(cols, expected[1])
+    assert all(len(a) == 0 for a in local_peaks(score, 1.5))
