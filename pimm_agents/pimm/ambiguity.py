@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from pimm_agents.localizer import Hypothesis
-from pimm_agents.particles.belief import BeliefReading, read_belief
+from pimm_agents.particles.belief import BeliefReading, Confirmation, read_belief
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
 from pimm_agents.pimm.twins import MapTwins
@@ -143,6 +143,16 @@ class AmbiguityCheck:
             return self.move_mode(filt, pose, chosen, decisive)
         status = "ambiguous" if reading.status == "localized" else reading.status
         return BeliefReading(status, reading.covariance, reading.hypotheses + self.standing(), chosen), None
+
+    def confirmed(self, confirmation: Confirmation, own: str, checked: str, jumped: bool, switched: bool) -> str:
+        """The status to report: the check's reading ``checked`` held back by the filter's ``confirmation``,
+        counted on it or, with ``rivals.veto_only``, on the belief's own reading ``own`` (the check then only
+        vetoes), a switch to a rival (``switched``) counting the updates that rival led in a row."""
+        config = self.tracker.config
+        if not config.veto_only:
+            return confirmation(checked, jumped)
+        status = confirmation(own, jumped, config.switch_updates if switched else 0)
+        return checked if checked != "localized" else status
 
     def _forget_place(self) -> None:
         """The estimate was lost or jumped: drop the kept scans, the rivals and the cells the twins were looked

@@ -405,7 +405,10 @@ class FeatureFilter:
             )
             if moved_to is not None:
                 estimate, jumped, switched = moved_to, True, True
-        status = self.confirmed(own, reading.status, jumped, switched)
+        if self.ambiguity is None:
+            status = self.confirmation(reading.status, jumped)
+        else:
+            status = self.ambiguity.confirmed(self.confirmation, own, reading.status, jumped, switched)
         self.reading = BeliefReading(status, reading.covariance, reading.hypotheses)
         if self.ambiguity is not None:
             self.ambiguity.after(self.reading.status, jumped)
@@ -413,16 +416,6 @@ class FeatureFilter:
         if self.informed:
             self.inject(suggestions)
         return estimate
-
-    def confirmed(self, own: str, checked: str, jumped: bool, switched: bool) -> str:
-        """The status to report: the rival check's reading ``checked`` held back by the confirmation, counted on
-        it or, with ``rivals.veto_only``, on the belief's own reading ``own`` (the check then only vetoes), a
-        switch to a rival (``switched``) counting the updates that rival led in a row."""
-        if self.ambiguity is None or not self.ambiguity.tracker.config.veto_only:
-            return self.confirmation(checked, jumped)
-        earned = self.ambiguity.tracker.config.switch_updates if switched else 0
-        status = self.confirmation(own, jumped, earned)
-        return checked if checked != "localized" else status
 
     # ------------------------------------------------------------------ estimate
     def read(self, pose: np.ndarray | None) -> BeliefReading:
