@@ -124,6 +124,29 @@ def test_a_rival_takes_the_estimate_only_after_leading_at_switch_updates_updates
     assert tracker.decisive() is None
 
 
+def test_a_rival_ahead_by_more_than_the_admitting_margin_takes_the_estimate():
+    """A lead of 1000 to 1 (both fitted to the scans) at ``switch_updates`` updates in a row is enough for a switch,
+    which reports nothing by itself; a lead under it is not, nor was this one at the former 10^6 to 1."""
+    truths = np.vstack([west_half_drive(), [[x, 1.0, 0.0] for x in np.arange(15.0, 17.3, 0.1)]])  # block half seen
+    now = truths[-1]
+    wrong = now - [12.0, 0.0, 0.0]
+    for config, switches in (
+        (RivalConfig(switch_updates=3), True),
+        (RivalConfig(switch_updates=3, switch_log_ratio=float(np.log(1e6))), False),
+        (RivalConfig(switch_updates=3, switch_log_ratio=float(np.log(1e5))), False),
+    ):
+        occupancy = twin_rooms()
+        tracker = RivalTracker(wall_field_for(occupancy), occupancy.free, 0.2, config)
+        for pose in truths:
+            tracker.add_scan(pose, rays_from(occupancy, pose, 10.0))
+        leads = []
+        for _ in range(4):
+            tracker.update(wrong, now, now[None, :])
+            assert len(tracker.rivals) == 1 and np.log(1000.0) < tracker.margins[0] < np.log(1e5)
+            leads.append(tracker.decisive())
+        assert leads == ([None, None, 0, 0] if switches else [None] * 4)
+
+
 def test_fit_estimate_scores_an_estimate_a_little_off_as_its_rivals_are_scored():
     truths = west_half_drive()
     now = truths[-1]

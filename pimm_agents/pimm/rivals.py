@@ -67,8 +67,12 @@ class RivalConfig:
     #: margins swing by tens of nats from one update to the next (a heading fitted a degree off carries 15 m of
     #: history 0.25 m), and a switch on one update's margin went back and forth between twins
     switch_updates: int = 10  # as many as a localized reading needs before it is reported (belief.confirm_updates)
-    #: the lead (summed log-likelihood, both fitted to convergence) at which a rival counts as ahead for the switch
-    switch_log_ratio: float = float(np.log(1e6))
+    #: the lead (summed log-likelihood, both fitted to convergence) at which a rival counts as ahead for the switch:
+    #: ln 1000, the margin that admits a rival. A switch reports nothing by itself (the place left and the other
+    #: rivals stand, and must fall by ``drop_log_ratio`` before the new place is called localized), so it needs no
+    #: wider margin: at ln 10^6 a look-alike development building (gen-973 route 4) held an estimate 11 m off for
+    #: 45 s while the true place led it by 7-13 nats, and called the right place localized at 88 s, not 38 s
+    switch_log_ratio: float = float(np.log(1000.0))
     #: score the estimate as the rivals are (its place fitted to the kept scans and carried, a touch per update)
     #: instead of as the filter left it: carried back along 150 scans of drifting odometry, the filter's place
     #: trailed twins fitted to them by 100-500 nats while right to 2 cm (development gen-973 route 4), so the
