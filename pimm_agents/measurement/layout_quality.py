@@ -52,7 +52,7 @@ def object_errors(
     """The ``top`` objects whose returns were labelled other than their class most often: per object its name,
     its class, its returns, how many were wrong and how many got each class (``labelled``: element index ->
     counts per class)."""
-    rows = []
+    rows: list[dict[str, Any]] = []
     for index, counts in labelled.items():
         own = int(elements[index].semantic)
         rows.append(
@@ -64,7 +64,7 @@ def object_errors(
                 "labelled": {name: int(counts[c]) for c, name in enumerate(CLASS_NAMES)},
             }
         )
-    rows.sort(key=lambda row: (-row["wrong"], row["name"]))
+    rows.sort(key=lambda row: (-int(row["wrong"]), str(row["name"])))
     return rows[:top]
 
 
