@@ -14,10 +14,10 @@ every update, until the scans favour the estimate over them by ``drop_log_ratio`
 does not flicker in and out). While any rival stands, and until ``settle_scans`` scans are kept, the status is
 ``ambiguous`` (a veto: the belief's own confirmation goes on counting, ``veto_only``). The filter is not fed
 from the check (particles injected at every rival made the estimate wander between twins, docs/design.md), with
-one exception: a rival the scans favour over the estimate by ``drop_log_ratio``, both fitted to them to
+one exception: a rival the scans favour over the estimate by ``switch_log_ratio``, both fitted to them to
 convergence, at ``switch_updates`` updates in a row takes the mode of an estimate not reported localized since
-it last jumped (``switch``; ambiguity.py moves it): by the check's own rule the estimate would be ruled out were
-the two the other way round.
+it last jumped (``switch``; ambiguity.py moves it): by the check's own rule the estimate would be no rival of it
+were the two the other way round, and the place left stands as a rival until the scans rule it out.
 """
 
 from __future__ import annotations
@@ -58,10 +58,9 @@ class RivalConfig:
     refine_scans: int = 10  # a candidate is first fitted to the newest scans (coordinate steps of 0.1 m and 2 deg)
     #: the map's own look-alikes of a localized estimate, offered beside the filter's candidates (twins.py)
     twins: TwinConfig = field(default_factory=TwinConfig)
-    #: when the kept scans favour a rival over the estimate by ``drop_log_ratio`` (the margin that rules a rival
-    #: out, the other way round), move the estimate's mode there, unless the estimate has been reported localized
-    #: since it last jumped (a held place is left only as the filter itself leaves it); False: the check only
-    #: reports
+    #: when the kept scans favour a rival over the estimate by ``switch_log_ratio`` (below), move the estimate's
+    #: mode there, unless the estimate has been reported localized since it last jumped (a held place is left only
+    #: as the filter itself leaves it); False: the check only reports
     switch: bool = True
     #: ... and only when the same rival has been that far ahead at this many updates in a row: over a turn the
     #: margins swing by tens of nats from one update to the next (a heading fitted a degree off carries 15 m of
@@ -156,7 +155,7 @@ class RivalTracker:
         self.rivals = np.zeros((0, 3))
         #: per rival, its summed evidence less the estimate's at the last update (NaN: held, not yet scored)
         self.margins = np.zeros(0)
-        self._leader: np.ndarray | None = None  # the rival ahead by drop_log_ratio, and for how many updates
+        self._leader: np.ndarray | None = None  # the rival ahead by switch_log_ratio, and for how many updates
         self._lead = 0
         #: the estimate's place as fitted to the kept scans, carried and fitted a touch at every update like a
         #: rival, so that rivals and estimate are scored alike (None: not fitted yet, or the estimate moved)
@@ -401,7 +400,7 @@ class RivalTracker:
 
     def _follow_leader(self, estimate: np.ndarray, history: ScanStack) -> None:
         """Count the updates in a row at which the same rival (within ``distinct_m``, ``distinct_deg``) led the
-        estimate by ``drop_log_ratio``, both fitted to the kept scans to convergence first (``DEEP_STEPS``). The
+        estimate by ``switch_log_ratio``, both fitted to the kept scans to convergence first (``DEEP_STEPS``). The
         margins of the check compare rivals, fitted a touch at every update since they stood, with the estimate
         as the filter left it: enough for a status, which errs towards ``ambiguous``, but on a development
         building (gen-970 route 3) the right estimate then trailed its twins by 15-70 nats over 150 scans, and
@@ -420,8 +419,8 @@ class RivalTracker:
         self._leader, self._lead = best.copy(), self._lead + 1 if same else 1
 
     def decisive(self) -> int | None:
-        """The rival the kept scans have favoured over the estimate by ``drop_log_ratio`` or more (the margin that
-        rules a rival out, the other way round) at the last ``switch_updates`` updates; None if there is none."""
+        """The rival the kept scans have favoured over the estimate by ``switch_log_ratio`` or more at the last
+        ``switch_updates`` updates; None if there is none."""
         if self._leader is None or self._lead < self.config.switch_updates or not self.settled:
             return None
         for i, rival in enumerate(self.rivals):
