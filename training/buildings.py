@@ -83,6 +83,9 @@ LINTEL_TRAINING_SEEDS = tuple(range(160, 190))
 #: Buildings of the same kind no training, tuning or choice of settings may use or look at (fixed 2026-11-26,
 #: before any run on them).
 LINTEL_HELD_OUT_SEEDS = tuple(range(1010, 1018))
+#: Every furnished building (drawn as ``home``, ``shop`` or ``ward``), and those of them with lintels.
+FURNISHED_SEEDS = FURNISHED_TRAINING_SEEDS + FURNISHED_HELD_OUT_SEEDS + LINTEL_TRAINING_SEEDS + LINTEL_HELD_OUT_SEEDS
+LINTEL_SEEDS = LINTEL_TRAINING_SEEDS + LINTEL_HELD_OUT_SEEDS
 #: Every building no network may be trained on.
 NEVER_TRAIN_SEEDS = (
     HELD_OUT_SEEDS
@@ -197,8 +200,7 @@ def _mirror(rng: np.random.Generator, plan: Plan, ceiling: float) -> None:
 def draw_plan(seed: int) -> tuple[str, Plan]:
     """The rooms and doors of building ``seed``."""
     rng = np.random.default_rng(seed)
-    furnished = FURNISHED_TRAINING_SEEDS + FURNISHED_HELD_OUT_SEEDS + LINTEL_TRAINING_SEEDS + LINTEL_HELD_OUT_SEEDS
-    if seed in furnished:
+    if seed in FURNISHED_SEEDS:
         family = FURNISHED_FAMILIES[int(rng.integers(len(FURNISHED_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
         {"home": draw_home, "shop": draw_shop, "ward": draw_ward}[family](rng, plan, float(rng.uniform(2.4, 3.0)))
@@ -363,7 +365,7 @@ def building_spec(seed: int) -> dict[str, Any]:
     default = max(r.ceiling for r in plan.rooms if r.kind == "corridor" or family == "shop")
     spec = world_spec(f"{family}-{seed}", floor_plan, default, ceilings)
     spec["elements"] += _hall_fixtures(plan, rng) + _room_furniture(plan, rng) + _pillars(plan) + furnish(plan, rng)
-    if seed in LINTEL_TRAINING_SEEDS + LINTEL_HELD_OUT_SEEDS:
+    if seed in LINTEL_SEEDS:
         spec["elements"] += lintels(plan, np.random.default_rng([seed, 2]))
     return spec
 

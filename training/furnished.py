@@ -242,11 +242,11 @@ def lintels(plan: Plan, rng: np.random.Generator) -> list[dict[str, Any]]:
     in most real buildings. Not in the occupancy map (``occupancy: false``): above the LiDAR's and the robot's
     reach, like the map a user draws of such a building."""
     elements: list[dict[str, Any]] = []
+    reach = plan.wall + 0.01  # a room the doorway joins ends within the wall's thickness of it
     for k, (x0, y0, x1, y1) in enumerate(plan.doors):
         underside = float(rng.uniform(*LINTEL_UNDERSIDE_M))
         if rng.random() >= LINTEL_CHANCE:
             continue
-        reach = plan.wall + 0.01
         joined = [
             r.ceiling
             for r in plan.rooms

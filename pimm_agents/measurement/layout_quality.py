@@ -124,6 +124,11 @@ def measure_layouts(
 def _count_by_object(labelled: dict[int, np.ndarray], elements: np.ndarray, predicted: np.ndarray) -> None:
     """Add one scan's labels to ``labelled`` (element index -> counts per class) by the element each return lay
     on (``elements``; -1, a walker or nothing, is left out)."""
-    for index in np.unique(elements[elements >= 0]):
-        counts = labelled.setdefault(int(index), np.zeros(len(CLASS_NAMES), dtype=np.int64))
-        counts += np.bincount(predicted[elements == index].astype(np.int64), minlength=len(CLASS_NAMES))
+    on = elements >= 0
+    if not on.any():
+        return
+    classes = len(CLASS_NAMES)
+    pairs = elements[on] * classes + predicted[on].astype(np.int64)
+    counts = np.bincount(pairs, minlength=(int(elements.max()) + 1) * classes).reshape(-1, classes)
+    for index in np.flatnonzero(counts.sum(axis=1)):
+        labelled.setdefault(int(index), np.zeros(classes, dtype=np.int64))[:] += counts[index]

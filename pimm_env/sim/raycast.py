@@ -177,19 +177,18 @@ class EmbreeRayCaster:
         import open3d as o3d
 
         self.scene = o3d.t.geometry.RaycastingScene()
-        labels: dict[int, int] = {}
-        elements: dict[int, int] = {}
+        elements: dict[int, int] = {}  # Open3D's geometry id -> index in world.elements
         for index, element in enumerate(world.elements):
             vertices, triangles = shape_mesh(element.shape)
             geometry = self.scene.add_triangles(
                 o3d.core.Tensor.from_numpy(vertices.astype(np.float32)),
                 o3d.core.Tensor.from_numpy(triangles.astype(np.uint32)),
             )
-            labels[int(geometry)], elements[int(geometry)] = int(element.semantic), index
-        self.labels = np.full(max(labels) + 2, -1, dtype=np.int8)  # the last entry: Open3D's "no geometry"
-        self.elements = np.full(max(labels) + 2, -1, dtype=np.int64)  # geometry id -> index in world.elements
-        for geometry, semantic in labels.items():
-            self.labels[geometry], self.elements[geometry] = semantic, elements[geometry]
+            elements[int(geometry)] = index
+        self.elements = np.full(max(elements) + 2, -1, dtype=np.int64)  # the last entry: Open3D's "no geometry"
+        self.labels = np.full(len(self.elements), -1, dtype=np.int8)
+        for geometry, index in elements.items():
+            self.elements[geometry], self.labels[geometry] = index, int(world.elements[index].semantic)
 
     def cast(self, origin, azimuths, elevations, max_range):
         ranges, labels = self.cast_directions(origin, _directions(azimuths, elevations).reshape(-1, 3), max_range)
