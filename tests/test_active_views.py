@@ -3,7 +3,7 @@
 import numpy as np
 
 from pimm_agents.active.policies import FORWARD, LEFT, RIGHT, Explorer, Greedy
-from pimm_agents.active.views import Guide, ViewPredictor, cast_ranges, distinct_hypotheses
+from pimm_agents.active.views import Guide, ViewPredictor, cast_ranges, distinct_hypotheses, geodesic_from
 from pimm_agents.localizer import Hypothesis, PoseEstimate
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
@@ -121,3 +121,63 @@ def test_the_nearest_telling_place_is_where_the_views_first_differ_enough():
     far = views.nearest_telling(here, np.array([[9.0, 1.0, 0.0]]), 10.0, 0.1)
     assert far is not None and 0.5 <= far <= 4.0
     assert views.nearest_telling(here, np.array([[9.0, 1.0, 0.0]]), 0.2, 0.1) is None  # out of reach
+
+
+def test_the_guide_plans_to_the_nearest_place_that_tells_all_twins_apart():
+    occ = corridor(length=40.0)
+    truth = np.array([13.0, 1.0, 0.0])
+    twins = (Hypothesis(8.0, 1.0, 0.0, 0.6, np.eye(3)), Hypothesis(13.0, 1.0, 0.0, 0.4, np.eye(3)))
+    ambiguous = PoseEstimate(8.0, 1.0, 0.0, np.eye(3), status="ambiguous", hypotheses=twins)
+    guide = Guide(occ)
+    shown = guide(ambiguous, seen(occ, truth), BEARINGS, np.zeros(3))
+    # a far plan: behind the robot, to the west end, where the view tells the estimate from every twin the map
+    # has of it (the corridor's other places, either way round) and from the listed one
+    assert shown[3] == 1.0 and shown[1] < -0.9 and shown[2] == 1.0
+    assert guide.far is not None and guide.far[-1][0] < 1.5
+    # the robot turned half round; the estimate jumped to the twin 5 m on: the plan keeps its course relative to
+    # the robot (straight ahead now), instead of being made again from the twin
+    turned = np.array([0.0, 0.0, np.pi])
+    jumped = PoseEstimate(13.0, 1.0, np.pi, np.eye(3), status="ambiguous", hypotheses=twins[::-1])
+    shown = guide(jumped, seen(occ, np.array([13.0, 1.0, np.pi])), BEARINGS, turned)
+    assert shown[3] == 1.0 and shown[1] > 0.9
+    assert guide.far is not None and abs(guide.far[-1][0] - (guide.far[0][0] - 7.5)) < 0.6
+    # localized: nothing shown, the plan dropped
+    done = PoseEstimate(13.0, 1.0, np.pi, np.eye(3), status="localized", hypotheses=twins[::-1])
+    assert not guide(done, seen(occ, truth), BEARINGS, np.zeros(3)).any() and guide.far is None
+
+
+def test_the_guides_paths_keep_to_the_middle_of_a_corridor():
+    occ = corridor(length=20.0, width=2.0)
+    views = ViewPredictor(occ)
+    start, end = occ.grid.cells_of(np.array([[1.0, 0.5], [19.0, 0.5]]))[:2]
+    for cost, middle in ((views.unit_cost, False), (views.centre_cost, True)):
+        field = geodesic_from(views.passable, int(start[0]), int(start[1]), 1e9, cost)
+        path = views._path(field, int(end[0]), int(end[1]))
+        along = path[(path[:, 0] > 4.0) & (path[:, 0] < 16.0)]
+        # the shortest path runs straight along the wall; the guide's moves out to 0.75 m from either wall
+        assert np.all(np.abs(along[:, 1] - 1.0) <= 0.3) == middle
+
+
+def test_neither_policy_drives_on_into_what_the_body_would_sweep():
+    # open all round but for a door jamb 0.45 m off at 40 deg to the left: out of the guard's cone ahead (30 deg)
+    # but in the lane the body sweeps; the guard would stop a forward at once, so neither chooses one
+    scan = np.full(60, 8.0)
+    sectors = -np.pi + (np.arange(60) + 0.5) * 2 * np.pi / 60
+    scan[np.argmin(np.abs(sectors - np.radians(40.0)))] = 0.45
+    obs = {
+        "scan": (scan / 20.0).astype(np.float32),
+        "odom_delta": np.zeros(3, dtype=np.float32),
+        "hypotheses": np.zeros((5, 6), dtype=np.float32),
+        "status": np.array([0, 1, 0], dtype=np.float32),
+        "guide": np.array([0.0, 1.0, 0.5, 1.0], dtype=np.float32),  # the guide's waypoint straight ahead
+    }
+    explorer, greedy = Explorer(20.0), Greedy(20.0)
+    explorer.reset(0)
+    greedy.reset(0)
+    assert explorer(obs) != FORWARD
+    assert greedy(obs) != FORWARD
+    scan[np.argmin(np.abs(sectors - np.radians(40.0)))] = 8.0  # the jamb gone: both drive on
+    obs["scan"] = (scan / 20.0).astype(np.float32)
+    explorer.reset(0)
+    greedy.reset(0)
+    assert explorer(obs) == FORWARD and greedy(obs) == FORWARD

@@ -25,7 +25,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from pimm_agents.active.primitives import STOP_CONE, STOP_RANGE, in_lane
+from pimm_agents.active.primitives import STOP_RANGE, blocked_ahead
 from pimm_env.geometry import wrap_angle
 
 FORWARD, LEFT, RIGHT = 0, 1, 2
@@ -98,10 +98,10 @@ class Explorer:
         if facing != self.last_faced:  # driving on in one cell and heading faces that way once, not at every step
             self.faced[facing] = self.faced.get(facing, 0) + 1
             self.last_faced = facing
-        ahead = np.abs(bearings) <= STOP_CONE
         # within half a turn (and a margin: a best direction half a turn off either way would otherwise have the
-        # robot turn back and forth across it) and clear ahead: drive on
-        if abs(best) <= np.pi / 8 + self.AHEAD_MARGIN and scan[ahead].min() > STOP_RANGE + 0.2:
+        # robot turn back and forth across it) and clear ahead, in the cone and in the lane the body sweeps (with
+        # the cone alone it chose forward, stopped by the guard, for the rest of an episode): drive on
+        if abs(best) <= np.pi / 8 + self.AHEAD_MARGIN and not blocked_ahead(scan, bearings, STOP_RANGE + 0.2):
             return FORWARD
         return LEFT if best > 0 else RIGHT
 
@@ -116,7 +116,6 @@ class Greedy:
     name = "greedy"
     AHEAD = np.pi / 8 + np.radians(5.0)  # as the explorer: within half a turn, and a margin, counts as ahead
     EXPLORE_STEPS = 4  # primitives it explores for when the way to the waypoint is blocked
-    SIDE_M = 0.35  # driving on needs this much room on either side (the body's radius, 0.25 m, and a margin)
 
     def __init__(self, max_range: float = 20.0) -> None:
         self.explorer = Explorer(max_range)
@@ -139,11 +138,10 @@ class Greedy:
         bearing = float(np.arctan2(observation["guide"][0], observation["guide"][1]))
         scan = np.asarray(observation["scan"], dtype=float) * self.max_range
         sector = sector_bearings(len(scan))
-        # the guide's path keeps its clearance from the map's walls, so the forward guard's own range is margin
-        # enough ahead (the explorer's larger one kept it out of doorways); and nothing may lie where the body
-        # sweeps in the next 0.5 m, beside it too, where the guard does not look
-        swept = in_lane(scan, sector, -0.1, 0.5 + self.SIDE_M, self.SIDE_M)
-        clear = scan[np.abs(sector) <= STOP_CONE].min() > STOP_RANGE and not swept
+        # the guide's path keeps to the middle of the map's corridors and doors, so the forward guard's own test
+        # (the cone ahead and the lane the body sweeps) is margin enough: a wider one of its own had it stop short
+        # of doorways it could pass and explore away from them
+        clear = not blocked_ahead(scan, sector)
         ahead = abs(bearing) <= self.AHEAD
         action = FORWARD if ahead and clear else (LEFT if bearing > 0 else RIGHT)
         if (ahead and not clear) or {action, previous} == {LEFT, RIGHT}:

@@ -4,17 +4,26 @@ A robot knows its map and its belief. When the belief holds several places (a lo
 corridor, a mirror image), each hypothesis predicts what the robot would see if it drove to a given offset from
 where it believes it is: the map's walls, ray-cast from that offset placed at each hypothesis. Where the
 predictions differ, going there settles which hypothesis is right; where they agree, going there tells nothing.
-:class:`ViewPredictor` scores every place the robot can reach (geodesically, in the map as the current estimate
-places it) by that disagreement, less its distance, and gives the first waypoint of the path to the best one.
 
-:class:`Guide` is what the env hands a policy (its ``guide`` observation): per step, the bearing of that
-waypoint in the robot's frame and how much better the place tells the hypotheses apart than where the robot is,
-computed only while the localizer says ``ambiguous``, from the hypotheses whose predicted view fits the 2D scan
-nearly as well as the estimate's (a rival listed with a wrong heading would otherwise make every place look
-telling).
+:class:`Guide` is what the env hands a policy (its ``guide`` observation): per step, the bearing of a waypoint in
+the robot's frame and how well the place it leads to tells the hypotheses apart, computed only while the
+localizer says ``ambiguous``. It plans far first: the map's own twins of the estimate (``MapTwins``, as PIMM's
+rival check finds them) and the localizer's listed hypotheses whose predicted view fits the 2D scan nearly as
+well as the estimate's (a rival listed with a wrong heading would otherwise make every place look telling) are
+told apart, each, where the view at the same offset differs from the estimate's; the plan goes to the nearest
+place (within 60 m of path) of those that tell the most of them apart (:meth:`ViewPredictor.telling_path`). A
+localizer can only be sure once every twin has fallen, which in a corridor of look-alike bays is at its end,
+often beyond any near horizon. The plan is kept while the robot follows it: when the estimate jumps to another
+twin the plan keeps its course relative to the robot while that runs through open space in the new estimate's
+map (a plan made again at every jump turned the robot back and forth along a corridor). Only when no place
+tells any twin apart does the near search of :meth:`ViewPredictor.best_waypoint` (within 10 m, scored by how much
+better a place tells the listed hypotheses apart than where the robot is, less its distance) show a place.
+Paths keep to the middle of corridors and doorways, so that a robot that turns in 45 deg steps meets a door
+square on.
 
-The ray casting and the reachable set are compiled (numba): a step scores a few hundred candidate places for up
-to six hypotheses at 36 bearings, about 40 ms on a 2-core AMD EPYC.
+The ray casting and the path search are compiled (numba): a near step scores a few hundred candidate places for
+up to six hypotheses at 36 bearings, about 40 ms on a 2-core AMD EPYC; a far plan, made once and kept, about a
+second.
 """
 
 from __future__ import annotations
@@ -53,6 +62,18 @@ class ViewConfig:
     min_weight: float = 0.2  # every hypothesis counts with at least this share of the heaviest one's weight
     min_move_m: float = 1.0  # a place this near is where the robot already is: it shows nothing new
     plausible_misfit: float = 0.1  # a hypothesis whose view fits the scan worse than the estimate's by this is left out
+    #: the guide's paths keep to the middle of corridors and doorways: a cell nearer than ``centre_m`` to the map's
+    #: obstacles costs up to ``centre_cost`` more per metre (at ``clearance_m``), so that a robot turning in 45 deg
+    #: steps, whose forward guard stops 0.5 m short of anything ahead, meets a doorway square on
+    centre_m: float = 0.75
+    centre_cost: float = 4.0
+    #: when no place within ``reach_m`` tells the hypotheses apart: a far plan to the nearest place within this
+    #: much path that tells the estimate from the most of its map twins (active_bound.py's reach)
+    far_reach_m: float = 60.0
+    far_twins: int = 20  # the map's twins of the estimate a far plan tells apart (active_bound.py's number)
+    far_min_share: float = 0.1  # a place tells two views apart by this share of bearings (active_bound.py's)
+    far_jump_m: float = 1.0  # an estimate this far from where the odometry carried the last one took another place
+    far_off_path_m: float = 2.0  # a robot this far from its far plan's path (it went round something) plans again
 
 
 def place(base: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -106,9 +127,10 @@ def cast_ranges(
 
 
 @njit(cache=True, nogil=True)
-def geodesic_from(passable: np.ndarray, row: int, col: int, limit: float) -> np.ndarray:
-    """Path length in cells (8-connected) from (row, col) to every ``passable`` cell within ``limit`` cells;
-    infinity elsewhere."""
+def geodesic_from(passable: np.ndarray, row: int, col: int, limit: float, cost: np.ndarray) -> np.ndarray:
+    """Path cost (8-connected) from (row, col) to every ``passable`` cell within ``limit``; infinity elsewhere. A
+    step costs its length in cells times the mean of ``cost`` at its two cells (all ones: the path length in
+    cells)."""
     rows, cols = passable.shape
     dist = np.full((rows, cols), np.inf)
     dist[row, col] = 0.0
@@ -125,7 +147,7 @@ def geodesic_from(passable: np.ndarray, row: int, col: int, limit: float) -> np.
                 nr, nc = r + dr, c + dc
                 if not (0 <= nr < rows and 0 <= nc < cols) or not passable[nr, nc]:
                     continue
-                nd = d + (diagonal if dr != 0 and dc != 0 else 1.0)
+                nd = d + (diagonal if dr != 0 and dc != 0 else 1.0) * 0.5 * (cost[r, c] + cost[nr, nc])
                 if nd < dist[nr, nc]:
                     dist[nr, nc] = nd
                     heapq.heappush(heap, (nd, nr, nc))
@@ -161,6 +183,9 @@ class ViewPredictor:
         self.blocked = np.ascontiguousarray(occupancy.occupied | ~occupancy.free)
         clearance = occupancy.distance_to_occupied()
         self.passable = np.ascontiguousarray(occupancy.free & (clearance >= c.clearance_m))
+        near = np.clip((c.centre_m - clearance) / max(c.centre_m - c.clearance_m, 1e-9), 0.0, 1.0)
+        self.centre_cost = np.ascontiguousarray(1.0 + c.centre_cost * near)
+        self.unit_cost = np.ones_like(self.centre_cost)
         self.bearings = np.linspace(-np.pi, np.pi, c.beams, endpoint=False)
 
     def views(self, poses: np.ndarray, bearings: np.ndarray | None = None) -> np.ndarray:
@@ -203,7 +228,7 @@ class ViewPredictor:
         that the policy does not switch between places of about equal worth at every step. Places within
         ``min_move`` of the estimate are not candidates."""
         c, g = self.config, self.grid
-        found = self._candidates(estimate, c.reach_m)
+        found = self._candidates(estimate, c.reach_m, self.centre_cost)
         if found is None:
             return None
         dist, cand_r, cand_c, offsets = found
@@ -234,36 +259,79 @@ class ViewPredictor:
         from the view at the same offset from every one of ``twins`` (K, 3) in at least ``min_share`` of the
         bearings (each compared with the other's at it and its neighbours), or where a twin's place is not
         passable; 0 with no twins; None when no place within ``reach_m`` does."""
+        twins = np.asarray(twins, dtype=float).reshape(-1, 3)
         if len(twins) == 0:
             return 0.0
+        found = self._told(pose, twins, reach_m, min_share, self.unit_cost)
+        if found is None:
+            return None
+        dist, cand_r, cand_c, _, count = found
+        told = count == len(twins)
+        if not told.any():
+            return None
+        return float(np.min(dist[cand_r[told], cand_c[told]]) * self.grid.resolution)
+
+    def telling_path(
+        self, pose: np.ndarray, twins: np.ndarray, reach_m: float, min_share: float, min_move: float
+    ) -> tuple[np.ndarray, float] | None:
+        """The path (map points, from ``pose``) to the nearest place within ``reach_m`` of path (at least
+        ``min_move`` from ``pose``) of those that tell ``pose`` apart from the most of ``twins`` (K, 3) (as
+        ``nearest_telling`` tells them), and the share of the twins it tells apart; None when no such place tells
+        any twin apart. The localizer can be sure only once every twin has fallen, so a place that tells all of
+        them apart is worth the way to it (measured against a trade of share for distance on the development
+        buildings, docs/environment.md#active-localization)."""
+        twins = np.asarray(twins, dtype=float).reshape(-1, 3)
+        if len(twins) == 0:
+            return None
+        found = self._told(pose, twins, reach_m, min_share, self.centre_cost)
+        if found is None:
+            return None
+        dist, cand_r, cand_c, offsets, count = found
+        count[np.hypot(offsets[:, 0], offsets[:, 1]) < min_move] = 0
+        if count.max() == 0:
+            return None
+        best = np.flatnonzero(count == count.max())
+        pick = int(best[np.argmin(dist[cand_r[best], cand_c[best]])])
+        return self._path(dist, int(cand_r[pick]), int(cand_c[pick])), float(count[pick]) / len(twins)
+
+    def _told(
+        self, pose: np.ndarray, twins: np.ndarray, reach_m: float, min_share: float, cost: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """``_candidates``' places reachable from ``pose`` (paths costed by ``cost``) and, per place, how many of
+        ``twins`` its view tells ``pose`` apart from (``nearest_telling``'s test); None when nothing is
+        reachable."""
         g = self.grid
-        found = self._candidates(pose, reach_m)
+        found = self._candidates(pose, reach_m, cost)
         if found is None:
             return None
         dist, cand_r, cand_c, offsets = found
         here = self.views(np.column_stack([place(pose, offsets), np.full(len(offsets), pose[2])]))
-        told = np.ones(len(offsets), dtype=bool)
-        for twin in np.asarray(twins, dtype=float).reshape(-1, 3):
+        count = np.zeros(len(offsets), dtype=int)
+        for twin in twins:
             places = place(twin, offsets)
             r, q, inside = g.cells_of(places)
             open_there = inside & self.passable[np.where(inside, r, 0), np.where(inside, q, 0)]
             there = self.views(np.column_stack([places, np.full(len(places), twin[2])]))
-            told &= ~open_there | (differing(here, there, self.config.range_gap_m) >= min_share)
-        if not told.any():
-            return None
-        return float(np.min(dist[cand_r[told], cand_c[told]]) * g.resolution)
+            count += ~open_there | (differing(here, there, self.config.range_gap_m) >= min_share)
+        return dist, cand_r, cand_c, offsets, count
+
+    def open_along(self, points: np.ndarray) -> bool:
+        """Whether every one of ``points`` (map frame) lies on the map's free cells (not blocked, not unknown)."""
+        rows, cols, inside = self.grid.cells_of(np.asarray(points, dtype=float).reshape(-1, 2))
+        return bool(inside.all() and not self.blocked[rows, cols].any())
 
     def _candidates(
-        self, pose: np.ndarray, reach_m: float
+        self, pose: np.ndarray, reach_m: float, cost: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-        """The places reachable from ``pose`` within ``reach_m`` of path, on a lattice of ``spacing_m`` through
-        its cell: the path-length field (cells), the places' rows and columns, and their offsets in the pose's
-        frame; None when the pose is not on a passable cell or nothing is reachable."""
+        """The places reachable from ``pose`` within ``reach_m`` of path (costed by ``cost``: ``unit_cost`` gives
+        lengths, ``centre_cost`` keeps to the middle), on a lattice of ``spacing_m`` through its cell: the path
+        cost field (cells), the places' rows and columns, and their offsets in the pose's frame; None when the
+        pose is not on a passable cell or nothing is reachable."""
         g = self.grid
         rows, cols, valid = g.cells_of(np.asarray(pose, dtype=float)[None, :2])
         if not valid[0] or not self.passable[rows[0], cols[0]]:
             return None
-        dist = geodesic_from(self.passable, int(rows[0]), int(cols[0]), reach_m / g.resolution)
+        dist = geodesic_from(self.passable, int(rows[0]), int(cols[0]), reach_m / g.resolution, cost)
         stride = max(1, round(self.config.spacing_m / g.resolution))
         lattice = np.zeros_like(self.passable)
         lattice[rows[0] % stride :: stride, cols[0] % stride :: stride] = True
@@ -323,11 +391,18 @@ class Guide:
     """The ``guide`` observation of one episode (see the module docstring); ``reset`` at each episode."""
 
     def __init__(self, occupancy: OccupancyGrid, config: ViewConfig | None = None) -> None:
+        from pimm_agents.pimm.twins import MapTwins, TwinConfig
+
         self.views = ViewPredictor(occupancy, config)
-        self.target: np.ndarray | None = None  # the place chosen last, in the robot's frame
+        self.twins = MapTwins(occupancy, TwinConfig(max_twins=self.views.config.far_twins))
+        self.reset()
 
     def reset(self) -> None:
-        self.target = None
+        self.target: np.ndarray | None = None  # the place chosen last, in the robot's frame
+        self.far: np.ndarray | None = None  # the far plan's path (map points, as the estimate placed it)
+        self.far_share = 0.0  # the share of the estimate's twins the far plan's place tells apart
+        self.carried: np.ndarray | None = None  # the estimate of the last step, carried by the odometry since
+        self.failed_at: np.ndarray | None = None  # where a far plan was last looked for and none found
 
     def __call__(
         self, estimate: PoseEstimate | None, scan: np.ndarray, bearings: np.ndarray, delta: np.ndarray
@@ -335,24 +410,74 @@ class Guide:
         """The observation after a primitive that moved the robot by ``delta`` (x, y, heading in its frame at
         the primitive's start), with the localizer's ``estimate`` and the 2D ``scan`` (ranges at ``bearings``)."""
         out = np.zeros(GUIDE_SIZE, dtype=np.float32)
+        delta = np.asarray(delta, dtype=float)
         if self.target is not None:  # carried into the robot's frame after the primitive's motion
-            self.target = in_frame(np.asarray(delta, dtype=float), self.target[None, :])[0]
+            self.target = in_frame(delta, self.target[None, :])[0]
+        carried, self.carried = self.carried, None
         if estimate is None or estimate.status != "ambiguous":
-            self.target = None
+            self.target = self.far = None
             return out
+        pose = np.asarray(estimate.pose, dtype=float)
+        self.carried = pose.copy()
+        if carried is not None:
+            carried = np.r_[place(carried, delta[None, :2])[0], carried[2] + delta[2]]
+            if np.hypot(*(pose[:2] - carried[:2])) > self.views.config.far_jump_m or abs(
+                wrap_angle(pose[2] - carried[2])
+            ) > np.radians(15.0):
+                # the estimate took another place: the far plan keeps its course relative to the robot (a plan
+                # dropped at every jump between twins turned the robot back and forth along a corridor)
+                # while it runs through open space in the map as the new estimate places it
+                if self.far is not None:
+                    self.far = place(pose, in_frame(carried, self.far))
+                    if not self.views.open_along(self.far):
+                        self.far = None
+                self.failed_at = None
         config = self.views.config
         poses, weights = distinct_hypotheses(estimate)
         misfit = self.views.misfit(poses, scan, bearings)
         plausible = misfit <= misfit[0] + config.plausible_misfit
-        if plausible.sum() < 2:
-            return out
-        found = self.views.best_waypoint(
-            estimate.pose, poses[plausible], weights[plausible], keep=self.target, min_move=config.min_move_m
-        )
-        if found is None:
+        shown = self._far_waypoint(pose, poses[1:][plausible[1:]])
+        if shown is not None:
             self.target = None
-            return out
-        waypoint, self.target, gain = found
-        bearing = float(np.arctan2(waypoint[1], waypoint[0]))
-        out[:] = (np.sin(bearing), np.cos(bearing), np.clip(gain, 0.0, 1.0), 1.0)
+            return _shown(out, *shown)
+        if plausible.sum() >= 2:
+            found = self.views.best_waypoint(
+                pose, poses[plausible], weights[plausible], keep=self.target, min_move=config.min_move_m
+            )
+            if found is not None:
+                waypoint, self.target, gain = found
+                return _shown(out, waypoint, gain)
+        self.target = None
         return out
+
+    def _far_waypoint(self, pose: np.ndarray, others: np.ndarray) -> tuple[np.ndarray, float] | None:
+        """The far plan's waypoint (in the robot's frame) and the share of the twins its place tells apart,
+        planned again when there is none, the robot reached its end or strayed from it; None when no place
+        tells the estimate from any of its twins."""
+        c = self.views.config
+        if self.far is not None:
+            gap = np.hypot(self.far[:, 0] - pose[0], self.far[:, 1] - pose[1])
+            if gap[-1] < c.min_move_m or gap.min() > c.far_off_path_m:
+                self.far = None
+        if self.far is None:
+            if self.failed_at is not None and np.hypot(*(pose[:2] - self.failed_at[:2])) < c.min_move_m:
+                return None  # looked for from about here already
+            twins = np.vstack([self.twins.of(pose), np.asarray(others, dtype=float).reshape(-1, 3)])
+            plan = self.views.telling_path(pose, twins, c.far_reach_m, c.far_min_share, c.min_move_m)
+            if plan is None:
+                self.failed_at = pose.copy()
+                return None
+            self.failed_at = None
+            self.far, self.far_share = plan
+        gap = np.hypot(self.far[:, 0] - pose[0], self.far[:, 1] - pose[1])
+        along = np.cumsum(np.r_[0.0, np.hypot(*np.diff(self.far, axis=0).T)])
+        nearest = int(np.argmin(gap))
+        ahead = int(np.searchsorted(along, along[nearest] + c.waypoint_m))
+        return in_frame(pose, self.far[min(ahead, len(self.far) - 1)][None, :])[0], self.far_share
+
+
+def _shown(out: np.ndarray, waypoint: np.ndarray, gain: float) -> np.ndarray:
+    """The guide observation of a waypoint (robot frame) toward a place that tells apart by ``gain``."""
+    bearing = float(np.arctan2(waypoint[1], waypoint[0]))
+    out[:] = (np.sin(bearing), np.cos(bearing), np.clip(gain, 0.0, 1.0), 1.0)
+    return out
