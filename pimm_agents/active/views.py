@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
+from pimm_agents.pimm.twins import MapTwins, TwinConfig
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
 
@@ -391,8 +392,6 @@ class Guide:
     """The ``guide`` observation of one episode (see the module docstring); ``reset`` at each episode."""
 
     def __init__(self, occupancy: OccupancyGrid, config: ViewConfig | None = None) -> None:
-        from pimm_agents.pimm.twins import MapTwins, TwinConfig
-
         self.views = ViewPredictor(occupancy, config)
         self.twins = MapTwins(occupancy, TwinConfig(max_twins=self.views.config.far_twins))
         self.reset()
