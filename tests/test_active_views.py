@@ -1,9 +1,10 @@
-"""The map-aware part of the ``greedy`` policy: predicted views, and the place that tells hypotheses apart."""
+"""The map-aware part of the ``greedy`` policy: predicted views, the place that tells twins apart, the guide."""
 
 import numpy as np
 
+from pimm_agents.active.guide import Guide, distinct_hypotheses
 from pimm_agents.active.policies import FORWARD, LEFT, RIGHT, Explorer, Greedy
-from pimm_agents.active.views import Guide, ViewPredictor, cast_ranges, distinct_hypotheses, geodesic_from
+from pimm_agents.active.views import ViewPredictor, cast_ranges, geodesic_from
 from pimm_agents.localizer import Hypothesis, PoseEstimate
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec

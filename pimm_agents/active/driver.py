@@ -4,7 +4,7 @@ The robot starts where the scenario starts and, for as long as the route would h
 speed), drives the motion primitives a policy chooses (``random``, ``greedy``, ``trained`` or a ``.zip``,
 policies.py) from what the trial's localizer believes: the env stack's ``info["estimate"]`` (the
 :class:`~pimm_agents.experiments.recorder.LocalizationRecorder` puts it there), the 2D scan, the odometry and
-the map (the guide, views.py), built into the task env's observation (env.py). A kidnap scenario carries the
+the map (the guide, guide.py), built into the task env's observation (env.py). A kidnap scenario carries the
 robot to its kidnap pose after one such stretch and drives a second. The trial is recorded and scored as a
 route's is.
 """
@@ -37,9 +37,9 @@ def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: 
     """Roll ``scenario`` out in ``env`` (a simulator env under its recorders) with ``policy`` at the wheel;
     returns a :class:`pimm_env.driving.rollout.RolloutResult`."""
     from pimm_agents.active.env import ActiveConfig, active_observation
+    from pimm_agents.active.guide import Guide
     from pimm_agents.active.policies import make_policy
     from pimm_agents.active.primitives import PRIMITIVES, drive
-    from pimm_agents.active.views import Guide
     from pimm_env.driving.rollout import RolloutResult, odom_to_map
     from pimm_env.geometry import relative_motion
     from pimm_env.sim.lidar import beam_bearings_2d

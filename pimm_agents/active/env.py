@@ -14,7 +14,7 @@ Observation (``spaces.Dict``, fixed shapes, every value in [-1, 1] or [0, 1]; th
 - ``scan``: the 2D LiDAR's ranges over ``scan_beams`` equal sectors (the nearest in each), over its maximum range;
 - ``odom_delta``: the last primitive's wheel-odometry motion in the robot's frame at its start (x and y over 1 m,
   heading over pi);
-- ``guide``: where to drive to tell the hypotheses apart, from the map and the belief (views.py): sine and
+- ``guide``: where to drive to tell the hypotheses apart, from the map and the belief (guide.py): sine and
   cosine of the bearing of the next waypoint toward the reachable place whose predicted views differ most
   between the hypotheses, that place's gain (0..1), and 1 when there is such a place (all 0 when the status is
   not ``ambiguous`` or no place tells the hypotheses apart).
@@ -49,8 +49,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from pimm_agents.active.guide import GUIDE_SIZE, Guide
 from pimm_agents.active.primitives import PRIMITIVES, drive
-from pimm_agents.active.views import GUIDE_SIZE, Guide
 from pimm_agents.localizer import PoseEstimate
 from pimm_agents.scoring.honesty import RIGHT_ANGLE_DEG, RIGHT_POSITION_M
 from pimm_env.errors import EnvError
@@ -145,7 +145,7 @@ def active_observation(
 ) -> dict[str, np.ndarray]:
     """The env's observation (see the module docstring) from a localizer's ``estimate``, the 2D ``scan``
     (ranges), the last primitive's odometry ``delta`` (x, y, heading in the robot's frame at its start) and the
-    ``guide`` (views.py's :class:`~pimm_agents.active.views.Guide`; none shown when None)."""
+    ``guide`` (guide.py's :class:`~pimm_agents.active.guide.Guide`; none shown when None)."""
     status = np.zeros(len(STATUS_ORDER), dtype=np.float32)
     if estimate is not None:
         status[STATUS_ORDER.index(estimate.status)] = 1.0

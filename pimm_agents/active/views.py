@@ -1,29 +1,19 @@
-"""Where a belief's hypotheses would see different things: the active-localization env's ``guide``.
+"""What the map says a robot would see from a place, and where going would tell look-alike places apart.
 
-A robot knows its map and its belief. When the belief holds several places (a look-alike twin one bay down the
-corridor, a mirror image), each hypothesis predicts what the robot would see if it drove to a given offset from
-where it believes it is: the map's walls, ray-cast from that offset placed at each hypothesis. Where the
-predictions differ, going there settles which hypothesis is right; where they agree, going there tells nothing.
+A robot knows its map. When its belief holds several places (a look-alike twin one bay down the corridor, a
+mirror image), each hypothesis predicts what the robot would see if it drove to a given offset from where it
+believes it is: the map's walls, ray-cast from that offset placed at each hypothesis. Where the predictions
+differ, going there settles which hypothesis is right; where they agree, going there tells nothing.
+:class:`ViewPredictor` answers three questions on that footing: the path to the place that tells a pose apart
+from the most of its twins (:meth:`~ViewPredictor.telling_path`, the guide's far plan), the nearby place whose
+views best tell weighted hypotheses apart (:meth:`~ViewPredictor.best_waypoint`, its near search), and how far
+the nearest place that tells a pose from all its twins lies (:meth:`~ViewPredictor.nearest_telling`, the active
+bound). The guide that turns these into the env's observation is guide.py.
 
-:class:`Guide` is what the env hands a policy (its ``guide`` observation): per step, the bearing of a waypoint in
-the robot's frame and how well the place it leads to tells the hypotheses apart, computed only while the
-localizer says ``ambiguous``. It plans far first: the map's own twins of the estimate (``MapTwins``, as PIMM's
-rival check finds them) and the localizer's listed hypotheses whose predicted view fits the 2D scan nearly as
-well as the estimate's (a rival listed with a wrong heading would otherwise make every place look telling) are
-told apart, each, where the view at the same offset differs from the estimate's; the plan goes to the nearest
-place (within 60 m of path) of those that tell the most of them apart (:meth:`ViewPredictor.telling_path`). A
-localizer can only be sure once every twin has fallen, which in a corridor of look-alike bays is at its end,
-often beyond any near horizon. The plan is kept while the robot follows it: when the estimate jumps to another
-twin the plan keeps its course relative to the robot while that runs through open space in the new estimate's
-map (a plan made again at every jump turned the robot back and forth along a corridor). Only when no place
-tells any twin apart does the near search of :meth:`ViewPredictor.best_waypoint` (within 10 m, scored by how much
-better a place tells the listed hypotheses apart than where the robot is, less its distance) show a place.
-Paths keep to the middle of corridors and doorways, so that a robot that turns in 45 deg steps meets a door
-square on.
-
-The ray casting and the path search are compiled (numba): a near step scores a few hundred candidate places for
-up to six hypotheses at 36 bearings, about 40 ms on a 2-core AMD EPYC; a far plan, made once and kept, about a
-second.
+Paths keep to the middle of corridors and doorways (``centre_cost``), so that a robot that turns in 45 deg
+steps meets a door square on; the bound's lengths are plain path lengths. The ray casting and the path search
+are compiled (numba): a near search scores a few hundred candidate places for up to six hypotheses at 36
+bearings, about 40 ms on a 2-core AMD EPYC; a far plan, about a second on a 2-core Intel Xeon.
 """
 
 from __future__ import annotations
@@ -31,20 +21,11 @@ from __future__ import annotations
 import heapq
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
-from pimm_agents.pimm.twins import MapTwins, TwinConfig
-from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
-
-if TYPE_CHECKING:
-    from pimm_agents.localizer import PoseEstimate
-
-#: the ``guide`` observation: sine and cosine of the waypoint's bearing, the place's gain, and 1 when there is one
-GUIDE_SIZE = 4
 
 
 @dataclass(frozen=True)
@@ -363,120 +344,3 @@ class ViewPredictor:
         return np.column_stack(
             [g.origin[0] + (arr[:, 1] + 0.5) * g.resolution, g.origin[1] + (arr[:, 0] + 0.5) * g.resolution]
         )
-
-
-def distinct_hypotheses(
-    estimate: PoseEstimate, right_m: float = 1.0, right_deg: float = 10.0
-) -> tuple[np.ndarray, np.ndarray]:
-    """The estimate and its hypotheses that are not within ``right_m`` and ``right_deg`` of one listed before
-    (poses (H, 3), weights (H,)); the estimate first, with the weight of its hypothesis; all 1 when every weight
-    is 0."""
-    poses, weights = [estimate.pose], [0.0]
-    for h in estimate.hypotheses:
-        pose = np.array([h.x, h.y, h.theta])
-        near = [
-            i
-            for i, p in enumerate(poses)
-            if np.hypot(*(p[:2] - pose[:2])) <= right_m and abs(wrap_angle(p[2] - pose[2])) <= np.radians(right_deg)
-        ]
-        if near:
-            weights[near[0]] = max(weights[near[0]], float(h.weight))
-        else:
-            poses.append(pose)
-            weights.append(float(h.weight))
-    w = np.array(weights)
-    return np.array(poses), (w if w.max() > 0 else np.ones_like(w))
-
-
-class Guide:
-    """The ``guide`` observation of one episode (see the module docstring); ``reset`` at each episode."""
-
-    def __init__(self, occupancy: OccupancyGrid, config: ViewConfig | None = None) -> None:
-        self.views = ViewPredictor(occupancy, config)
-        self.twins = MapTwins(occupancy, TwinConfig(max_twins=self.views.config.far_twins))
-        self.reset()
-
-    def reset(self) -> None:
-        self.target: np.ndarray | None = None  # the place chosen last, in the robot's frame
-        self.far: np.ndarray | None = None  # the far plan's path (map points, as the estimate placed it)
-        self.far_share = 0.0  # the share of the estimate's twins the far plan's place tells apart
-        self.carried: np.ndarray | None = None  # the estimate of the last step, carried by the odometry since
-        self.failed_at: np.ndarray | None = None  # where a far plan was last looked for and none found
-
-    def __call__(
-        self, estimate: PoseEstimate | None, scan: np.ndarray, bearings: np.ndarray, delta: np.ndarray
-    ) -> np.ndarray:
-        """The observation after a primitive that moved the robot by ``delta`` (x, y, heading in its frame at
-        the primitive's start), with the localizer's ``estimate`` and the 2D ``scan`` (ranges at ``bearings``)."""
-        out = np.zeros(GUIDE_SIZE, dtype=np.float32)
-        delta = np.asarray(delta, dtype=float)
-        if self.target is not None:  # carried into the robot's frame after the primitive's motion
-            self.target = in_frame(delta, self.target[None, :])[0]
-        carried, self.carried = self.carried, None
-        if estimate is None or estimate.status != "ambiguous":
-            self.target = self.far = None
-            return out
-        pose = np.asarray(estimate.pose, dtype=float)
-        self.carried = pose.copy()
-        if carried is not None:
-            carried = np.r_[place(carried, delta[None, :2])[0], carried[2] + delta[2]]
-            if np.hypot(*(pose[:2] - carried[:2])) > self.views.config.far_jump_m or abs(
-                wrap_angle(pose[2] - carried[2])
-            ) > np.radians(15.0):
-                # the estimate took another place: the far plan keeps its course relative to the robot (a plan
-                # dropped at every jump between twins turned the robot back and forth along a corridor)
-                # while it runs through open space in the map as the new estimate places it
-                if self.far is not None:
-                    self.far = place(pose, in_frame(carried, self.far))
-                    if not self.views.open_along(self.far):
-                        self.far = None
-                self.failed_at = None
-        config = self.views.config
-        poses, weights = distinct_hypotheses(estimate)
-        misfit = self.views.misfit(poses, scan, bearings)
-        plausible = misfit <= misfit[0] + config.plausible_misfit
-        shown = self._far_waypoint(pose, poses[1:][plausible[1:]])
-        if shown is not None:
-            self.target = None
-            return _shown(out, *shown)
-        if plausible.sum() >= 2:
-            found = self.views.best_waypoint(
-                pose, poses[plausible], weights[plausible], keep=self.target, min_move=config.min_move_m
-            )
-            if found is not None:
-                waypoint, self.target, gain = found
-                return _shown(out, waypoint, gain)
-        self.target = None
-        return out
-
-    def _far_waypoint(self, pose: np.ndarray, others: np.ndarray) -> tuple[np.ndarray, float] | None:
-        """The far plan's waypoint (in the robot's frame) and the share of the twins its place tells apart,
-        planned again when there is none, the robot reached its end or strayed from it; None when no place
-        tells the estimate from any of its twins."""
-        c = self.views.config
-        if self.far is not None:
-            gap = np.hypot(self.far[:, 0] - pose[0], self.far[:, 1] - pose[1])
-            if gap[-1] < c.min_move_m or gap.min() > c.far_off_path_m:
-                self.far = None
-        if self.far is None:
-            if self.failed_at is not None and np.hypot(*(pose[:2] - self.failed_at[:2])) < c.min_move_m:
-                return None  # looked for from about here already
-            twins = np.vstack([self.twins.of(pose), np.asarray(others, dtype=float).reshape(-1, 3)])
-            plan = self.views.telling_path(pose, twins, c.far_reach_m, c.far_min_share, c.min_move_m)
-            if plan is None:
-                self.failed_at = pose.copy()
-                return None
-            self.failed_at = None
-            self.far, self.far_share = plan
-        gap = np.hypot(self.far[:, 0] - pose[0], self.far[:, 1] - pose[1])
-        along = np.cumsum(np.r_[0.0, np.hypot(*np.diff(self.far, axis=0).T)])
-        nearest = int(np.argmin(gap))
-        ahead = int(np.searchsorted(along, along[nearest] + c.waypoint_m))
-        return in_frame(pose, self.far[min(ahead, len(self.far) - 1)][None, :])[0], self.far_share
-
-
-def _shown(out: np.ndarray, waypoint: np.ndarray, gain: float) -> np.ndarray:
-    """The guide observation of a waypoint (robot frame) toward a place that tells apart by ``gain``."""
-    bearing = float(np.arctan2(waypoint[1], waypoint[0]))
-    out[:] = (np.sin(bearing), np.cos(bearing), np.clip(gain, 0.0, 1.0), 1.0)
-    return out
