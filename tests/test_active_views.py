@@ -151,7 +151,7 @@ def test_the_guides_paths_keep_to_the_middle_of_a_corridor():
     occ = corridor(length=20.0, width=2.0)
     views = ViewPredictor(occ)
     start, end = occ.grid.cells_of(np.array([[1.0, 0.5], [19.0, 0.5]]))[:2]
-    for cost, middle in ((views.unit_cost, False), (views.centre_cost, True)):
+    for cost, middle in ((views.cost_plain, False), (views.cost_centred, True)):
         field = geodesic_from(views.passable, int(start[0]), int(start[1]), 1e9, cost)
         path = views._path(field, int(end[0]), int(end[1]))
         along = path[(path[:, 0] > 4.0) & (path[:, 0] < 16.0)]

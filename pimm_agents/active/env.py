@@ -15,9 +15,10 @@ Observation (``spaces.Dict``, fixed shapes, every value in [-1, 1] or [0, 1]; th
 - ``odom_delta``: the last primitive's wheel-odometry motion in the robot's frame at its start (x and y over 1 m,
   heading over pi);
 - ``guide``: where to drive to tell the hypotheses apart, from the map and the belief (guide.py): sine and
-  cosine of the bearing of the next waypoint toward the reachable place whose predicted views differ most
-  between the hypotheses, that place's gain (0..1), and 1 when there is such a place (all 0 when the status is
-  not ``ambiguous`` or no place tells the hypotheses apart).
+  cosine of the bearing of the next waypoint toward the place that tells the estimate from the most of its
+  twins (or, when none does, the nearby place whose predicted views differ most between the hypotheses), the
+  share of twins that place tells apart (or its gain; 0..1), and 1 when there is such a place (all 0 when the
+  status is not ``ambiguous`` or no place tells anything apart).
 
 Action: ``Discrete(3)``, the primitives forward 0.5 m, turn left 45 deg, turn right 45 deg (why primitives:
 see primitives.py).

@@ -89,9 +89,10 @@ class Guide:
         self.carried = pose.copy()
         if carried is not None:
             carried = np.r_[place(carried, delta[None, :2])[0], carried[2] + delta[2]]
-            if np.hypot(*(pose[:2] - carried[:2])) > self.views.config.far_jump_m or abs(
-                wrap_angle(pose[2] - carried[2])
-            ) > np.radians(15.0):
+            c = self.views.config
+            if np.hypot(*(pose[:2] - carried[:2])) > c.far_jump_m or abs(wrap_angle(pose[2] - carried[2])) > np.radians(
+                c.far_jump_deg
+            ):
                 # the estimate took another place: the far plan keeps its course relative to the robot (a plan
                 # dropped at every jump between twins turned the robot back and forth along a corridor)
                 # while it runs through open space in the map as the new estimate places it

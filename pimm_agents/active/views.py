@@ -10,7 +10,7 @@ views best tell weighted hypotheses apart (:meth:`~ViewPredictor.best_waypoint`,
 the nearest place that tells a pose from all its twins lies (:meth:`~ViewPredictor.nearest_telling`, the active
 bound). The guide that turns these into the env's observation is guide.py.
 
-Paths keep to the middle of corridors and doorways (``centre_cost``), so that a robot that turns in 45 deg
+Paths keep to the middle of corridors and doorways (``cost_centred``), so that a robot that turns in 45 deg
 steps meets a door square on; the bound's lengths are plain path lengths. The ray casting and the path search
 are compiled (numba): a near search scores a few hundred candidate places for up to six hypotheses at 36
 bearings, about 40 ms on a 2-core AMD EPYC; a far plan, about a second on a 2-core Intel Xeon.
@@ -49,12 +49,13 @@ class ViewConfig:
     #: steps, whose forward guard stops 0.5 m short of anything ahead, meets a doorway square on
     centre_m: float = 0.75
     centre_cost: float = 4.0
-    #: when no place within ``reach_m`` tells the hypotheses apart: a far plan to the nearest place within this
-    #: much path that tells the estimate from the most of its map twins (active_bound.py's reach)
+    #: the guide's far plan (made before the near search): to the nearest place within this much path of those
+    #: that tell the estimate from the most of its map twins (active_bound.py's reach)
     far_reach_m: float = 60.0
     far_twins: int = 20  # the map's twins of the estimate a far plan tells apart (active_bound.py's number)
     far_min_share: float = 0.1  # a place tells two views apart by this share of bearings (active_bound.py's)
     far_jump_m: float = 1.0  # an estimate this far from where the odometry carried the last one took another place
+    far_jump_deg: float = 15.0  # or turned this much from it
     far_off_path_m: float = 2.0  # a robot this far from its far plan's path (it went round something) plans again
 
 
@@ -166,8 +167,8 @@ class ViewPredictor:
         clearance = occupancy.distance_to_occupied()
         self.passable = np.ascontiguousarray(occupancy.free & (clearance >= c.clearance_m))
         near = np.clip((c.centre_m - clearance) / max(c.centre_m - c.clearance_m, 1e-9), 0.0, 1.0)
-        self.centre_cost = np.ascontiguousarray(1.0 + c.centre_cost * near)
-        self.unit_cost = np.ones_like(self.centre_cost)
+        self.cost_centred = np.ascontiguousarray(1.0 + c.centre_cost * near)
+        self.cost_plain = np.ones_like(self.cost_centred)
         self.bearings = np.linspace(-np.pi, np.pi, c.beams, endpoint=False)
 
     def views(self, poses: np.ndarray, bearings: np.ndarray | None = None) -> np.ndarray:
@@ -210,7 +211,7 @@ class ViewPredictor:
         that the policy does not switch between places of about equal worth at every step. Places within
         ``min_move`` of the estimate are not candidates."""
         c, g = self.config, self.grid
-        found = self._candidates(estimate, c.reach_m, self.centre_cost)
+        found = self._candidates(estimate, c.reach_m, self.cost_centred)
         if found is None:
             return None
         dist, cand_r, cand_c, offsets = found
@@ -244,7 +245,7 @@ class ViewPredictor:
         twins = np.asarray(twins, dtype=float).reshape(-1, 3)
         if len(twins) == 0:
             return 0.0
-        found = self._told(pose, twins, reach_m, min_share, self.unit_cost)
+        found = self._told(pose, twins, reach_m, min_share, self.cost_plain)
         if found is None:
             return None
         dist, cand_r, cand_c, _, count = found
@@ -265,7 +266,7 @@ class ViewPredictor:
         twins = np.asarray(twins, dtype=float).reshape(-1, 3)
         if len(twins) == 0:
             return None
-        found = self._told(pose, twins, reach_m, min_share, self.centre_cost)
+        found = self._told(pose, twins, reach_m, min_share, self.cost_centred)
         if found is None:
             return None
         dist, cand_r, cand_c, offsets, count = found
@@ -305,8 +306,8 @@ class ViewPredictor:
     def _candidates(
         self, pose: np.ndarray, reach_m: float, cost: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-        """The places reachable from ``pose`` within ``reach_m`` of path (costed by ``cost``: ``unit_cost`` gives
-        lengths, ``centre_cost`` keeps to the middle), on a lattice of ``spacing_m`` through its cell: the path
+        """The places reachable from ``pose`` within ``reach_m`` of path (costed by ``cost``: ``cost_plain`` gives
+        lengths, ``cost_centred`` keeps to the middle), on a lattice of ``spacing_m`` through its cell: the path
         cost field (cells), the places' rows and columns, and their offsets in the pose's frame; None when the
         pose is not on a passable cell or nothing is reachable."""
         g = self.grid
