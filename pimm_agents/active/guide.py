@@ -22,9 +22,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pimm_agents.active.views import ViewConfig, ViewPredictor, in_frame, place
+from pimm_agents.active.views import ViewConfig, ViewPredictor, in_frame, place, point_along
 from pimm_agents.pimm.twins import MapTwins, TwinConfig
-from pimm_env.geometry import wrap_angle
+from pimm_env.geometry import compose, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
 
 if TYPE_CHECKING:
@@ -88,7 +88,7 @@ class Guide:
         pose = np.asarray(estimate.pose, dtype=float)
         self.carried = pose.copy()
         if carried is not None:
-            carried = np.r_[place(carried, delta[None, :2])[0], carried[2] + delta[2]]
+            carried = compose(carried, delta)[0]
             c = self.views.config
             if np.hypot(*(pose[:2] - carried[:2])) > c.far_jump_m or abs(wrap_angle(pose[2] - carried[2])) > np.radians(
                 c.far_jump_deg
@@ -138,11 +138,9 @@ class Guide:
                 return None
             self.failed_at = None
             self.far, self.far_share = plan
-        gap = np.hypot(self.far[:, 0] - pose[0], self.far[:, 1] - pose[1])
-        along = np.cumsum(np.r_[0.0, np.hypot(*np.diff(self.far, axis=0).T)])
-        nearest = int(np.argmin(gap))
-        ahead = int(np.searchsorted(along, along[nearest] + c.waypoint_m))
-        return in_frame(pose, self.far[min(ahead, len(self.far) - 1)][None, :])[0], self.far_share
+        nearest = int(np.argmin(np.hypot(self.far[:, 0] - pose[0], self.far[:, 1] - pose[1])))
+        point = point_along(self.far, nearest, c.waypoint_m)
+        return in_frame(pose, point[None, :])[0], self.far_share
 
 
 def _shown(out: np.ndarray, waypoint: np.ndarray, gain: float) -> np.ndarray:

@@ -74,6 +74,13 @@ def in_frame(base: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
 
 
+def point_along(path: np.ndarray, start: int, metres: float) -> np.ndarray:
+    """The point of ``path`` (N, 2) about ``metres`` along it from its point ``start`` (its last point when the
+    path is shorter)."""
+    along = np.cumsum(np.r_[0.0, np.hypot(*np.diff(path, axis=0).T)])
+    return path[min(int(np.searchsorted(along, along[start] + metres)), len(path) - 1)]
+
+
 @njit(cache=True, nogil=True)
 def cast_ranges(
     origins: np.ndarray,
@@ -231,10 +238,8 @@ class ViewPredictor:
         if not np.isfinite(score[best]):
             return None
         path = self._path(dist, int(cand_r[best]), int(cand_c[best]))
-        along = np.cumsum(np.r_[0.0, np.hypot(*np.diff(path, axis=0).T)]) if len(path) > 1 else np.zeros(1)
         # the path runs from the estimate to the place: the point about waypoint_m along it
-        point = path[min(int(np.searchsorted(along, c.waypoint_m)), len(path) - 1)]
-        waypoint = in_frame(estimate, point[None, :])[0]
+        waypoint = in_frame(estimate, point_along(path, 0, c.waypoint_m)[None, :])[0]
         return waypoint, offsets[best], float(gain[best])
 
     def nearest_telling(self, pose: np.ndarray, twins: np.ndarray, reach_m: float, min_share: float) -> float | None:
