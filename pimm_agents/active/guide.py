@@ -18,6 +18,7 @@ distance) show a place.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -32,6 +33,18 @@ if TYPE_CHECKING:
 
 #: the ``guide`` observation: sine and cosine of the waypoint's bearing, the place's gain, and 1 when there is one
 GUIDE_SIZE = 4
+
+
+@dataclass(frozen=True)
+class FarPlanConfig:
+    """Ours (docs/design.md#measured-choices): the far plan, made before the near search."""
+
+    reach_m: float = 60.0  # to the nearest place within this much path (active_bound.py's reach)
+    twins: int = 20  # of those that tell the estimate from the most of this many map twins (active_bound.py's)
+    min_share: float = 0.1  # a place tells two views apart by this share of bearings (active_bound.py's)
+    jump_m: float = 1.0  # an estimate this far from where the odometry carried the last one took another place
+    jump_deg: float = 15.0  # or turned this much from it
+    off_path_m: float = 2.0  # a robot this far from the plan's path (it went round something) plans again
 
 
 def distinct_hypotheses(
@@ -60,9 +73,12 @@ def distinct_hypotheses(
 class Guide:
     """The ``guide`` observation of one episode (see the module docstring); ``reset`` at each episode."""
 
-    def __init__(self, occupancy: OccupancyGrid, config: ViewConfig | None = None) -> None:
+    def __init__(
+        self, occupancy: OccupancyGrid, config: ViewConfig | None = None, far: FarPlanConfig | None = None
+    ) -> None:
         self.views = ViewPredictor(occupancy, config)
-        self.twins = MapTwins(occupancy, TwinConfig(max_twins=self.views.config.far_twins))
+        self.far_config = far or FarPlanConfig()
+        self.twins = MapTwins(occupancy, TwinConfig(max_twins=self.far_config.twins))
         self.reset()
 
     def reset(self) -> None:
@@ -89,10 +105,9 @@ class Guide:
         self.carried = pose.copy()
         if carried is not None:
             carried = compose(carried, delta)[0]
-            c = self.views.config
-            if np.hypot(*(pose[:2] - carried[:2])) > c.far_jump_m or abs(wrap_angle(pose[2] - carried[2])) > np.radians(
-                c.far_jump_deg
-            ):
+            c = self.far_config
+            moved = np.hypot(*(pose[:2] - carried[:2]))
+            if moved > c.jump_m or abs(wrap_angle(pose[2] - carried[2])) > np.radians(c.jump_deg):
                 # the estimate took another place: the far plan keeps its course relative to the robot (a plan
                 # dropped at every jump between twins turned the robot back and forth along a corridor)
                 # while it runs through open space in the map as the new estimate places it
@@ -123,16 +138,16 @@ class Guide:
         """The far plan's waypoint (in the robot's frame) and the share of the twins its place tells apart,
         planned again when there is none, the robot reached its end or strayed from it; None when no place
         tells the estimate from any of its twins."""
-        c = self.views.config
+        c, far = self.views.config, self.far_config
         if self.far is not None:
             gap = np.hypot(self.far[:, 0] - pose[0], self.far[:, 1] - pose[1])
-            if gap[-1] < c.min_move_m or gap.min() > c.far_off_path_m:
+            if gap[-1] < c.min_move_m or gap.min() > far.off_path_m:
                 self.far = None
         if self.far is None:
             if self.failed_at is not None and np.hypot(*(pose[:2] - self.failed_at[:2])) < c.min_move_m:
                 return None  # looked for from about here already
             twins = np.vstack([self.twins.of(pose), np.asarray(others, dtype=float).reshape(-1, 3)])
-            plan = self.views.telling_path(pose, twins, c.far_reach_m, c.far_min_share, c.min_move_m)
+            plan = self.views.telling_path(pose, twins, far.reach_m, far.min_share, c.min_move_m)
             if plan is None:
                 self.failed_at = pose.copy()
                 return None

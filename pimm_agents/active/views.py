@@ -49,14 +49,6 @@ class ViewConfig:
     #: steps, whose forward guard stops 0.5 m short of anything ahead, meets a doorway square on
     centre_m: float = 0.75
     centre_cost: float = 4.0
-    #: the guide's far plan (made before the near search): to the nearest place within this much path of those
-    #: that tell the estimate from the most of its map twins (active_bound.py's reach)
-    far_reach_m: float = 60.0
-    far_twins: int = 20  # the map's twins of the estimate a far plan tells apart (active_bound.py's number)
-    far_min_share: float = 0.1  # a place tells two views apart by this share of bearings (active_bound.py's)
-    far_jump_m: float = 1.0  # an estimate this far from where the odometry carried the last one took another place
-    far_jump_deg: float = 15.0  # or turned this much from it
-    far_off_path_m: float = 2.0  # a robot this far from its far plan's path (it went round something) plans again
 
 
 def place(base: np.ndarray, offset: np.ndarray) -> np.ndarray:
