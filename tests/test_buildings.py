@@ -12,6 +12,7 @@ from training.buildings import (
     LINTEL_HELD_OUT_SEEDS,
     LINTEL_TRAINING_SEEDS,
     LOCALIZER_HELD_OUT_SEEDS,
+    LOOKALIKE_ACTIVE_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
     LOOKALIKE_SECOND_HELD_OUT_SEEDS,
@@ -33,6 +34,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     second = set(LOOKALIKE_SECOND_HELD_OUT_SEEDS)
     assert {draw_plan(seed)[0] for seed in second} <= {"periodic", "mirror"} and second <= set(NEVER_TRAIN_SEEDS)
     assert not second & (looked_at | set(LOOKALIKE_HELD_OUT_SEEDS) | set(LOCALIZER_HELD_OUT_SEEDS))
+    third = set(LOOKALIKE_ACTIVE_HELD_OUT_SEEDS)
+    assert {draw_plan(seed)[0] for seed in third} <= {"periodic", "mirror"} and third <= set(NEVER_TRAIN_SEEDS)
+    assert not third & (looked_at | second | set(LOOKALIKE_HELD_OUT_SEEDS) | set(LOCALIZER_HELD_OUT_SEEDS))
     seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
     assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
     assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))

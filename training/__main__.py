@@ -221,8 +221,8 @@ def _check_backend(backend: str, address: str | None) -> None:
 def buildings(
     seeds: str = typer.Option(
         "100-129",
-        help="building seeds: 'A-B' or 'A,B,C' (furnished: 130-159; held out: 910-929, 980-987, 990-997 and 1000-1007,"
-        " never train on them)",
+        help="building seeds: 'A-B' or 'A,B,C' (furnished: 130-159; held out: 910-929, 980-987, 990-997, 1000-1007"
+        " and 1020-1027, never train on them)",
     ),
     out: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
 ) -> None:
@@ -265,6 +265,7 @@ def heldout(
         FURNISHED_HELD_OUT_SEEDS,
         HELD_OUT_SEEDS,
         LOCALIZER_HELD_OUT_SEEDS,
+        LOOKALIKE_ACTIVE_HELD_OUT_SEEDS,
         LOOKALIKE_DEVELOPMENT_SEEDS,
         LOOKALIKE_HELD_OUT_SEEDS,
         LOOKALIKE_SECOND_HELD_OUT_SEEDS,
@@ -273,7 +274,11 @@ def heldout(
 
     chosen = _seed_list(seeds)
     held_out = (
-        LOCALIZER_HELD_OUT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS + LOOKALIKE_SECOND_HELD_OUT_SEEDS + FURNISHED_HELD_OUT_SEEDS
+        LOCALIZER_HELD_OUT_SEEDS
+        + LOOKALIKE_HELD_OUT_SEEDS
+        + LOOKALIKE_SECOND_HELD_OUT_SEEDS
+        + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
+        + FURNISHED_HELD_OUT_SEEDS
     )
     outside = sorted(set(chosen) - set(held_out))
     if outside:

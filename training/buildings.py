@@ -64,6 +64,10 @@ LOOKALIKE_HELD_OUT_SEEDS = tuple(range(980, 988))
 #: on 15 trials of 980-987 (2026-11-25), so those no longer judge such a change (fixed 2026-11-26, before any
 #: run on them).
 LOOKALIKE_SECOND_HELD_OUT_SEEDS = tuple(range(1000, 1008))
+#: A third look-alike held-out set, for changes to active-localization policies and their guide: 980-987
+#: judged the guide's far plan and the policy trained with it (2026-11-27), so they no longer judge such a
+#: change (fixed 2026-11-27, before any run on them).
+LOOKALIKE_ACTIVE_HELD_OUT_SEEDS = tuple(range(1020, 1028))
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
 POLICY_TRAINING_SEEDS = TRAINING_SEEDS[:8] + LOOKALIKE_DEVELOPMENT_SEEDS[:16]
@@ -92,6 +96,7 @@ NEVER_TRAIN_SEEDS = (
     + LOCALIZER_HELD_OUT_SEEDS
     + LOOKALIKE_HELD_OUT_SEEDS
     + LOOKALIKE_SECOND_HELD_OUT_SEEDS
+    + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
     + FURNISHED_HELD_OUT_SEEDS
     + LINTEL_HELD_OUT_SEEDS
 )
@@ -205,7 +210,13 @@ def draw_plan(seed: int) -> tuple[str, Plan]:
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
         {"home": draw_home, "shop": draw_shop, "ward": draw_ward}[family](rng, plan, float(rng.uniform(2.4, 3.0)))
         return family, plan
-    if seed in LOOKALIKE_DEVELOPMENT_SEEDS or seed in LOOKALIKE_HELD_OUT_SEEDS + LOOKALIKE_SECOND_HELD_OUT_SEEDS:
+    if (
+        seed
+        in LOOKALIKE_DEVELOPMENT_SEEDS
+        + LOOKALIKE_HELD_OUT_SEEDS
+        + LOOKALIKE_SECOND_HELD_OUT_SEEDS
+        + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
+    ):
         family = LOOKALIKE_FAMILIES[int(rng.integers(len(LOOKALIKE_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
         (_periodic if family == "periodic" else _mirror)(rng, plan, float(rng.uniform(2.4, 3.0)))
