@@ -202,3 +202,34 @@ def test_the_shipped_policy_loads_with_its_record_and_acts_on_the_envs_observati
         assert action in (0, 1, 2)
         obs, *_ = env.step(action)
     env.close()
+
+
+def box_scan(pose: tuple[float, float, float], size: tuple[float, float], bearings: np.ndarray) -> np.ndarray:
+    """The ranges from ``pose`` (x, y, heading) to the walls of the room [0, size[0]] x [0, size[1]]."""
+    x, y, heading = pose
+    a = heading + bearings
+    c, s = np.cos(a), np.sin(a)
+    with np.errstate(divide="ignore"):
+        tx = np.where(c > 0, (size[0] - x) / c, np.where(c < 0, -x / c, np.inf))
+        ty = np.where(s > 0, (size[1] - y) / s, np.where(s < 0, -y / s, np.inf))
+    return np.minimum(tx, ty)
+
+
+def test_a_turn_squares_the_robot_up_with_the_walls_it_sees():
+    from pimm_agents.active.primitives import squared_turn, wall_axis
+
+    bearings = np.radians(np.arange(360) - 180.0)
+    rng = np.random.default_rng(0)
+    for heading_deg in (38.0, -7.0, 0.0, 84.0):
+        scan = box_scan((2.0, 1.5, np.radians(heading_deg)), (6.0, 4.0), bearings) + rng.normal(0, 0.01, 360)
+        axis = wall_axis(scan, bearings)
+        # the walls run along the map's axes: in the robot's frame at -heading, modulo 90 deg
+        assert axis is not None and abs(np.degrees(axis) - ((-heading_deg + 45) % 90 - 45)) < 0.5
+        for turn in (np.pi / 4, -np.pi / 4):
+            after = heading_deg + np.degrees(squared_turn(turn, scan, bearings))
+            # a multiple of 45 deg from the walls, about 45 deg (22.5-67.5) from where it was
+            assert min(after % 45, 45 - after % 45) < 0.5 and 22.4 < abs(after - heading_deg) < 67.6
+    # a round room has no wall direction: the turn is the plain 45 deg
+    round_room = np.full(360, 3.0) + rng.normal(0, 0.01, 360)
+    assert wall_axis(round_room, bearings) is None
+    assert squared_turn(np.pi / 4, round_room, bearings) == np.pi / 4

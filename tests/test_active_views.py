@@ -182,3 +182,99 @@ def test_neither_policy_drives_on_into_what_the_body_would_sweep():
     explorer.reset(0)
     greedy.reset(0)
     assert explorer(obs) == FORWARD and greedy(obs) == FORWARD
+
+
+def two_rooms(door: tuple[float, float] = (2.0, 3.0), resolution: float = 0.05) -> OccupancyGrid:
+    """Two 5 x 5 m rooms side by side, the wall between them at x = 5 with a doorway from y = door[0] to door[1]."""
+    grid = GridSpec((-0.5, -0.5), resolution, (int(6 / resolution), int(11 / resolution)))
+    gx, gy = grid.cell_centers()
+    inside = (gx > 0) & (gx < 10) & (gy > 0) & (gy < 5)
+    wall = ~inside | ((np.abs(gx - 5.0) < 0.1) & ~((gy > door[0]) & (gy < door[1])))
+    return OccupancyGrid(grid, wall & (gx > -0.1) & (gx < 10.1) & (gy > -0.1) & (gy < 5.1), inside & ~wall)
+
+
+def test_the_guide_heads_for_a_doorway_square_on_not_for_its_jamb():
+    occ = two_rooms()
+    views = ViewPredictor(occ)
+
+    def path_from(pose: np.ndarray) -> np.ndarray:
+        r, c = occ.grid.cells_of(pose[None, :2])[:2]
+        field = geodesic_from(views.passable, int(r[0]), int(c[0]), 1e9, views.cost_centred)
+        end = occ.grid.cells_of(np.array([[8.0, 2.5]]))[:2]
+        return views._path(field, int(end[0][0]), int(end[1][0]))
+
+    def clear_way(pose: np.ndarray, point: np.ndarray) -> bool:
+        steps = np.linspace(0.25, np.hypot(*(point - pose[:2])), 50)
+        way = pose[:2] + steps[:, None] * (point - pose[:2]) / np.hypot(*(point - pose[:2]))
+        r, c = occ.grid.cells_of(way)[:2]
+        return bool(np.all(views.clearance[r, c] >= views.config.lane_m))
+
+    # 0.8 m beside the doorway's middle: the path's points past the doorway are out of clear sight (the straight
+    # way to them grazes the jamb); the guide shows the farthest point in it, no further than the doorway
+    beside = np.array([4.0, 1.7, 0.0])
+    path = path_from(beside)
+    point = views.steer(path, 0, beside)
+    assert clear_way(beside, point) and point[0] <= 5.1
+    assert not clear_way(beside, path[np.argmin(np.abs(path[:, 0] - 6.0))])
+    # square in front of it: the way runs through, and the guide looks up to 3 m along the path
+    before = np.array([4.0, 2.5, 0.0])
+    point = views.steer(path_from(before), 0, before)
+    assert clear_way(before, point) and point[0] > 6.0
+
+
+def test_a_plan_made_again_keeps_going_the_way_the_robot_faces_unless_back_is_much_nearer():
+    occ = corridor(length=40.0)
+    views = ViewPredictor(occ)
+    here = np.array([16.0, 1.0, 0.0])  # facing east; the west end is nearer
+    twins = np.array([[11.0, 1.0, 0.0], [21.0, 1.0, 0.0]])
+    west, _ = views.telling_path(here, twins, 60.0, 0.1, 1.0)
+    assert west[-1][0] < here[0]
+    east, _ = views.telling_path(here, twins, 60.0, 0.1, 1.0, back_m=10.0)
+    assert east[-1][0] > here[0] and np.all(east[:, 0] >= here[0] - 0.1)  # it leaves forwards
+    nearer_back = np.array([6.0, 1.0, 0.0])  # 6 m from the west end, 34 from the east: back it goes
+    back, _ = views.telling_path(nearer_back, twins - [10.0, 0.0, 0.0], 60.0, 0.1, 1.0, back_m=10.0)
+    assert back[-1][0] < nearer_back[0]
+
+
+def guide_at(bearing_deg: float) -> np.ndarray:
+    b = np.radians(bearing_deg)
+    return np.array([np.sin(b), np.cos(b), 0.5, 1.0])
+
+
+def test_greedy_steps_aside_from_a_blocked_way_and_then_drives_past():
+    # a door jamb 0.42 m off, 21 deg to the right: the way ahead is blocked, and so it is after turning right; the
+    # guide's waypoint straight ahead (a little right): it turns left, where the way is clear, and drives on one
+    # step there before it follows the guide again
+    scan = np.full(60, 8.0)
+    sectors = -np.pi + (np.arange(60) + 0.5) * 2 * np.pi / 60
+    scan[np.argmin(np.abs(sectors - np.radians(-21.0)))] = 0.42
+    obs = {
+        "scan": (scan / 20.0).astype(np.float32),
+        "odom_delta": np.zeros(3, dtype=np.float32),
+        "hypotheses": np.zeros((5, 6), dtype=np.float32),
+        "status": np.array([0, 1, 0], dtype=np.float32),
+        "guide": guide_at(-5.0).astype(np.float32),
+    }
+    greedy = Greedy(20.0)
+    greedy.reset(0)
+    assert greedy(obs) == LEFT
+    obs["scan"] = np.full(60, 8.0 / 20.0, dtype=np.float32)  # turned: the way is clear
+    obs["guide"] = guide_at(-50.0).astype(np.float32)  # the waypoint now to the right: it still steps past first
+    assert greedy(obs) == FORWARD
+    assert greedy(obs) == RIGHT  # then it turns back toward the waypoint
+
+
+def test_greedy_turns_to_and_fro_only_once_and_then_follows_the_guide_again():
+    occ = corridor()
+    here = np.array([9.0, 1.0, 0.0])
+    greedy = Greedy(20.0)
+    greedy.reset(0)
+    assert greedy(observation(occ, here, guide_at(-90.0))) == RIGHT
+    # the belief jumped and the guide now says left: it would turn back the way it just turned, so it explores
+    # for a few primitives; afterwards it follows the guide's turns again, whichever way exploring last turned
+    # (a rule that counted exploring's own turns had the robot spin on the spot for a whole episode)
+    greedy(observation(occ, here, guide_at(90.0)))
+    for _ in range(Greedy.EXPLORE_STEPS - 1):
+        greedy(observation(occ, here, guide_at(90.0)))
+    assert greedy(observation(occ, here, guide_at(90.0))) == LEFT
+    assert greedy(observation(occ, here, guide_at(90.0))) == LEFT

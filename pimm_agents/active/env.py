@@ -20,8 +20,8 @@ Observation (``spaces.Dict``, fixed shapes, every value in [-1, 1] or [0, 1]; th
   share of twins that place tells apart (or its gain; 0..1), and 1 when there is such a place (all 0 when the
   status is not ``ambiguous`` or no place tells anything apart).
 
-Action: ``Discrete(3)``, the primitives forward 0.5 m, turn left 45 deg, turn right 45 deg (why primitives:
-see primitives.py).
+Action: ``Discrete(3)``, the primitives forward 0.5 m, turn left about 45 deg, turn right about 45 deg, a turn
+squared up with the walls the 2D scan sees (why primitives, and why squared: see primitives.py).
 
 Reward per step, with the weights of :class:`ActiveConfig` (the truth is used here, never in the observation):
 

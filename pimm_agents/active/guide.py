@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pimm_agents.active.views import ViewConfig, ViewPredictor, in_frame, place, point_along
+from pimm_agents.active.views import ViewConfig, ViewPredictor, in_frame, place
 from pimm_agents.pimm.twins import MapTwins, TwinConfig
 from pimm_env.geometry import compose, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -45,6 +45,10 @@ class FarPlanConfig:
     jump_m: float = 1.0  # an estimate this far from where the odometry carried the last one took another place
     jump_deg: float = 15.0  # or turned this much from it
     off_path_m: float = 2.0  # a robot this far from the plan's path (it went round something) plans again
+    #: a plan made again while the robot is still in doubt counts a path that leaves backwards this much longer
+    #: (views.py, ``telling_path``): a robot that had driven half a corridor toward one end, then reached the end
+    #: of its plan (carried there by a jump between twins), turned back for the other end, 2 m nearer
+    back_m: float = 10.0
 
 
 def distinct_hypotheses(
@@ -87,6 +91,7 @@ class Guide:
         self.far_share = 0.0  # the share of the estimate's twins the far plan's place tells apart
         self.carried: np.ndarray | None = None  # the estimate of the last step, carried by the odometry since
         self.failed_at: np.ndarray | None = None  # where a far plan was last looked for and none found
+        self.followed = False  # a far plan was followed in this spell of doubt
 
     def __call__(
         self, estimate: PoseEstimate | None, scan: np.ndarray, bearings: np.ndarray, delta: np.ndarray
@@ -100,6 +105,7 @@ class Guide:
         carried, self.carried = self.carried, None
         if estimate is None or estimate.status != "ambiguous":
             self.target = self.far = None
+            self.followed = False
             return out
         pose = np.asarray(estimate.pose, dtype=float)
         self.carried = pose.copy()
@@ -147,15 +153,16 @@ class Guide:
             if self.failed_at is not None and np.hypot(*(pose[:2] - self.failed_at[:2])) < c.min_move_m:
                 return None  # looked for from about here already
             twins = np.vstack([self.twins.of(pose), np.asarray(others, dtype=float).reshape(-1, 3)])
-            plan = self.views.telling_path(pose, twins, far.reach_m, far.min_share, c.min_move_m)
+            back = far.back_m if self.followed else 0.0
+            plan = self.views.telling_path(pose, twins, far.reach_m, far.min_share, c.min_move_m, back)
             if plan is None:
                 self.failed_at = pose.copy()
                 return None
             self.failed_at = None
             self.far, self.far_share = plan
+            self.followed = True
         nearest = int(np.argmin(np.hypot(self.far[:, 0] - pose[0], self.far[:, 1] - pose[1])))
-        point = point_along(self.far, nearest, c.waypoint_m)
-        return in_frame(pose, point[None, :])[0], self.far_share
+        return in_frame(pose, self.views.steer(self.far, nearest, pose)[None, :])[0], self.far_share
 
 
 def _shown(out: np.ndarray, waypoint: np.ndarray, gain: float) -> np.ndarray:

@@ -5,8 +5,11 @@ Each is a callable ``policy(observation) -> action`` with ``reset(seed)`` called
 - ``random``: a random walk: each primitive drawn at random, forward twice as often as each turn (the env's
   forward guard keeps it off the walls);
 - ``greedy``: while the observation's ``guide`` shows a place that tells the belief's hypotheses apart (the
-  map's views from there differ between them, views.py), it heads for the guide's waypoint; otherwise it
-  explores: it drives toward the most open direction it has not yet been towards. The scan's 60
+  map's views from there differ between them, views.py), it heads for the guide's waypoint: forward when the
+  waypoint is within half a turn ahead and the way is clear, else a turn toward it; when the way ahead is
+  blocked it turns aside to the side whose way is clear (the one nearer the waypoint first) and drives on a step
+  there; when it would turn back the way the guide just turned it (the belief jumped) it explores for a few
+  primitives. Otherwise it explores: it drives toward the most open direction it has not yet been towards. The scan's 60
   sectors are scored by their free range (up to 8 m), less 0.5 m per radian of turn to face them (of equally
   open ways, the one needing least turning) and 3 m for each time the robot has already faced that way from
   about here (cells of 2 m in the odometry frame, 8 headings; driving on in one cell and heading counts once):
@@ -29,6 +32,7 @@ from pimm_agents.active.primitives import STOP_RANGE, blocked_ahead
 from pimm_env.geometry import wrap_angle
 
 FORWARD, LEFT, RIGHT = 0, 1, 2
+TURNS = {LEFT: np.pi / 4, RIGHT: -np.pi / 4}  # about what each turn primitive turns (rad)
 #: the shipped policy (``trained``), beside the record of how it was trained (``.json``)
 SHIPPED_POLICY = Path(__file__).resolve().parent / "weights" / "active_ppo.zip"
 
@@ -44,6 +48,18 @@ class Policy(Protocol):
 def sector_bearings(n: int) -> np.ndarray:
     """The centres of the ``scan`` observation's ``n`` sectors (robot frame, from behind, counter-clockwise)."""
     return -np.pi + (np.arange(n) + 0.5) * 2 * np.pi / n
+
+
+def sectors_blocked(scan: np.ndarray, stop_range: float = STOP_RANGE, turn: float = 0.0) -> bool:
+    """The forward guard's test (``blocked_ahead``) on the ``scan`` observation's sectors (ranges in metres),
+    each sector's nearest return taken at its centre and at both its edges: the guard itself reads every beam,
+    and a return near a sector's edge, tested at the centre only, fell outside the lane the body sweeps while the
+    guard stopped the robot at it (a policy chose forward three times at a pillar and stood). With ``turn``
+    (rad), the test after turning that much on the spot."""
+    n = len(scan)
+    half = np.pi / n
+    bearings = np.concatenate([sector_bearings(n) + k * half - turn for k in (-1, 0, 1)])
+    return blocked_ahead(np.tile(np.asarray(scan, dtype=float), 3), bearings, stop_range)
 
 
 class RandomWalk:
@@ -101,7 +117,7 @@ class Explorer:
         # within half a turn (and a margin: a best direction half a turn off either way would otherwise have the
         # robot turn back and forth across it) and clear ahead, in the cone and in the lane the body sweeps (with
         # the cone alone it chose forward, stopped by the guard, for the rest of an episode): drive on
-        if abs(best) <= np.pi / 8 + self.AHEAD_MARGIN and not blocked_ahead(scan, bearings, STOP_RANGE + 0.2):
+        if abs(best) <= np.pi / 8 + self.AHEAD_MARGIN and not sectors_blocked(scan, STOP_RANGE + 0.2):
             return FORWARD
         return LEFT if best > 0 else RIGHT
 
@@ -115,7 +131,7 @@ class Greedy:
 
     name = "greedy"
     AHEAD = np.pi / 8 + np.radians(5.0)  # as the explorer: within half a turn, and a margin, counts as ahead
-    EXPLORE_STEPS = 4  # primitives it explores for when the way to the waypoint is blocked
+    EXPLORE_STEPS = 4  # primitives it explores for when it would turn to and fro between the guide's turns
 
     def __init__(self, max_range: float = 20.0) -> None:
         self.explorer = Explorer(max_range)
@@ -124,33 +140,43 @@ class Greedy:
 
     def reset(self, seed: int | None = None) -> None:
         self.explorer.reset(seed)
-        self.last: int | None = None  # the action chosen last
+        self.last_turn: int | None = None  # the guide's last turn, while it follows the guide
+        self.sidestep = False  # it turned aside from a blocked way and drives on once before it turns back
         self.explore_for = 0  # primitives left to explore before it follows the guide again
 
     def __call__(self, observation: dict[str, np.ndarray]) -> int:
         explore = self.explorer(observation)  # keeps its dead reckoning and what it has faced up to date
-        previous, self.last = self.last, explore
-        if "guide" not in observation or observation["guide"][3] < 0.5:
-            return explore
-        if self.explore_for > 0:
-            self.explore_for -= 1
+        if "guide" not in observation or observation["guide"][3] < 0.5 or self.explore_for > 0:
+            self.explore_for = max(0, self.explore_for - 1)
+            self.last_turn, self.sidestep = None, False
             return explore
         bearing = float(np.arctan2(observation["guide"][0], observation["guide"][1]))
         scan = np.asarray(observation["scan"], dtype=float) * self.max_range
-        sector = sector_bearings(len(scan))
         # the guide's path keeps to the middle of the map's corridors and doors, so the forward guard's own test
         # (the cone ahead and the lane the body sweeps) is margin enough: a wider one of its own had it stop short
         # of doorways it could pass and explore away from them
-        clear = not blocked_ahead(scan, sector)
-        ahead = abs(bearing) <= self.AHEAD
-        action = FORWARD if ahead and clear else (LEFT if bearing > 0 else RIGHT)
-        if (ahead and not clear) or {action, previous} == {LEFT, RIGHT}:
-            # the way there is blocked by something the map (as the estimate places it) does not show, or the
-            # waypoint moved with the belief and it would turn back the way it just turned: it explores for a
-            # few primitives instead of turning to and fro, and then follows the guide again
-            self.explore_for = self.EXPLORE_STEPS
-            action = explore
-        self.last = action
+        clear = not sectors_blocked(scan)
+        if self.sidestep and clear:  # after a turn aside, one step on: the way past what blocked it
+            self.sidestep, self.last_turn = False, None
+            return FORWARD
+        self.sidestep = False
+        if abs(bearing) <= self.AHEAD:
+            if clear:
+                self.last_turn = None
+                return FORWARD
+            # the way ahead is blocked (the robot stands too near a wall or a jamb to pass it): it turns aside to
+            # the side nearer the waypoint whose way is clear (either when neither is) and drives on a step there
+            sides = sorted((LEFT, RIGHT), key=lambda a: abs(bearing - TURNS[a]))
+            action = next((a for a in sides if not sectors_blocked(scan, turn=TURNS[a])), sides[0])
+            self.sidestep, self.last_turn = True, None
+            return action
+        action = LEFT if bearing > 0 else RIGHT
+        if {action, self.last_turn} == {LEFT, RIGHT}:
+            # the waypoint moved with the belief and it would turn back the way the guide just turned it: it
+            # explores for a few primitives instead of turning to and fro, and then follows the guide again
+            self.explore_for, self.last_turn = self.EXPLORE_STEPS - 1, None
+            return explore
+        self.last_turn = action
         return action
 
 

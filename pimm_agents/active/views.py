@@ -40,7 +40,13 @@ class ViewConfig:
     spacing_m: float = 0.5  # candidate places on a lattice of this spacing
     distance_cost: float = 0.01  # disagreement (0..1) a candidate loses per metre of path
     min_gain: float = 0.02  # a place must tell the hypotheses apart by this much more than where the robot is
-    waypoint_m: float = 1.0  # the policy heads for the path's point this far along it
+    waypoint_m: float = 1.0  # the policy heads for the path's point this far along it, when no farther one is in sight
+    #: or for the farthest point up to ``lookahead_m`` along the path that it sees down a lane of ``lane_m`` either
+    #: side (its body's 0.25 m radius and 5 cm): a point along a path that bends through a doorway, taken blind,
+    #: has the robot head for the doorway's jamb and stand at it
+    lookahead_m: float = 3.0
+    lane_m: float = 0.3
+    back_radius_m: float = 2.0  # a path through the half disc this wide behind the robot leaves backwards
     min_weight: float = 0.2  # every hypothesis counts with at least this share of the heaviest one's weight
     min_move_m: float = 1.0  # a place this near is where the robot already is: it shows nothing new
     plausible_misfit: float = 0.1  # a hypothesis whose view fits the scan worse than the estimate's by this is left out
@@ -163,7 +169,7 @@ class ViewPredictor:
         self.config = c = config or ViewConfig()
         self.grid = occupancy.grid
         self.blocked = np.ascontiguousarray(occupancy.occupied | ~occupancy.free)
-        clearance = occupancy.distance_to_occupied()
+        self.clearance = clearance = occupancy.distance_to_occupied()
         self.passable = np.ascontiguousarray(occupancy.free & (clearance >= c.clearance_m))
         near = np.clip((c.centre_m - clearance) / max(c.centre_m - c.clearance_m, 1e-9), 0.0, 1.0)
         self.cost_centred = np.ascontiguousarray(1.0 + c.centre_cost * near)
@@ -230,9 +236,26 @@ class ViewPredictor:
         if not np.isfinite(score[best]):
             return None
         path = self._path(dist, int(cand_r[best]), int(cand_c[best]))
-        # the path runs from the estimate to the place: the point about waypoint_m along it
-        waypoint = in_frame(estimate, point_along(path, 0, c.waypoint_m)[None, :])[0]
+        waypoint = in_frame(estimate, self.steer(path, 0, estimate)[None, :])[0]
         return waypoint, offsets[best], float(gain[best])
+
+    def steer(self, path: np.ndarray, start: int, pose: np.ndarray) -> np.ndarray:
+        """The point of ``path`` (map points) to head for from ``pose``, its point ``start`` the nearest: the
+        farthest up to ``lookahead_m`` along it whose straight way from the pose keeps ``lane_m`` from the map's
+        obstacles (past the body's own first 0.25 m), else the point ``waypoint_m`` along it."""
+        c, g = self.config, self.grid
+        along = np.cumsum(np.r_[0.0, np.hypot(*np.diff(path[start:], axis=0).T)])
+        ahead = path[start:][along <= c.lookahead_m]
+        for point in ahead[::-1]:
+            gap = np.hypot(*(point - pose[:2]))
+            steps = np.arange(min(0.25, gap), gap + 1e-9, g.resolution / 2)
+            if len(steps) == 0:
+                continue
+            heading = (point - pose[:2]) / max(gap, 1e-9)
+            rows, cols, inside = g.cells_of(pose[:2] + steps[:, None] * heading)
+            if inside.all() and np.all(self.clearance[rows, cols] >= c.lane_m):
+                return point
+        return point_along(path, start, c.waypoint_m)
 
     def nearest_telling(self, pose: np.ndarray, twins: np.ndarray, reach_m: float, min_share: float) -> float | None:
         """Path length (m) from ``pose`` to the nearest place (on the candidates' lattice) whose view differs
@@ -252,14 +275,22 @@ class ViewPredictor:
         return float(np.min(dist[cand_r[told], cand_c[told]]) * self.grid.resolution)
 
     def telling_path(
-        self, pose: np.ndarray, twins: np.ndarray, reach_m: float, min_share: float, min_move: float
+        self,
+        pose: np.ndarray,
+        twins: np.ndarray,
+        reach_m: float,
+        min_share: float,
+        min_move: float,
+        back_m: float = 0.0,
     ) -> tuple[np.ndarray, float] | None:
         """The path (map points, from ``pose``) to the nearest place within ``reach_m`` of path (at least
         ``min_move`` from ``pose``) of those that tell ``pose`` apart from the most of ``twins`` (K, 3) (as
         ``nearest_telling`` tells them), and the share of the twins it tells apart; None when no such place tells
         any twin apart. The localizer can be sure only once every twin has fallen, so a place that tells all of
         them apart is worth the way to it (measured against a trade of share for distance on the development
-        buildings, docs/environment.md#active-localization)."""
+        buildings, docs/environment.md#active-localization). A path that leaves backwards (through the half
+        disc of ``back_radius_m`` behind the pose) counts ``back_m`` longer: a robot that turns back to the
+        nearer end of a corridor after driving half of it loses all it drove."""
         twins = np.asarray(twins, dtype=float).reshape(-1, 3)
         if len(twins) == 0:
             return None
@@ -271,8 +302,35 @@ class ViewPredictor:
         if count.max() == 0:
             return None
         best = np.flatnonzero(count == count.max())
-        pick = int(best[np.argmin(dist[cand_r[best], cand_c[best]])])
-        return self._path(dist, int(cand_r[pick]), int(cand_c[pick])), float(count[pick]) / len(twins)
+        cost = dist[cand_r[best], cand_c[best]]
+        onward = self._onward(pose, reach_m) if back_m > 0 else None
+        if onward is not None:
+            ahead = onward[cand_r[best], cand_c[best]]
+            back = cost + back_m / self.grid.resolution
+            pick = int(np.argmin(np.minimum(ahead, back)))
+            field = onward if ahead[pick] <= back[pick] else dist
+        else:
+            pick, field = int(np.argmin(cost)), dist
+        place_ = int(best[pick])
+        return self._path(field, int(cand_r[place_]), int(cand_c[place_])), float(count[place_]) / len(twins)
+
+    def _onward(self, pose: np.ndarray, reach_m: float) -> np.ndarray | None:
+        """The path cost field from ``pose`` with the half disc of ``back_radius_m`` behind it closed; None when
+        the pose is not on a passable cell."""
+        g, radius = self.grid, self.config.back_radius_m
+        rows, cols, valid = g.cells_of(np.asarray(pose, dtype=float)[None, :2])
+        if not valid[0] or not self.passable[rows[0], cols[0]]:
+            return None
+        span = int(np.ceil(radius / g.resolution))
+        r0, r1 = max(0, rows[0] - span), min(g.shape[0], rows[0] + span + 1)
+        c0, c1 = max(0, cols[0] - span), min(g.shape[1], cols[0] + span + 1)
+        rr, cc = np.mgrid[r0:r1, c0:c1]
+        dx = g.origin[0] + (cc + 0.5) * g.resolution - pose[0]
+        dy = g.origin[1] + (rr + 0.5) * g.resolution - pose[1]
+        behind = (np.hypot(dx, dy) <= radius) & (dx * np.cos(pose[2]) + dy * np.sin(pose[2]) < -g.resolution)
+        passable = self.passable.copy()
+        passable[r0:r1, c0:c1] &= ~behind
+        return geodesic_from(passable, int(rows[0]), int(cols[0]), reach_m / g.resolution, self.cost_centred)
 
     def _told(
         self, pose: np.ndarray, twins: np.ndarray, reach_m: float, min_share: float, cost: np.ndarray
