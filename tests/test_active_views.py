@@ -278,3 +278,21 @@ def test_greedy_turns_to_and_fro_only_once_and_then_follows_the_guide_again():
         greedy(observation(occ, here, guide_at(90.0)))
     assert greedy(observation(occ, here, guide_at(90.0))) == LEFT
     assert greedy(observation(occ, here, guide_at(90.0))) == LEFT
+
+
+def test_the_policies_forward_test_on_sectors_stops_wherever_the_guard_does():
+    from pimm_agents.active.env import scan_sectors
+    from pimm_agents.active.policies import sector_bearings, sectors_blocked
+    from pimm_agents.active.primitives import blocked_ahead
+
+    bearings = np.radians(np.arange(360) - 180.0)
+    full = np.full(360, 8.0)
+    full[180 + 36] = 0.5  # a pillar's corner 0.5 m off at 36 deg: 0.294 m beside the heading, in the swept lane
+    assert blocked_ahead(full, bearings)
+    sectors = scan_sectors(full, 60, 10.0).astype(float) * 10.0
+    # taken at its sector's centre (39 deg) the return is 0.315 m beside the heading, out of the lane; a forward
+    # chosen on that was stopped by the guard at once
+    assert not blocked_ahead(sectors, sector_bearings(60))
+    assert sectors_blocked(sectors)
+    full[180 + 36] = 8.0
+    assert not sectors_blocked(scan_sectors(full, 60, 10.0).astype(float) * 10.0)

@@ -73,7 +73,7 @@ def wall_axis(scan: np.ndarray, bearings: np.ndarray, max_range: float = 10.0) -
     bins = np.bincount((angle / quarter * 90).astype(int) % 90, weights=w, minlength=90)
     smooth = sum(np.roll(bins, k) for k in range(-3, 4))
     peak = (int(np.argmax(smooth)) + 0.5) * quarter / 90
-    for _ in range(3):  # each segment's direction about the estimate; the mean of those near it, twice over
+    for _ in range(3):  # each segment's direction about the estimate, then the mean of those near it, three times
         off = (angle - peak + quarter / 2) % quarter - quarter / 2
         near = np.abs(off) <= AXIS_SPREAD
         if not near.any():
