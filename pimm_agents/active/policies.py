@@ -28,11 +28,12 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from pimm_agents.active.primitives import STOP_RANGE, blocked_ahead
+from pimm_agents.active.primitives import PRIMITIVES, STOP_RANGE, blocked_ahead
 from pimm_env.geometry import wrap_angle
 
 FORWARD, LEFT, RIGHT = 0, 1, 2
-TURNS = {LEFT: np.pi / 4, RIGHT: -np.pi / 4}  # about what each turn primitive turns (rad)
+#: about what each turn primitive turns (rad; squared up with the walls, it may turn up to 22.5 deg more or less)
+TURNS = {i: p.angular * p.duration for i, p in enumerate(PRIMITIVES) if p.angular != 0.0}
 #: the shipped policy (``trained``), beside the record of how it was trained (``.json``)
 SHIPPED_POLICY = Path(__file__).resolve().parent / "weights" / "active_ppo.zip"
 
