@@ -120,13 +120,14 @@ def drive(
     ``obs``, calling ``on_step(obs, info)`` after each control step (it returns True to end the primitive early).
     Returns the last observation and info, the steps taken and whether the forward guard stopped the robot (it
     then stood still for the primitive's remaining steps)."""
-    steps = max(1, round(primitive.duration / sim.unwrapped.config.robot.control_dt))
+    dt = sim.unwrapped.config.robot.control_dt
+    steps = max(1, round(primitive.duration / dt))
     angular, turning = primitive.angular, steps
     if angular != 0.0:  # squared up with the walls; it stands still for the last TURN_SETTLE_S of the second, so
         # that the next primitive starts from a scan taken at rest (one taken while turning is up to 4 deg askew)
-        turning = max(1, steps - round(TURN_SETTLE_S / sim.unwrapped.config.robot.control_dt))
+        turning = max(1, steps - round(TURN_SETTLE_S / dt))
         turn = squared_turn(angular * primitive.duration, np.asarray(obs["scan"], dtype=float), bearings)
-        angular = turn / (turning * sim.unwrapped.config.robot.control_dt)
+        angular = turn / (turning * dt)
     info: dict[str, Any] = {}
     stopped = False
     for k in range(steps):

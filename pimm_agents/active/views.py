@@ -251,8 +251,8 @@ class ViewPredictor:
             steps = np.arange(min(0.25, gap), gap + 1e-9, g.resolution / 2)
             if len(steps) == 0:
                 continue
-            heading = (point - pose[:2]) / max(gap, 1e-9)
-            rows, cols, inside = g.cells_of(pose[:2] + steps[:, None] * heading)
+            direction = (point - pose[:2]) / max(gap, 1e-9)
+            rows, cols, inside = g.cells_of(pose[:2] + steps[:, None] * direction)
             if inside.all() and np.all(self.clearance[rows, cols] >= c.lane_m):
                 return point
         return point_along(path, start, c.waypoint_m)
