@@ -186,6 +186,25 @@ def test_a_checkpoint_is_the_policy_a_shorter_run_would_have_written(tmp_path):
     assert (tmp_path / "full_log" / "progress.png").is_file()  # the learning curve, drawn at the end
 
 
+def test_explore_and_last_action_are_the_memory_greedy_keeps_itself():
+    from pimm_agents.active.explorer import Explorer
+
+    env = gym.make("pimm/ActiveLocalization-v0", world="iilab", localizer="amcl")
+    obs, _ = env.reset(seed=3)
+    assert not obs["last_action"].any()  # nothing driven yet
+    own = Explorer(env.unwrapped.scan_range)  # what greedy keeps for itself, fed the same observations
+    assert obs["explore"].argmax() == own(obs) and obs["explore"].sum() == 1.0
+    for action in (1, 1, 0, 2, 0, 0, 1):
+        obs, *_ = env.step(action)
+        assert obs["last_action"].argmax() == action and obs["last_action"].sum() == 1.0
+        assert obs["explore"].argmax() == own(obs)
+    # a new episode starts a new memory: the explorer's faced directions and the last action are forgotten
+    obs, _ = env.reset(seed=3)
+    assert not obs["last_action"].any()
+    assert env.unwrapped.explorer.faced.keys() == {env.unwrapped.explorer.last_faced}
+    env.close()
+
+
 def test_the_shipped_policy_loads_with_its_record_and_acts_on_the_envs_observations():
     import json
 

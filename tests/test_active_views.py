@@ -3,7 +3,8 @@
 import numpy as np
 
 from pimm_agents.active.guide import Guide, distinct_hypotheses
-from pimm_agents.active.policies import FORWARD, LEFT, RIGHT, Explorer, Greedy
+from pimm_agents.active.explorer import Explorer
+from pimm_agents.active.policies import FORWARD, LEFT, RIGHT, Greedy
 from pimm_agents.active.views import ViewPredictor, cast_ranges, geodesic_from
 from pimm_agents.localizer import Hypothesis, PoseEstimate
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -282,7 +283,7 @@ def test_greedy_turns_to_and_fro_only_once_and_then_follows_the_guide_again():
 
 def test_the_policies_forward_test_on_sectors_stops_wherever_the_guard_does():
     from pimm_agents.active.env import scan_sectors
-    from pimm_agents.active.policies import sector_bearings, sectors_blocked
+    from pimm_agents.active.explorer import sector_bearings, sectors_blocked
     from pimm_agents.active.primitives import blocked_ahead
 
     bearings = np.radians(np.arange(360) - 180.0)

@@ -37,6 +37,7 @@ def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: 
     """Roll ``scenario`` out in ``env`` (a simulator env under its recorders) with ``policy`` at the wheel;
     returns a :class:`pimm_env.driving.rollout.RolloutResult`."""
     from pimm_agents.active.env import ActiveConfig, active_observation
+    from pimm_agents.active.explorer import Explorer
     from pimm_agents.active.guide import Guide
     from pimm_agents.active.policies import make_policy
     from pimm_agents.active.primitives import PRIMITIVES, drive
@@ -48,7 +49,7 @@ def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: 
     config, max_range = ActiveConfig(), float(sim.config.lidar2d.max_range)
     bearings = beam_bearings_2d(sim.config.lidar2d)
     chosen = make_policy(policy, max_range)
-    guide = Guide(sim.maps.occupancy)
+    guide, explorer = Guide(sim.maps.occupancy), Explorer(max_range)
     chosen.reset(seed)
     stretch_s = scenario.length / scenario.speed
     true_poses: list[np.ndarray] = []
@@ -77,12 +78,13 @@ def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: 
             obs, info = env.reset(options={"kidnap": scenario.kidnap_to})
             record(obs, info)
             end_s = sim.sim_time + stretch_s
-        delta = np.zeros(3)
+        delta, action = np.zeros(3), None
         guide.reset()
+        explorer.reset()
         while not collided and sim.sim_time < end_s:
             scan = np.asarray(obs["scan"], dtype=float)
             shown = guide(estimate, scan, bearings, delta)
-            action = chosen(active_observation(estimate, scan, delta, config, max_range, shown))
+            action = chosen(active_observation(estimate, scan, delta, config, max_range, shown, explorer, action))
             odom_start = np.asarray(obs["odom"], dtype=float).copy()
             obs, _, _, _ = drive(env, PRIMITIVES[action], obs, record, bearings)
             delta = relative_motion(odom_start, np.asarray(obs["odom"], dtype=float))

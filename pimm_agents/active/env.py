@@ -18,7 +18,15 @@ Observation (``spaces.Dict``, fixed shapes, every value in [-1, 1] or [0, 1]; th
   cosine of the bearing of the next waypoint toward the place that tells the estimate from the most of its
   twins (or, when none does, the nearby place whose predicted views differ most between the hypotheses), the
   share of twins that place tells apart (or its gain; 0..1), and 1 when there is such a place (all 0 when the
-  status is not ``ambiguous`` or no place tells anything apart).
+  status is not ``ambiguous`` or no place tells anything apart);
+- ``explore``: one-hot, the primitive that heads for the most open direction the robot has not yet faced from
+  about where it is (explorer.py; from the scan and the odometry increments alone): where to look when the guide
+  shows nothing;
+- ``last_action``: one-hot, the primitive just driven (all 0 at the start of an episode).
+
+``explore`` and ``last_action`` are the memory a policy over this one observation lacks: the ``greedy`` baseline
+keeps both itself (what it has faced, and which way it last turned), and a policy imitating it without them chose
+as it did in 87 % of its steps.
 
 Action: ``Discrete(3)``, the primitives forward 0.5 m, turn left about 45 deg, turn right about 45 deg, a turn
 squared up with the walls the 2D scan sees (why primitives, and why squared: see primitives.py).
@@ -50,6 +58,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from pimm_agents.active.explorer import Explorer
 from pimm_agents.active.guide import GUIDE_SIZE, Guide
 from pimm_agents.active.primitives import PRIMITIVES, drive
 from pimm_agents.localizer import PoseEstimate
@@ -143,20 +152,35 @@ def active_observation(
     config: ActiveConfig,
     max_range: float,
     guide: np.ndarray | None = None,
+    explorer: Explorer | None = None,
+    last_action: int | None = None,
 ) -> dict[str, np.ndarray]:
     """The env's observation (see the module docstring) from a localizer's ``estimate``, the 2D ``scan``
-    (ranges), the last primitive's odometry ``delta`` (x, y, heading in the robot's frame at its start) and the
-    ``guide`` (guide.py's :class:`~pimm_agents.active.guide.Guide`; none shown when None)."""
+    (ranges), the last primitive's odometry ``delta`` (x, y, heading in the robot's frame at its start), the
+    ``guide`` (guide.py's :class:`~pimm_agents.active.guide.Guide`; none shown when None), the episode's
+    ``explorer`` (called once here, it moves on by ``delta``; no ``explore`` shown when None) and the primitive
+    just driven (None at an episode's start)."""
     status = np.zeros(len(STATUS_ORDER), dtype=np.float32)
     if estimate is not None:
         status[STATUS_ORDER.index(estimate.status)] = 1.0
-    return {
+    observation = {
         "hypotheses": belief_features(estimate, config.hypotheses, config.max_offset_m),
         "status": status,
         "scan": scan_sectors(np.asarray(scan, dtype=float), config.scan_beams, max_range),
         "odom_delta": np.clip(np.array([delta[0], delta[1], delta[2] / np.pi]), -1, 1).astype(np.float32),
         "guide": np.zeros(GUIDE_SIZE, dtype=np.float32) if guide is None else np.asarray(guide, dtype=np.float32),
     }
+    observation["explore"] = one_hot(None if explorer is None else explorer(observation))
+    observation["last_action"] = one_hot(last_action)
+    return observation
+
+
+def one_hot(action: int | None) -> np.ndarray:
+    """A primitive as a one-hot vector (all 0 for None)."""
+    out = np.zeros(len(PRIMITIVES), dtype=np.float32)
+    if action is not None:
+        out[action] = 1.0
+    return out
 
 
 class ActiveLocalizationEnv(gym.Env):
@@ -197,9 +221,13 @@ class ActiveLocalizationEnv(gym.Env):
                 "scan": spaces.Box(0.0, 1.0, (c.scan_beams,), np.float32),
                 "odom_delta": spaces.Box(-1.0, 1.0, (3,), np.float32),
                 "guide": spaces.Box(-1.0, 1.0, (GUIDE_SIZE,), np.float32),
+                "explore": spaces.Box(0.0, 1.0, (len(PRIMITIVES),), np.float32),
+                "last_action": spaces.Box(0.0, 1.0, (len(PRIMITIVES),), np.float32),
             }
         )
         self.guide = Guide(self.sim.maps.occupancy)
+        self.explorer = Explorer(self._max_range)
+        self._last_action: int | None = None
         self._obs: dict[str, np.ndarray] = {}
         self._estimate: PoseEstimate | None = None
         self._truth = np.zeros(3)
@@ -241,13 +269,16 @@ class ActiveLocalizationEnv(gym.Env):
         self._false_s, self._first_right = 0.0, None
         self._travelled0 = float(info["travelled"])
         self.guide.reset()
+        self.explorer.reset()
+        self._last_action = None
         self._near = weight_near(self._estimate, self._truth)
         return self._observation(np.zeros(3)), self._info(info)
 
     def step(self, action: Any):
         if not self.action_space.contains(int(np.asarray(action).item()) if np.size(action) == 1 else action):
             raise EnvError(f"action must be one of 0..{len(PRIMITIVES) - 1} ({', '.join(p.name for p in PRIMITIVES)})")
-        primitive = PRIMITIVES[int(np.asarray(action).item())]
+        self._last_action = int(np.asarray(action).item())
+        primitive = PRIMITIVES[self._last_action]
         c, dt = self.config, self.sim.config.robot.control_dt
         odom_start = np.asarray(self._obs["odom"], dtype=float).copy()
         travelled_before = self.sim.robot.travelled
@@ -306,7 +337,9 @@ class ActiveLocalizationEnv(gym.Env):
     def _observation(self, delta: np.ndarray) -> dict[str, np.ndarray]:
         scan = np.asarray(self._obs["scan"], dtype=float)
         guide = self.guide(self._estimate, scan, self._bearings, delta)
-        return active_observation(self._estimate, scan, delta, self.config, self._max_range, guide)
+        return active_observation(
+            self._estimate, scan, delta, self.config, self._max_range, guide, self.explorer, self._last_action
+        )
 
     def _info(self, sim_info: dict[str, Any]) -> dict[str, Any]:
         estimate = self._estimate

@@ -39,6 +39,7 @@ PRIMITIVES: tuple[Primitive, ...] = (
     Primitive("left", 0.0, np.pi / 4, 1.0),
     Primitive("right", 0.0, -np.pi / 4, 1.0),
 )
+FORWARD, LEFT, RIGHT = 0, 1, 2  # their actions
 
 TURN_SETTLE_S = 0.25  # a turn ends this long before its second does (two scans of a 10 Hz LiDAR)
 STOP_RANGE = 0.5  # m from the LiDAR: the forward primitive stops when anything ahead is closer
