@@ -447,6 +447,9 @@ def world_import(
     rules: Path | None = typer.Option(None, help="YAML list of {match, class} name rules; they win over the defaults"),
     model_path: list[Path] = typer.Option([], help="folders of Gazebo models (model://NAME); also GAZEBO_MODEL_PATH"),
     visual: bool = typer.Option(False, help="a Gazebo world's visual geometry instead of its collision geometry"),
+    wall_line: bool = typer.Option(
+        True, help="class objects standing in a wall's line (windows, closed doors) wall, whatever their names say"
+    ),
     routes: int = typer.Option(4, min=1, help="routes to generate"),
     maps_dir: Path | None = typer.Option(None, help="where worlds live (default: the project's maps/)"),
     prepare: bool = typer.Option(True, help="also prepare the world (maps, fingerprints, routes)"),
@@ -472,6 +475,7 @@ def world_import(
         up_axis=up_axis,
         model_paths=model_path,
         geometry="visual" if visual else "collision",
+        wall_line=wall_line,
     )
     typer.echo(f"wrote {path}\n{describe_world(load_world(path))}")
     if prepare:

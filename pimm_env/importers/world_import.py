@@ -2,7 +2,8 @@
 
 A mesh is copied beside the world file; an SDF world is flattened (:mod:`pimm_env.importers.sdf_world`) into
 one GLB file whose objects keep the models' scoped names. Objects get their classes from name rules (the
-defaults below, then a user's ``--rules`` file, whose rules win), and the import checks what it made
+defaults below, then a user's ``--rules`` file, whose rules win); objects standing in a wall's line (windows,
+closed doors) are classed wall (:mod:`pimm_env.importers.wall_line`), and the import checks what it made
 (:mod:`pimm_env.importers.mesh_checks`). A failed import leaves no folder behind.
 """
 
@@ -48,11 +49,13 @@ def import_world(
     up_axis: str = "z",
     model_paths: Sequence[Path] = (),
     geometry: str = "collision",
+    wall_line: bool = True,
 ) -> Path:
     """Write ``maps_dir/name/world.yaml`` from a map_server ``.yaml``, a mesh or an SDF world; returns its path.
 
     ``ceiling_height``: a floor plan's ceiling (default 3 m); for a mesh or SDF world, a flat ceiling added that
-    high above the floor (none is added when not given). ``rules`` are added after the defaults and win."""
+    high above the floor (none is added when not given). ``rules`` are added after the defaults and win. With
+    ``wall_line``, a mesh's objects standing in a wall's line are classed wall (:mod:`wall_line`)."""
     source = Path(source)
     if not source.is_file():
         raise MapFileError(f"{source}: no such file")
@@ -66,9 +69,9 @@ def import_world(
         if suffix in (".yaml", ".yml"):
             spec = _from_ros_map(source, name, ceiling_height or PLAN_CEILING_HEIGHT, ceilings, furnish_count, seed)
         elif suffix in MESH_SUFFIXES:
-            spec = _from_mesh(source, name, folder, all_rules, up_axis, ceiling_height)
+            spec = _from_mesh(source, name, folder, all_rules, up_axis, ceiling_height, wall_line)
         elif suffix in SDF_SUFFIXES:
-            spec = _from_sdf(source, name, folder, all_rules, ceiling_height, model_paths, geometry)
+            spec = _from_sdf(source, name, folder, all_rules, ceiling_height, model_paths, geometry, wall_line)
         else:
             raise MapFileError(
                 f"{source}: expected a map_server .yaml, an SDF world ({', '.join(SDF_SUFFIXES)}) "
@@ -95,13 +98,19 @@ def _from_ros_map(
 
 
 def _from_mesh(
-    source: Path, name: str, folder: Path, rules: list[dict[str, str]], up_axis: str, ceiling: float | None
+    source: Path,
+    name: str,
+    folder: Path,
+    rules: list[dict[str, str]],
+    up_axis: str,
+    ceiling: float | None,
+    wall_line: bool,
 ) -> dict[str, Any]:
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / source.name
     if source.resolve() != target.resolve():
         shutil.copyfile(source, target)
-    return _mesh_spec(source.name, name, folder, rules, up_axis, ceiling, source)
+    return _mesh_spec(source.name, name, folder, rules, up_axis, ceiling, source, wall_line)
 
 
 def _from_sdf(
@@ -112,6 +121,7 @@ def _from_sdf(
     ceiling: float | None,
     model_paths: Sequence[Path],
     geometry: str,
+    wall_line: bool,
 ) -> dict[str, Any]:
     import trimesh
 
@@ -123,7 +133,7 @@ def _from_sdf(
         scene.add_geometry(mesh, node_name=key, geom_name=key)
     folder.mkdir(parents=True, exist_ok=True)
     scene.export(folder / f"{source.stem}.glb")
-    return _mesh_spec(f"{source.stem}.glb", name, folder, rules, "z", ceiling, source)
+    return _mesh_spec(f"{source.stem}.glb", name, folder, rules, "z", ceiling, source, wall_line)
 
 
 def _mesh_spec(
@@ -134,8 +144,10 @@ def _mesh_spec(
     up_axis: str,
     ceiling: float | None,
     source: Path,
+    wall_line: bool,
 ) -> dict[str, Any]:
     from pimm_env.importers.mesh_checks import check_mesh_world, floor_height
+    from pimm_env.importers.wall_line import wall_line_objects
     from pimm_env.world.mesh import world_from_mesh_spec
 
     spec: dict[str, Any] = {
@@ -151,6 +163,9 @@ def _mesh_spec(
     left_out = check_mesh_world(world, spec["floor_z"], source, ceiling is not None)
     if left_out:
         spec["left_out"] = left_out
+    in_line = wall_line_objects(e for e in world.elements if e.name not in left_out) if wall_line else []
+    if in_line:
+        spec["wall_line"] = in_line
     if ceiling is not None:
         spec["ceiling_height"] = ceiling
     return spec

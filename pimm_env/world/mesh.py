@@ -18,6 +18,8 @@ Mesh world file::
       - {match: "*", class: clutter}
     occupancy: [wall, clutter] # classes drawn into the occupancy map
     left_out: [name, ...]      # optional: objects not taken into the world (set by the import, see mesh_checks)
+    wall_line: [name, ...]     # optional: objects classed wall whatever the rules say (set by the import: those
+                               # standing in a wall's line, windows and closed doors; see importers/wall_line.py)
     ceiling_height: 2.5        # optional: add a flat ceiling this high above floor_z over the floor's extent
     areas: {...}               # optional named polygons, as in a world file; default: the floor's outline
 
@@ -166,11 +168,17 @@ def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
     except ValueError as exc:
         raise WorldFileError(path, "mesh", str(exc)) from None
     left_out = set(data.get("left_out") or [])
+    wall_line = data.get("wall_line") or []
+    if not isinstance(wall_line, list) or not all(isinstance(n, str) for n in wall_line):
+        raise WorldFileError(path, "wall_line", f"expected a list of object names, got {wall_line!r}")
+    unknown = sorted(set(wall_line) - set(meshes))
+    if unknown:
+        raise WorldFileError(path, "wall_line", f"no object {unknown[0]!r} in {mesh_path.name}")
     elements = []
     for name, mesh in meshes.items():
         if name in left_out:
             continue
-        semantic = classify(name, rules)
+        semantic = SemanticClass.WALL if name in wall_line else classify(name, rules)
         if semantic is None:
             raise WorldFileError(path, "rules", f"no rule matches object {name!r} of {mesh_path.name}")
         elements.append(Element(name, semantic, mesh, semantic in occupancy_classes))
