@@ -150,6 +150,10 @@ def test_policy_training_repeats_per_seed(tmp_path):
     a, b = (PPO.load(str(p), device="cpu").policy.state_dict() for p in paths)
     assert all(torch.equal(a[k], b[k]) for k in a)
     assert (tmp_path / "p0_log" / "progress.csv").is_file() and (tmp_path / "p0.json").is_file()
+    import json
+
+    # the record's command names each world with its own --world, as the command line takes them
+    assert json.loads((tmp_path / "p0.json").read_text())["reproduce"].endswith("--localizer amcl --world iilab")
 
 
 def test_training_envs_draw_every_building_and_repeat_per_seed():

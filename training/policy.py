@@ -142,7 +142,7 @@ def train_policy(
         "wall_s": round(wall, 1),
         "versions": _versions(),
         "reproduce": f"python -m training policy --algo {algo} --steps {steps} --imitate {imitate} --seed {seed}"
-        f" --workers {workers} --localizer {localizer} --world {' '.join(str(w) for w in worlds)}",
+        f" --workers {workers} --localizer {localizer}" + "".join(f" --world {w}" for w in worlds),
     }
     out.with_suffix(".json").write_text(json.dumps(record, indent=2) + "\n")
     plot_progress(Path(str(out.with_suffix("")) + "_log") / "progress.csv")
