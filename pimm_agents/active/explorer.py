@@ -40,7 +40,6 @@ class Explorer:
     dead reckoning and what it has faced up to date and returns the primitive that heads where it has not yet
     looked; on its own, it is what ``greedy`` does without a map."""
 
-    name = "greedy"
     CELL_M = 2.0
     HEADINGS = 8
     OPEN_M = 8.0
