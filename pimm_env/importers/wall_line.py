@@ -27,12 +27,13 @@ import numpy as np
 
 from pimm_env.world.model import Element
 from pimm_env.world.semantics import SemanticClass
-from pimm_env.world.shapes import Mesh
+from pimm_env.world.shapes import Mesh, segment_points
 
 THICKNESS_M = 0.3  # a window's or a door's box is 0.10-0.15 m; a wall 0.1-0.3 m
 REACH_M = 0.4  # the wall goes on within this beyond each end
 ACROSS_M = 0.2  # its faces lie within this of the object's mid-line, one on each side
 MIN_LENGTH_M = 0.5  # and at least this long (not a handle or a switch)
+SAMPLE_M = 0.05  # the walls' cross-sections are read as points this far apart
 ALONGSIDE_SHARE = 0.5  # a wall alongside over this share of its length: it stands in front of the wall
 _STRUCTURE = (SemanticClass.WALL, SemanticClass.FLOOR, SemanticClass.CEILING)
 
@@ -68,17 +69,6 @@ def footprint_rectangle(points: np.ndarray) -> Rectangle:
     return centre, u, half_a, half_b
 
 
-def samples(segments: np.ndarray, step: float = 0.05) -> np.ndarray:
-    """Points every ``step`` (m) along the (S, 2, 2) ``segments``, ends included, shape (N, 2)."""
-    if len(segments) == 0:
-        return np.zeros((0, 2))
-    direction = segments[:, 1] - segments[:, 0]
-    steps = np.maximum(1, np.ceil(np.linalg.norm(direction, axis=1) / step).astype(int))
-    index = np.repeat(np.arange(len(segments)), steps + 1)
-    t = np.concatenate([np.linspace(0.0, 1.0, n + 1) for n in steps])
-    return segments[index, 0] + t[:, None] * direction[index]
-
-
 def _frame(points: np.ndarray, rectangle: Rectangle) -> tuple[np.ndarray, np.ndarray]:
     """``points`` (N, 2) in an object's frame: along its length and across it, from its centre."""
     centre, along, _, _ = rectangle
@@ -102,8 +92,8 @@ def alongside_clear(points: np.ndarray, rectangle: Rectangle) -> bool:
     s, c = _frame(points, rectangle)
     half_length = rectangle[2]
     beside = (np.abs(s) < half_length) & (np.abs(c) <= ACROSS_M)
-    bins = max(1, int(np.ceil(2 * half_length / 0.05)))
-    covered = np.unique(np.clip(((s[beside] + half_length) / 0.05).astype(int), 0, bins - 1))
+    bins = max(1, int(np.ceil(2 * half_length / SAMPLE_M)))
+    covered = np.unique(np.clip(((s[beside] + half_length) / SAMPLE_M).astype(int), 0, bins - 1))
     return len(covered) < ALONGSIDE_SHARE * bins
 
 
@@ -123,7 +113,7 @@ def wall_line_objects(elements: Iterable[Element]) -> list[str]:
     def section(element: Element, z: float) -> np.ndarray:
         if (element.name, z) not in cache:
             assert isinstance(element.shape, Mesh)
-            cache[element.name, z] = samples(element.shape.section(z))
+            cache[element.name, z] = segment_points(element.shape.section(z), SAMPLE_M)
         return cache[element.name, z]
 
     def _points(name: str, others: Iterable[Element]) -> np.ndarray:

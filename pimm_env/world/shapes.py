@@ -77,6 +77,17 @@ class Cylinder:
         return mask
 
 
+def segment_points(segments: np.ndarray, step: float) -> np.ndarray:
+    """Points at most ``step`` apart along each of the (S, 2, 2) ``segments``, both ends included, shape (N, 2)."""
+    if len(segments) == 0:
+        return np.zeros((0, 2))
+    direction = segments[:, 1] - segments[:, 0]
+    steps = np.maximum(1, np.ceil(np.linalg.norm(direction, axis=1) / step).astype(int))
+    t = np.concatenate([np.linspace(0.0, 1.0, n + 1) for n in steps])
+    index = np.repeat(np.arange(len(segments)), steps + 1)
+    return segments[index, 0] + t[:, None] * direction[index]
+
+
 @dataclass(frozen=True)
 class Mesh:
     """A triangle mesh in map coordinates: ``vertices`` (V, 3) and ``triangles`` (T, 3) indices."""
@@ -110,12 +121,7 @@ class Mesh:
         segments = self.section(z)
         if len(segments) == 0:
             return mask
-        lengths = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
-        steps = np.maximum(1, np.ceil(lengths / (grid.resolution / 2)).astype(int))
-        t = np.concatenate([np.linspace(0.0, 1.0, n + 1) for n in steps])
-        seg_index = np.repeat(np.arange(len(segments)), steps + 1)
-        points = segments[seg_index, 0] + t[:, None] * (segments[seg_index, 1] - segments[seg_index, 0])
-        rows, cols, valid = grid.cells_of(points)
+        rows, cols, valid = grid.cells_of(segment_points(segments, grid.resolution / 2))
         mask[rows[valid], cols[valid]] = True
         return mask
 
