@@ -31,7 +31,7 @@ from pimm_env.world.shapes import Mesh, segment_points
 
 THICKNESS_M = 0.3  # a window's or a door's box is 0.10-0.15 m; a wall 0.1-0.3 m
 REACH_M = 0.4  # the wall goes on within this beyond each end
-ACROSS_M = 0.2  # its faces lie within this of the object's mid-line, one on each side
+ACROSS_M = 0.2  # the wall's faces lie within this of the object's mid-line
 MIN_LENGTH_M = 0.5  # and at least this long (not a handle or a switch)
 SAMPLE_M = 0.05  # the walls' cross-sections are read as points this far apart
 ALONGSIDE_SHARE = 0.5  # a wall alongside over this share of its length: it stands in front of the wall
@@ -121,15 +121,16 @@ def wall_line_objects(elements: Iterable[Element]) -> list[str]:
         points = [section(e, z) for e in others if e.name != name]
         return np.concatenate(points) if points else np.zeros((0, 2))
 
-    def closed(name: str, end: float, others: Iterable[Element]) -> bool:
-        return end_closed(_points(name, others), thin[name][1], end)
+    def ends_closed(name: str, others: Iterable[Element]) -> tuple[bool, bool]:
+        points = _points(name, others)
+        return end_closed(points, thin[name][1], 1.0), end_closed(points, thin[name][1], -1.0)
 
     # the objects each of whose ends is closed by a wall or by another such object (windows side by side and
     # round a corner close each other's ends): drop those with an open end until none is left to drop
     standing = {n for n in thin if alongside_clear(_points(n, walls), thin[n][1])}
     while True:
         support = walls + [thin[n][0] for n in standing]
-        dropped = {n for n in standing if not (closed(n, 1.0, support) and closed(n, -1.0, support))}
+        dropped = {n for n in standing if not all(ends_closed(n, support))}
         if not dropped:
             break
         standing -= dropped
@@ -137,7 +138,7 @@ def wall_line_objects(elements: Iterable[Element]) -> list[str]:
     joined: set[str] = set()
     while True:
         support = walls + [thin[n][0] for n in joined]
-        added = {n for n in standing - joined if closed(n, 1.0, support) or closed(n, -1.0, support)}
+        added = {n for n in standing - joined if any(ends_closed(n, support))}
         if not added:
             return sorted(joined)
         joined |= added
