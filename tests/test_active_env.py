@@ -156,6 +156,28 @@ def test_policy_training_repeats_per_seed(tmp_path):
     assert json.loads((tmp_path / "p0.json").read_text())["reproduce"].endswith("--localizer amcl --world iilab")
 
 
+@pytest.mark.expensive
+def test_dagger_fits_the_network_to_greedy_where_the_network_itself_drives(tmp_path):
+    import json
+
+    from training.policy import train_policy
+
+    train_policy(["iilab"], 16, tmp_path / "p.zip", seed=3, localizer="amcl", imitate=64, dagger=64)
+    record = json.loads((tmp_path / "p.json").read_text())
+    fit = record["imitation"]
+    assert fit["dagger_steps"] == 64 and record["dagger"] == 64
+    # on the states its own driving led to, the refit follows greedy far better than the first fit did
+    assert fit["dagger_agreement"] > fit["dagger_agreement_before"] + 0.3
+    assert " --imitate 64 --dagger 64 --seed 3 " in record["reproduce"]
+
+
+def test_dagger_needs_the_imitation_it_starts_from(tmp_path):
+    from training.policy import train_policy
+
+    with pytest.raises(EnvError, match="--imitate"):
+        train_policy(["iilab"], 16, tmp_path / "p.zip", localizer="amcl", dagger=64)
+
+
 def test_training_envs_draw_every_building_and_repeat_per_seed():
     from training.policy import WorldCycle
 

@@ -87,10 +87,12 @@ def train_policy(
     workers: int = 1,
     algo: str = "ppo",
     imitate: int = 0,
+    dagger: int = 0,
 ) -> Path:
     """Train and save a policy to ``out`` (a ``.zip``); returns its path. With ``imitate`` > 0, the policy
     network first learns to act as the ``greedy`` policy does, from that many of its steps in the same envs
-    (:func:`imitate_greedy`), and PPO goes on from there."""
+    (:func:`imitate_greedy`; with ``dagger`` > 0, then from as many steps of its own drives, labelled by
+    ``greedy``), and PPO goes on from there."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
@@ -99,8 +101,10 @@ def train_policy(
 
     if algo != "ppo":
         raise EnvError(f"--algo {algo!r}: only ppo is implemented")
-    if steps < 1 or workers < 1 or imitate < 0 or not worlds:
-        raise EnvError("policy training needs steps >= 1, workers >= 1, imitate >= 0 and at least one world")
+    if steps < 1 or workers < 1 or imitate < 0 or dagger < 0 or not worlds:
+        raise EnvError("policy training needs steps >= 1, workers >= 1, imitate and dagger >= 0 and a world")
+    if dagger and not imitate:
+        raise EnvError("--dagger drives the network fitted by --imitate: give --imitate too")
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     builders = [_make_env(worlds, localizer, seed + i) for i in range(workers)]
@@ -120,7 +124,7 @@ def train_policy(
     model.set_logger(logger)
     start = time.perf_counter()
     try:
-        imitation = imitate_greedy(model, venv, imitate, seed) if imitate else None
+        imitation = imitate_greedy(model, venv, imitate, seed, dagger) if imitate else None
         model.learn(
             total_timesteps=steps, callback=[_progress_bar(steps), _checkpoints(steps, out)], progress_bar=False
         )
@@ -138,10 +142,13 @@ def train_policy(
         "workers": workers,
         "settings": settings,
         "imitate": imitate,
+        "dagger": dagger,
         "imitation": imitation,
         "wall_s": round(wall, 1),
         "versions": _versions(),
-        "reproduce": f"python -m training policy --algo {algo} --steps {steps} --imitate {imitate} --seed {seed}"
+        "reproduce": f"python -m training policy --algo {algo} --steps {steps} --imitate {imitate}"
+        + (f" --dagger {dagger}" if dagger else "")
+        + f" --seed {seed}"
         f" --workers {workers} --localizer {localizer}" + "".join(f" --world {w}" for w in worlds),
     }
     out.with_suffix(".json").write_text(json.dumps(record, indent=2) + "\n")
@@ -153,37 +160,85 @@ def train_policy(
 IMITATION_EPOCHS, IMITATION_BATCH = 20, 64
 
 
-def imitate_greedy(model: Any, venv: Any, steps: int, seed: int) -> dict[str, float]:
+def imitate_greedy(model: Any, venv: Any, steps: int, seed: int, dagger: int = 0) -> dict[str, float]:
     """Drive ``venv`` for ``steps`` steps with the ``greedy`` policy (one per env, reset at each episode) and
     fit ``model``'s policy network to its actions (cross-entropy, Adam): a start for PPO that already follows
     the guide and drives where it is open, instead of the uniform policy that PPO's few thousand episodes here
-    did not get far from (after 3 840-7 680 steps without it: policies that turned on the spot). Returns the
-    fit's agreement with ``greedy``."""
+    did not get far from (after 3 840-7 680 steps without it: policies that turned on the spot).
+
+    With ``dagger`` > 0, one round of DAgger (Ross et al., 2011) follows: the fitted network drives for
+    ``dagger`` steps (deterministically), ``greedy`` says at each what it would do there, and the network is
+    fitted again on all the steps. A copy fitted only on ``greedy``'s own drives never sees the places its own
+    mistakes lead to, and drove on from them where ``greedy`` would have turned. ``greedy`` keeps its memory
+    (what it has faced, its last turn) as if its own choices had been driven.
+
+    Returns the fit's agreement with ``greedy`` on its own steps (and on the network's, with ``dagger``)."""
     import torch
-    from tqdm import tqdm
 
     from pimm_agents.active.policies import Greedy
     from pimm_env.envs.base_env import SimConfig
 
     teachers = [Greedy(SimConfig().lidar2d.max_range) for _ in range(venv.num_envs)]  # the env's own LiDAR
+    observations, actions = _drive(venv, teachers, steps, "imitation")
+    generator = torch.Generator().manual_seed(seed)
+    fit_to(model.policy, observations, actions, generator)
+    result = {
+        "steps": len(actions),
+        "agreement": round(agreement(model.policy, observations, actions), 3),
+        "forward_share": round(float(np.mean(np.array(actions) == 0)), 3),
+    }
+    if dagger:
+        for teacher in teachers:
+            teacher.reset()
+        own, labels = _drive(venv, teachers, dagger, "DAgger", model)
+        before = agreement(model.policy, own, labels)
+        fit_to(model.policy, observations + own, actions + labels, generator)
+        result.update(
+            dagger_steps=len(labels),
+            dagger_agreement_before=round(before, 3),
+            dagger_agreement=round(agreement(model.policy, own, labels), 3),
+            agreement=round(agreement(model.policy, observations, actions), 3),
+        )
+    return result
+
+
+def _drive(
+    venv: Any, teachers: list[Any], steps: int, desc: str, driver: Any = None
+) -> tuple[list[dict[str, np.ndarray]], list[int]]:
+    """About ``steps`` steps of ``venv`` (a whole number per env), driven by ``teachers`` or, given, by
+    ``driver``'s deterministic actions: each step's observation and what its env's teacher chose there."""
+    from tqdm import tqdm
+
     observations: list[dict[str, np.ndarray]] = []
-    actions: list[int] = []
+    labels: list[int] = []
     obs = venv.reset()
-    bar = tqdm(total=max(1, steps // venv.num_envs) * venv.num_envs, desc="imitation", unit="step")
-    for _ in range(max(1, steps // venv.num_envs)):
+    rounds = max(1, steps // venv.num_envs)
+    bar = tqdm(total=rounds * venv.num_envs, desc=desc, unit="step")
+    for _ in range(rounds):
         bar.update(venv.num_envs)
         chosen = [teacher({k: v[i] for k, v in obs.items()}) for i, teacher in enumerate(teachers)]
         observations += [{k: v[i].copy() for k, v in obs.items()} for i in range(venv.num_envs)]
-        actions += chosen
-        obs, _, dones, _ = venv.step(np.array(chosen))
+        labels += chosen
+        driven = np.array(chosen) if driver is None else driver.predict(obs, deterministic=True)[0]
+        obs, _, dones, _ = venv.step(np.asarray(driven))
         for i, done in enumerate(dones):
             if done:
                 teachers[i].reset()
     bar.close()
-    generator = torch.Generator().manual_seed(seed)
-    batch = {k: torch.as_tensor(np.stack([o[k] for o in observations])) for k in observations[0]}
-    target = torch.as_tensor(np.array(actions))
-    policy = model.policy
+    return observations, labels
+
+
+def _batch(observations: list[dict[str, np.ndarray]]) -> dict[str, Any]:
+    import torch
+
+    return {k: torch.as_tensor(np.stack([o[k] for o in observations])) for k in observations[0]}
+
+
+def fit_to(policy: Any, observations: list[dict[str, np.ndarray]], actions: list[int], generator: Any) -> None:
+    """``IMITATION_EPOCHS`` epochs of cross-entropy of ``policy``'s action distribution on ``actions``."""
+    import torch
+
+    batch, target = _batch(observations), torch.as_tensor(np.array(actions))
     optimizer = torch.optim.Adam(policy.parameters(), lr=PPO_SETTINGS["learning_rate"])
     for _ in range(IMITATION_EPOCHS):
         for index in torch.randperm(len(target), generator=generator).split(IMITATION_BATCH):
@@ -192,13 +247,15 @@ def imitate_greedy(model: Any, venv: Any, steps: int, seed: int) -> dict[str, fl
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
+
+
+def agreement(policy: Any, observations: list[dict[str, np.ndarray]], actions: list[int]) -> float:
+    """The share of ``observations`` at which ``policy``'s likeliest action is the one in ``actions``."""
+    import torch
+
     with torch.no_grad():
-        agreement = float((policy.get_distribution(batch).distribution.probs.argmax(1) == target).float().mean())
-    return {
-        "steps": len(target),
-        "agreement": round(agreement, 3),
-        "forward_share": round(float(np.mean(np.array(actions) == 0)), 3),
-    }
+        probs = policy.get_distribution(_batch(observations)).distribution.probs
+    return float((probs.argmax(1) == torch.as_tensor(np.array(actions))).float().mean())
 
 
 def plot_progress(progress_csv: Path) -> Path | None:
