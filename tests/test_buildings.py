@@ -15,6 +15,7 @@ from training.buildings import (
     LOOKALIKE_ACTIVE_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
+    LOOKALIKE_POLICY_HELD_OUT_SEEDS,
     LOOKALIKE_SECOND_HELD_OUT_SEEDS,
     NEVER_TRAIN_SEEDS,
     TRAINING_SEEDS,
@@ -37,6 +38,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     third = set(LOOKALIKE_ACTIVE_HELD_OUT_SEEDS)
     assert {draw_plan(seed)[0] for seed in third} <= {"periodic", "mirror"} and third <= set(NEVER_TRAIN_SEEDS)
     assert not third & (looked_at | second | set(LOOKALIKE_HELD_OUT_SEEDS) | set(LOCALIZER_HELD_OUT_SEEDS))
+    fourth = set(LOOKALIKE_POLICY_HELD_OUT_SEEDS)
+    assert {draw_plan(seed)[0] for seed in fourth} <= {"periodic", "mirror"} and fourth <= set(NEVER_TRAIN_SEEDS)
+    assert not fourth & (looked_at | second | third | set(LOOKALIKE_HELD_OUT_SEEDS) | set(LOCALIZER_HELD_OUT_SEEDS))
     seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
     assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
     assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))

@@ -268,6 +268,7 @@ def heldout(
         LOOKALIKE_ACTIVE_HELD_OUT_SEEDS,
         LOOKALIKE_DEVELOPMENT_SEEDS,
         LOOKALIKE_HELD_OUT_SEEDS,
+        LOOKALIKE_POLICY_HELD_OUT_SEEDS,
         LOOKALIKE_SECOND_HELD_OUT_SEEDS,
     )
     from training.heldout import building_row, format_table, measure_building, summarize
@@ -278,6 +279,7 @@ def heldout(
         + LOOKALIKE_HELD_OUT_SEEDS
         + LOOKALIKE_SECOND_HELD_OUT_SEEDS
         + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
+        + LOOKALIKE_POLICY_HELD_OUT_SEEDS
         + FURNISHED_HELD_OUT_SEEDS
     )
     outside = sorted(set(chosen) - set(held_out))

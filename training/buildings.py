@@ -68,6 +68,10 @@ LOOKALIKE_SECOND_HELD_OUT_SEEDS = tuple(range(1000, 1008))
 #: judged the guide's far plan and the policy trained with it (2026-11-27), so they no longer judge such a
 #: change (fixed 2026-11-27, before any run on them).
 LOOKALIKE_ACTIVE_HELD_OUT_SEEDS = tuple(range(1020, 1028))
+#: A fourth look-alike held-out set, for later changes to active-localization policies: 1020-1027 judged two
+#: policies trained on the observation with the explorer's memory and without it (2026-11-27), so they no longer
+#: judge a third (fixed 2026-11-27, before any run on them).
+LOOKALIKE_POLICY_HELD_OUT_SEEDS = tuple(range(1040, 1048))
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
 POLICY_TRAINING_SEEDS = TRAINING_SEEDS[:8] + LOOKALIKE_DEVELOPMENT_SEEDS[:16]
@@ -97,6 +101,7 @@ NEVER_TRAIN_SEEDS = (
     + LOOKALIKE_HELD_OUT_SEEDS
     + LOOKALIKE_SECOND_HELD_OUT_SEEDS
     + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
+    + LOOKALIKE_POLICY_HELD_OUT_SEEDS
     + FURNISHED_HELD_OUT_SEEDS
     + LINTEL_HELD_OUT_SEEDS
 )
@@ -216,6 +221,7 @@ def draw_plan(seed: int) -> tuple[str, Plan]:
         + LOOKALIKE_HELD_OUT_SEEDS
         + LOOKALIKE_SECOND_HELD_OUT_SEEDS
         + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
+        + LOOKALIKE_POLICY_HELD_OUT_SEEDS
     ):
         family = LOOKALIKE_FAMILIES[int(rng.integers(len(LOOKALIKE_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
