@@ -371,6 +371,9 @@ def active(
     limit_s: float = typer.Option(
         60.0, min=1.0, help="an episode's time limit (s): success is a right localized by then"
     ),
+    workers: int = typer.Option(1, help="worker processes or Ray CPUs (0: one per core)"),
+    backend: str = BACKEND,
+    address: str | None = ADDRESS,
     out: Path = OUT,
     json_out: bool = JSON,
 ) -> None:
@@ -382,7 +385,7 @@ def active(
     from pimm_agents.results.provenance import machine, provenance
     from pimm_agents.results.tables import format_active
 
-    result = evaluate_active(world, policy, trials, seed, localizer, limit_s, progress=not json_out)
+    result = evaluate_active(world, policy, trials, seed, localizer, limit_s, not json_out, workers, backend, address)
     folder = new_folder(out, "active")
     record = {"worlds": world, "policies": policy, "trials": trials, "seed": seed, "localizer": localizer}
     summary = {"record": {**record, "limit_s": limit_s, **provenance(), "machine": machine()}, **result}

@@ -178,6 +178,15 @@ def test_dagger_needs_the_imitation_it_starts_from(tmp_path):
         train_policy(["iilab"], 16, tmp_path / "p.zip", localizer="amcl", dagger=64)
 
 
+def test_active_episodes_in_worker_processes_are_those_run_here():
+    from pimm_agents.experiments.active_episodes import evaluate_active
+
+    here = evaluate_active("iilab", ["random", "greedy"], 1, 4, "amcl", limit_s=3.0)
+    pooled = evaluate_active("iilab", ["random", "greedy"], 1, 4, "amcl", limit_s=3.0, workers=2)
+    assert pooled["episodes"] == here["episodes"] and len(here["episodes"]) == 6
+    assert pooled["policies"] == here["policies"]
+
+
 def test_training_envs_draw_every_building_and_repeat_per_seed():
     from training.policy import WorldCycle
 

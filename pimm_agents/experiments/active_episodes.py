@@ -89,6 +89,47 @@ def summarize(episodes: Sequence[Episode], limit_s: float) -> dict[str, Any]:
     }
 
 
+@dataclass(frozen=True)
+class EpisodePlan:
+    """One episode to run: which policy drives from which route's start, in which world, with which seed."""
+
+    world: str
+    scenario: str
+    start: tuple[float, ...]
+    policy: str
+    seed: int
+    localizer: str
+    limit_s: float
+
+
+#: a worker's envs, one per (world, localizer, time limit), built on first use and kept for its next episodes
+_ENVS: dict[tuple[str, str, float], Any] = {}
+
+
+def run_planned_episode(plan: EpisodePlan) -> Episode:
+    """Run ``plan`` (in this process or a worker's), reusing the env this process built for its world."""
+    from dataclasses import replace
+
+    from pimm_agents.active.env import ActiveConfig, ActiveLocalizationEnv
+    from pimm_agents.active.policies import make_policy
+
+    if plan.policy == ROUTE:
+        return run_route_episode(plan.world, plan.localizer, plan.scenario, plan.seed, plan.limit_s)
+    key = (plan.world, plan.localizer, plan.limit_s)
+    if key not in _ENVS:
+        config = replace(ActiveConfig(), time_limit_s=plan.limit_s)
+        _ENVS[key] = ActiveLocalizationEnv(plan.world, plan.localizer, config)
+    env = _ENVS[key]
+    policy = make_policy(plan.policy, env.scan_range)
+    return run_policy_episode(env, policy, np.array(plan.start), plan.seed, plan.world, plan.scenario)
+
+
+def close_envs() -> None:
+    """Close and forget the envs this process built."""
+    while _ENVS:
+        _ENVS.popitem()[1].close()
+
+
 def evaluate_active(
     worlds: str | Sequence[str],
     policies: Sequence[str],
@@ -97,38 +138,43 @@ def evaluate_active(
     localizer: str = "pimm",
     limit_s: float = 60.0,
     progress: bool = False,
+    workers: int = 1,
+    backend: str = "local",
+    address: str | None = None,
 ) -> dict[str, Any]:
     """``{"policies": {NAME: summary}, "worlds": {WORLD: {NAME: summary}}, "episodes": [...]}`` over each
-    world's generated routes' starts (the figures of ``policies`` pool every world's episodes)."""
-    from dataclasses import asdict, replace
+    world's generated routes' starts (the figures of ``policies`` pool every world's episodes). The episodes
+    run in this process, in ``workers`` local processes or as Ray tasks (``engines.run_jobs``); each is seeded on
+    its own, so where they run changes no figure (``workers`` 0: one per core)."""
+    import os
+    from dataclasses import asdict
 
     from tqdm import tqdm
 
-    from pimm_agents.active.env import ActiveConfig, ActiveLocalizationEnv
-    from pimm_agents.active.policies import make_policy
+    from pimm_agents.active.policies import check_policy
+    from pimm_agents.experiments.engines import run_jobs
     from pimm_env.driving.scenarios import load_scenarios
 
     worlds = [worlds] if isinstance(worlds, str) else list(worlds)
+    for name in policies:  # a bad name or policy file is refused before any episode runs
+        if name != ROUTE:
+            check_policy(name)
     plans = []
     for world in worlds:
         starts = {n: s.start for n, s in load_scenarios(world).items() if s.kidnap_to is None}
         plans += [
-            (world, n, start, name, seed + t) for name in policies for n, start in starts.items() for t in range(trials)
+            EpisodePlan(world, n, tuple(float(v) for v in start), name, seed + t, localizer, limit_s)
+            for name in policies
+            for n, start in starts.items()
+            for t in range(trials)
         ]
-    episodes: list[Episode] = []
-    envs: dict[str, Any] = {}
+    workers = workers or os.cpu_count() or 1
+    bar = tqdm(total=len(plans), desc="episodes", disable=not progress)
     try:
-        for world, scenario, start, name, trial_seed in tqdm(plans, desc="episodes", disable=not progress):
-            if name == ROUTE:
-                episodes.append(run_route_episode(world, localizer, scenario, trial_seed, limit_s))
-                continue
-            if world not in envs:
-                envs[world] = ActiveLocalizationEnv(world, localizer, replace(ActiveConfig(), time_limit_s=limit_s))
-            policy = make_policy(name, envs[world].scan_range)
-            episodes.append(run_policy_episode(envs[world], policy, start, trial_seed, world, scenario))
+        episodes = run_jobs(run_planned_episode, plans, workers, backend, address, on_done=lambda i, e: bar.update())
     finally:
-        for env in envs.values():
-            env.close()
+        bar.close()
+        close_envs()
     return {
         "policies": _by_policy(episodes, limit_s),
         "worlds": {w: _by_policy([e for e in episodes if e.world == w], limit_s) for w in worlds},
