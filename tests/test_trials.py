@@ -176,6 +176,22 @@ def test_a_policy_drives_the_scenario_for_as_long_as_its_route_would(room_with_r
     assert not np.array_equal(route.log.true[-1], first.log.true[-1])  # not the waypoints' path
 
 
+def test_a_kidnap_leg_starts_the_policy_afresh_as_its_guide_and_explorer(room_with_routes, monkeypatch):
+    from pimm_agents.active import policies
+
+    resets: list[int | None] = []
+
+    class Watched(policies.Greedy):
+        def reset(self, seed: int | None = None) -> None:
+            resets.append(seed)
+            super().reset(seed)
+
+    monkeypatch.setattr(policies, "make_policy", lambda name, max_range=20.0: Watched(max_range))
+    spec = replace(_spec(room_with_routes, "amcl", "there_kidnap", params=AMCL), driver="policy:greedy")
+    run_shared([spec])
+    assert resets[-2:] == [4, 5]  # seed 4: once at the start (after the constructor's own reset), once after
+
+
 def test_policy_driven_specs_simulate_alone_and_are_stored_apart(room_with_routes, tmp_path):
     specs = [replace(_spec(room_with_routes, name), driver="policy:random") for name in ("amcl", DEAD)]
     assert group_by_simulation(specs) == [[0], [1]]  # each drives on its own localizer's belief

@@ -50,7 +50,6 @@ def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: 
     bearings = beam_bearings_2d(sim.config.lidar2d)
     chosen = make_policy(policy, max_range)
     guide, explorer = Guide(sim.maps.occupancy), Explorer(max_range)
-    chosen.reset(seed)
     stretch_s = scenario.length / scenario.speed
     true_poses: list[np.ndarray] = []
     odoms: list[np.ndarray] = []
@@ -78,9 +77,12 @@ def drive_with_policy(env: Any, scenario: Any, policy: str, seed: int, on_step: 
             obs, info = env.reset(options={"kidnap": scenario.kidnap_to})
             record(obs, info)
             end_s = sim.sim_time + stretch_s
+        # after a kidnap the policy starts afresh, as the guide and the observation's explorer do (and as the
+        # task env's policies do at an episode's start, after its kidnap)
         delta, action = np.zeros(3), None
         guide.reset()
         explorer.reset()
+        chosen.reset(seed + leg)
         while not collided and sim.sim_time < end_s:
             scan = np.asarray(obs["scan"], dtype=float)
             shown = guide(estimate, scan, bearings, delta)
