@@ -182,11 +182,7 @@ def imitate_greedy(model: Any, venv: Any, steps: int, seed: int, dagger: int = 0
     observations, actions = _drive(venv, teachers, steps, "imitation")
     generator = torch.Generator().manual_seed(seed)
     fit_to(model.policy, observations, actions, generator)
-    result = {
-        "steps": len(actions),
-        "agreement": round(agreement(model.policy, observations, actions), 3),
-        "forward_share": round(float(np.mean(np.array(actions) == 0)), 3),
-    }
+    result: dict[str, float] = {"steps": len(actions)}
     if dagger:
         for teacher in teachers:
             teacher.reset()
@@ -197,8 +193,9 @@ def imitate_greedy(model: Any, venv: Any, steps: int, seed: int, dagger: int = 0
             dagger_steps=len(labels),
             dagger_agreement_before=round(before, 3),
             dagger_agreement=round(agreement(model.policy, own, labels), 3),
-            agreement=round(agreement(model.policy, observations, actions), 3),
         )
+    result["agreement"] = round(agreement(model.policy, observations, actions), 3)
+    result["forward_share"] = round(float(np.mean(np.array(actions) == 0)), 3)
     return result
 
 
