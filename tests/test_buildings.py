@@ -13,6 +13,7 @@ from training.buildings import (
     LINTEL_TRAINING_SEEDS,
     LOCALIZER_HELD_OUT_SEEDS,
     LOOKALIKE_ACTIVE_HELD_OUT_SEEDS,
+    LOOKALIKE_CHECK_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
     LOOKALIKE_POLICY_HELD_OUT_SEEDS,
@@ -41,6 +42,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     fourth = set(LOOKALIKE_POLICY_HELD_OUT_SEEDS)
     assert {draw_plan(seed)[0] for seed in fourth} <= {"periodic", "mirror"} and fourth <= set(NEVER_TRAIN_SEEDS)
     assert not fourth & (looked_at | second | third | set(LOOKALIKE_HELD_OUT_SEEDS) | set(LOCALIZER_HELD_OUT_SEEDS))
+    fifth = set(LOOKALIKE_CHECK_HELD_OUT_SEEDS)
+    assert {draw_plan(seed)[0] for seed in fifth} <= {"periodic", "mirror"} and fifth <= set(NEVER_TRAIN_SEEDS)
+    assert not fifth & (looked_at | second | third | fourth | set(LOOKALIKE_HELD_OUT_SEEDS))
     seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
     assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
     assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))

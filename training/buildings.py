@@ -72,6 +72,10 @@ LOOKALIKE_ACTIVE_HELD_OUT_SEEDS = tuple(range(1020, 1028))
 #: policies trained on the observation with the explorer's memory and without it (2026-11-27), so they no longer
 #: judge a third (fixed 2026-11-27, before any run on them).
 LOOKALIKE_POLICY_HELD_OUT_SEEDS = tuple(range(1040, 1048))
+#: A fifth look-alike held-out set, for changes to the rival check's fitting: a false spell of PIMM's on 1040-1047
+#: (gen-1047, route 4) was traced to design the change (2026-11-27), so they no longer judge the localizer (fixed
+#: 2026-11-27, before any run on them).
+LOOKALIKE_CHECK_HELD_OUT_SEEDS = tuple(range(1060, 1068))
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
 POLICY_TRAINING_SEEDS = TRAINING_SEEDS[:8] + LOOKALIKE_DEVELOPMENT_SEEDS[:16]
@@ -102,6 +106,7 @@ NEVER_TRAIN_SEEDS = (
     + LOOKALIKE_SECOND_HELD_OUT_SEEDS
     + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
     + LOOKALIKE_POLICY_HELD_OUT_SEEDS
+    + LOOKALIKE_CHECK_HELD_OUT_SEEDS
     + FURNISHED_HELD_OUT_SEEDS
     + LINTEL_HELD_OUT_SEEDS
 )
@@ -222,6 +227,7 @@ def draw_plan(seed: int) -> tuple[str, Plan]:
         + LOOKALIKE_SECOND_HELD_OUT_SEEDS
         + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
         + LOOKALIKE_POLICY_HELD_OUT_SEEDS
+        + LOOKALIKE_CHECK_HELD_OUT_SEEDS
     ):
         family = LOOKALIKE_FAMILIES[int(rng.integers(len(LOOKALIKE_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
