@@ -77,7 +77,10 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
         if len(twins):
             history = ours.stack(odom)
             twins = ours.refine(
-                ours.refine(twins, ours.recent(odom), rounds=3), history, rounds=1, steps=ours.touch_steps
+                ours.refine(twins, ours.recent(odom), rounds=3),
+                history,
+                rounds=ours.config.admit_rounds,
+                steps=ours.admit_steps,
             )
             scores = ours.evidence(np.vstack([truth[None], twins]), history)
             lead = float(scores[0] - scores[1:].max())
