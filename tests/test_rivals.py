@@ -245,3 +245,14 @@ def test_a_place_turned_about_its_scans_is_fitted_back(degrees):
         fit = tracker.refine(off, stack, rounds=30, steps=DEEP_STEPS)
         gaps[about_scans] = tracker.evidence(now[None, :], stack)[0] - tracker.evidence(fit, stack)[0]
     assert gaps[True] < 1.0 and gaps[False] > 10.0
+
+
+@pytest.mark.parametrize(
+    "bad, named",
+    [({"admit_rounds": 0}, "admit_rounds"), ({"admit_screen": 0.0}, "admit_screen"), ({"switch_updates": 0}, "switch")],
+)
+def test_bad_fit_settings_are_named(bad, named):
+    from pimm_env.errors import LocalizerError
+
+    with pytest.raises(LocalizerError, match=named):
+        RivalConfig(**bad)

@@ -108,8 +108,8 @@ class RivalConfig:
     #: ... unless its fit to the newest ``refine_scans`` scans trails the estimate's place there by more than this:
     #: such a place is not a rival (it would have to fit the older scans better by almost as much). Over the
     #: 30 639 places offered in one traced trial (held-out gen-1047 route 4), the 2 421 that the full fit
-    #: admitted trailed by at most 17.4 on the newest scans, and 69 % of the others by more than 50; the full fit
-    #: of every one cost 18 ms an update there, 7 times the standing rivals' touch
+    #: admitted trailed by at most 17.4 on the newest scans, and 69 % of all by more than 50; the full fit of
+    #: every one cost 18 ms an update there, 7 times the standing rivals' touch
     admit_screen: float = 50.0
     #: True: a rival standing (or too few scans kept) keeps a localized reading from being reported without
     #: restarting its confirmation (``belief.confirm_updates``, counted on the filter's own reading, a switch
