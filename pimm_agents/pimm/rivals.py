@@ -465,7 +465,8 @@ class RivalTracker:
 
     def _fit_estimate(self, estimate: np.ndarray, recent: ScanStack, history: ScanStack) -> np.ndarray:
         """The estimate's place fitted as the rivals are: from where it was fitted last (carried), if the
-        estimate is still there, else fitted to the newest scans first; then a touch against all kept scans.
+        estimate is still there, else fitted to the newest scans first; then a touch against all kept scans (a new
+        place, as a new rival, ``admit_rounds`` of it and a finer step).
         Scored unfitted against rivals fitted at every update since they stood, a right estimate trailed its
         twins by up to 500 nats on a development building (gen-970 route 2) and stayed ``ambiguous``."""
         rounds, steps = 1, self.touch_steps
