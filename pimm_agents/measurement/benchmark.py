@@ -18,7 +18,8 @@ from pimm_env.world.shapes import Box, Cylinder
 
 if TYPE_CHECKING:
     from pimm_agents.pimm.feature_filter import FeatureFilter
-    from pimm_agents.pimm.rivals import RivalTracker, ScanStack
+    from pimm_agents.pimm.rivals import RivalTracker
+    from pimm_agents.pimm.scan_stack import ScanStack
 
 
 def median_ms(fn: Callable[[], object], repeats: int) -> float:

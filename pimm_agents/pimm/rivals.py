@@ -29,6 +29,7 @@ import numpy as np
 
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.pimm.scan_evidence import summed_scan_evidence
+from pimm_agents.pimm.scan_stack import ScanStack, points_centre, turned
 from pimm_agents.pimm.twins import TwinConfig
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
@@ -151,39 +152,6 @@ DEEP_TOUCH = DEEP_STEPS[1:]
 #: scans before it is first scored. Left on the touch's 2 cm lattice, a twin offered off it ended 1-2 cm from its
 #: best place, 9 nats below it on noise-free scans (tests/test_rivals.py), more than the ln 1000 that admits it.
 ADMIT_STEPS = (*DEEP_TOUCH, np.array([0.01, 0.01, np.radians(0.15)]))
-
-
-@dataclass(frozen=True)
-class ScanStack:
-    """Kept scans stacked for scoring: every wall point with its scan, and each scan's pose from now."""
-
-    points: np.ndarray  # (P, 2) wall points, robot frame at their scan
-    scan_of: np.ndarray  # (P,) their scan
-    motions: np.ndarray  # (S, 3) each scan's robot pose in the robot's frame now
-    centre: np.ndarray  # (2,) the points' mean in the robot's frame now: what a fit turns a pose about
-
-
-def points_centre(points: np.ndarray, scan_of: np.ndarray, motions: np.ndarray) -> np.ndarray:
-    """The mean (2,) of wall ``points`` (robot frame at their scan ``scan_of``) placed by their scans' ``motions``
-    (robot frame now); the origin when there are none."""
-    if len(points) == 0:
-        return np.zeros(2)
-    m = motions[scan_of]
-    c, s = np.cos(m[:, 2]), np.sin(m[:, 2])
-    x = m[:, 0] + c * points[:, 0] - s * points[:, 1]
-    y = m[:, 1] + s * points[:, 0] + c * points[:, 1]
-    return np.array([x.mean(), y.mean()])
-
-
-def turned(poses: np.ndarray, centre: np.ndarray, angle: float) -> np.ndarray:
-    """Each pose (K, 3) turned by ``angle`` about the point ``centre`` (2,) given in the pose's own frame: the
-    point stays where it is, the heading changes by ``angle``."""
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    px = poses[:, 0] + c * centre[0] - s * centre[1]
-    py = poses[:, 1] + s * centre[0] + c * centre[1]
-    heading = poses[:, 2] + angle
-    ch, sh = np.cos(heading), np.sin(heading)
-    return np.column_stack([px - (ch * centre[0] - sh * centre[1]), py - (sh * centre[0] + ch * centre[1]), heading])
 
 
 class RivalTracker:
@@ -437,14 +405,14 @@ class RivalTracker:
         refined = np.array(pool[:kept], dtype=float).reshape(-1, 3)
         if kept:
             refined = self.refine(refined, history, rounds=1, steps=self.touch_steps)
-        fresh = np.array(pool[kept:], dtype=float).reshape(-1, 3)
-        if len(fresh):
-            fresh = self.refine(fresh, recent, rounds=3)
-            newest = self.evidence(np.vstack([*places, fresh]), recent)
-            fresh = fresh[newest[len(places) :] >= newest[: len(places)].max() - c.admit_screen]
-            if len(fresh):
-                fresh = self.refine(fresh, history, rounds=c.admit_rounds, steps=self.admit_steps)
-        refined = np.vstack([refined, fresh])
+        offered = np.array(pool[kept:], dtype=float).reshape(-1, 3)
+        if len(offered):
+            offered = self.refine(offered, recent, rounds=3)
+            newest = self.evidence(np.vstack([*places, offered]), recent)
+            offered = offered[newest[len(places) :] >= newest[: len(places)].max() - c.admit_screen]
+            if len(offered):
+                offered = self.refine(offered, history, rounds=c.admit_rounds, steps=self.admit_steps)
+        refined = np.vstack([refined, offered])
         scores = self.evidence(np.vstack([*places, refined]), history)
         margins = scores[len(places) :] - scores[: len(places)].max()
         unique: list[int] = []
