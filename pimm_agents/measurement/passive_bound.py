@@ -76,12 +76,7 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
         lead = np.inf  # how far the truth leads its nearest twin over the kept scans
         if len(twins):
             history = ours.stack(odom)
-            twins = ours.refine(
-                ours.refine(twins, ours.recent(odom), rounds=3),
-                history,
-                rounds=ours.config.admit_rounds,
-                steps=ours.admit_steps,
-            )
+            twins = ours.fit_new(twins, ours.recent(odom), history)
             scores = ours.evidence(np.vstack([truth[None], twins]), history)
             lead = float(scores[0] - scores[1:].max())
         if state["bound"] is None and lead >= ours.config.log_ratio:

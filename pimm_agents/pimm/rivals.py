@@ -308,6 +308,14 @@ class RivalTracker:
         best[:, 2] = wrap_angle(best[:, 2])
         return best
 
+    def fit_new(self, poses: np.ndarray, recent: ScanStack, history: ScanStack) -> np.ndarray:
+        """Places newly offered (K, 3) fitted as the check fits a new candidate: to the ``recent`` scans from
+        wherever they were offered, then ``admit_rounds`` of ``admit_steps`` against all the kept scans
+        (``history``). ``update`` screens the candidates between the two."""
+        return self.refine(
+            self.refine(poses, recent, rounds=3), history, rounds=self.config.admit_rounds, steps=self.admit_steps
+        )
+
     def holds(
         self, held: np.ndarray, new: np.ndarray, odom_now: np.ndarray, wall_points: np.ndarray | None = None
     ) -> bool:
@@ -437,11 +445,10 @@ class RivalTracker:
         place, as a new rival, ``admit_rounds`` of it and a finer step).
         Scored unfitted against rivals fitted at every update since they stood, a right estimate trailed its
         twins by up to 500 nats on a development building (gen-970 route 2) and stayed ``ambiguous``."""
-        rounds, steps = 1, self.touch_steps
         if self._anchor is None or not self._known(self._anchor, [estimate]):  # a new place: fitted as a new rival
-            self._anchor = self.refine(estimate[None, :], recent, rounds=3)[0]
-            rounds, steps = self.config.admit_rounds, self.admit_steps
-        self._anchor = self.refine(self._anchor[None, :], history, rounds=rounds, steps=steps)[0]
+            self._anchor = self.fit_new(estimate[None, :], recent, history)[0]
+        else:
+            self._anchor = self.refine(self._anchor[None, :], history, rounds=1, steps=self.touch_steps)[0]
         return self._anchor
 
     def _follow_leader(self, estimate: np.ndarray, history: ScanStack) -> None:
