@@ -64,7 +64,33 @@ def test_a_place_that_sees_no_walls_has_no_twins():
     assert len(twins.of(np.array([20.0, 20.0, 0.0]))) == 0
 
 
-@pytest.mark.parametrize("bad", [{"angle_step_deg": 7.0}, {"min_overlap": 0.0}, {"radius_m": 0.0}])
+def close_pairs(found: np.ndarray) -> list[tuple[int, int]]:
+    """The pairs of twins less than 1.5 m apart."""
+    return [
+        (i, j)
+        for i in range(len(found))
+        for j in range(i + 1, len(found))
+        if np.hypot(*(found[i, :2] - found[j, :2])) < 1.5
+    ]
+
+
+def test_a_match_facing_the_other_way_beside_another_is_kept_only_when_turns_count():
+    # a 40 m corridor: from its middle, the walls within 8 m match every shift along it, facing either way
+    grid = GridSpec.covering(np.array([0.0, 0.0]), np.array([40.0, 3.0]), 0.1, margin=0.5)
+    gx, gy = grid.cell_centers()
+    free = (gx > 0) & (gx < 40) & (gy > 0) & (gy < 3)
+    corridor = OccupancyGrid(grid, occupied=~free, free=free)
+    place = np.array([20.5, 1.5, 0.0])  # a cell's centre: the twins lie where their matches were found
+    by_position = MapTwins(corridor, TwinConfig(max_twins=20)).of(place)
+    assert len(by_position) and not close_pairs(by_position)  # one twin per 1.5 m, whichever way it faces
+    by_turn = MapTwins(corridor, TwinConfig(max_twins=20, distinct_turn_deg=30.0)).of(place)
+    pairs = close_pairs(by_turn)
+    assert pairs and all(abs(wrap_angle(by_turn[i, 2] - by_turn[j, 2])) > np.radians(30.0) for i, j in pairs)
+
+
+@pytest.mark.parametrize(
+    "bad", [{"angle_step_deg": 7.0}, {"min_overlap": 0.0}, {"radius_m": 0.0}, {"distinct_turn_deg": 190.0}]
+)
 def test_bad_settings_are_named(bad):
     with pytest.raises(LocalizerError, match="twins"):
         TwinConfig(**bad)

@@ -1,13 +1,15 @@
 """How soon could any localizer that only watches have known where it was? A bound for ``time_to_localized_s``.
 
-Along a trial, a tracker of its own keeps every wall scan PIMM weighs (never dropped) and, once it holds
-``settle_scans`` of them, scores the *true* pose against the map's twins of it (twins.py), each fitted to the kept
-scans as the rival check fits its rivals. The first time every twin trails the truth by ``log_ratio`` (the margin
-at which the rival check calls a candidate no rival) is the time a perfect rival check, offered the right place,
-could have called it localized: on a route that shows nothing that tells the twins apart until late, no
-passive localizer can be right and sure earlier, and only driving elsewhere (active localization) helps. The
-first time every twin trails by ``drop_log_ratio`` (the wider margin at which the check lets a standing rival
-go) is reported beside it: between the two lies what PIMM's hysteresis costs where the twins stood as rivals.
+Along a trial, a tracker of its own keeps the wall scans PIMM weighs (the newest ``history_scans``, never dropped
+at a jump as PIMM's are) and, once it holds ``settle_scans`` of them, scores the *true* pose against the map's
+twins of it (twins.py; the ``BOUND_TWINS`` best, a place turned about distinct from one beside it facing another
+way), each fitted to the kept scans as the rival check fits its rivals. The first time every twin trails the truth
+by ``log_ratio`` (the margin at which the rival check calls a candidate no rival) is the time a perfect rival
+check, offered the right place, could have called it localized: on a route that shows nothing that tells the twins
+apart until late, no passive localizer can be right and sure earlier, and only driving elsewhere (active
+localization) helps. The first time every twin trails by ``drop_log_ratio`` (the wider margin at which the check
+lets a standing rival go) is reported beside it: between the two lies what PIMM's hysteresis costs where the twins
+stood as rivals.
 
 It uses the truth, so it measures a route, not a localizer; it shares PIMM's wall points and scan model, so it is
 the bound for localizers that see the walls as PIMM does. ``python evaluate.py passive-bound WORLD SCENARIO``.
@@ -16,12 +18,19 @@ the bound for localizers that see the walls as PIMM does. ``python evaluate.py p
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from pimm_env.geometry import wrap_angle
+
+#: the twins of the truth scored: the 20 best (as the active-localization guide takes them, against the rival
+#: check's 6), two matches less than 1.5 m apart counting as one only when their turns differ by at most 30 deg
+#: (with position alone, a place turned half round beside a better match facing the other way was left out:
+#: ``TwinConfig.distinct_turn_deg``)
+BOUND_TWINS = 20
+BOUND_DISTINCT_TURN_DEG = 30.0
 
 
 @dataclass(frozen=True)
@@ -62,7 +71,8 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
                 state["right"] = t - state["t0"]
         if state["tracker"] is None:
             state["tracker"] = RivalTracker(theirs.field, theirs.free, theirs.temperature, theirs.config)
-            state["twins"] = MapTwins(occupancy, theirs.config.twins)
+            twins = replace(theirs.config.twins, max_twins=BOUND_TWINS, distinct_turn_deg=BOUND_DISTINCT_TURN_DEG)
+            state["twins"] = MapTwins(occupancy, twins)
         newest = theirs.newest_scan()
         if theirs.scans_added == state["added"] or newest is None:
             return
