@@ -32,7 +32,7 @@ class TwinConfig:
     resolution_m: float = 0.25  # the map is compared at this cell size; walls count within one cell
     angle_step_deg: float = 10.0  # a divisor of 90, so that a building's own axes are among the turns
     min_overlap: float = 0.6  # share of the place's wall cells that must land on walls at a twin
-    max_twins: int = 6  # the best-matching twins offered (at least 1.5 m apart)
+    max_twins: int = 6  # the best-matching twins offered (at least 1.5 m apart, or turned apart: below)
     #: two matches less than 1.5 m apart are one twin unless their turns differ by more than this. At 180 (the
     #: default, as the check was measured) position alone decides, and in a building that looks the same turned
     #: half round a match facing the other way beside a better one is dropped: on development building gen-977
