@@ -71,8 +71,8 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
                 state["right"] = t - state["t0"]
         if state["tracker"] is None:
             state["tracker"] = RivalTracker(theirs.field, theirs.free, theirs.temperature, theirs.config)
-            twins = replace(theirs.config.twins, max_twins=BOUND_TWINS, distinct_turn_deg=BOUND_DISTINCT_TURN_DEG)
-            state["twins"] = MapTwins(occupancy, twins)
+            looked = replace(theirs.config.twins, max_twins=BOUND_TWINS, distinct_turn_deg=BOUND_DISTINCT_TURN_DEG)
+            state["twins"] = MapTwins(occupancy, looked)
         newest = theirs.newest_scan()
         if theirs.scans_added == state["added"] or newest is None:
             return
