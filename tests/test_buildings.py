@@ -14,6 +14,7 @@ from training.buildings import (
     LOCALIZER_HELD_OUT_SEEDS,
     LOOKALIKE_ACTIVE_HELD_OUT_SEEDS,
     LOOKALIKE_CHECK_HELD_OUT_SEEDS,
+    LOOKALIKE_TWIN_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
     LOOKALIKE_POLICY_HELD_OUT_SEEDS,
@@ -45,6 +46,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     fifth = set(LOOKALIKE_CHECK_HELD_OUT_SEEDS)
     assert {draw_plan(seed)[0] for seed in fifth} <= {"periodic", "mirror"} and fifth <= set(NEVER_TRAIN_SEEDS)
     assert not fifth & (looked_at | second | third | fourth | set(LOOKALIKE_HELD_OUT_SEEDS))
+    sixth = set(LOOKALIKE_TWIN_HELD_OUT_SEEDS)
+    assert {draw_plan(seed)[0] for seed in sixth} <= {"periodic", "mirror"} and sixth <= set(NEVER_TRAIN_SEEDS)
+    assert not sixth & (looked_at | second | third | fourth | fifth | set(LOOKALIKE_HELD_OUT_SEEDS))
     seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
     assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
     assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))

@@ -251,6 +251,7 @@ def heldout(
     workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
     worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
     out: Path = typer.Option(Path("results/heldout"), help="where results and the table go"),
+    settings: list[str] = typer.Option([], "--set", help="NAME.KEY=VALUE for a localizer, as evaluate.py run"),
 ) -> None:
     """The generalization benchmark: buildings no training used, prepared with the weights the worlds use.
 
@@ -271,10 +272,13 @@ def heldout(
         LOOKALIKE_HELD_OUT_SEEDS,
         LOOKALIKE_POLICY_HELD_OUT_SEEDS,
         LOOKALIKE_SECOND_HELD_OUT_SEEDS,
+        LOOKALIKE_TWIN_HELD_OUT_SEEDS,
     )
+    from pimm_agents.experiments.run_plan import resolve_localizers
     from training.heldout import building_row, format_table, measure_building, summarize
 
     chosen = _seed_list(seeds)
+    resolved = resolve_localizers(localizers, None, settings)
     held_out = (
         LOCALIZER_HELD_OUT_SEEDS
         + LOOKALIKE_HELD_OUT_SEEDS
@@ -282,6 +286,7 @@ def heldout(
         + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
         + LOOKALIKE_POLICY_HELD_OUT_SEEDS
         + LOOKALIKE_CHECK_HELD_OUT_SEEDS
+        + LOOKALIKE_TWIN_HELD_OUT_SEEDS
         + FURNISHED_HELD_OUT_SEEDS
     )
     outside = sorted(set(chosen) - set(held_out))
@@ -301,11 +306,12 @@ def heldout(
         for seed in chosen:
             typer.echo(f"gen-{seed}: {done} trial(s) per route ...", err=True)
             world_file = worlds / f"gen-{seed}" / "world.yaml"
-            results[f"gen-{seed}"] = measure_building(world_file, localizers, done, scans, workers, out / f"gen-{seed}")
+            results[f"gen-{seed}"] = measure_building(world_file, resolved, done, scans, workers, out / f"gen-{seed}")
             rows[f"gen-{seed}"] = {name: building_row(results[f"gen-{seed}"], name) for name in localizers}
         summary = {name: summarize(rows, name) for name in localizers}
         table = format_table({**rows, "all (mean; time: median)": summary}, localizers)
-        record = {"trials_per_route": done, "seeds": chosen, "rows": rows, "summary": summary, "raw": results}
+        record = {"trials_per_route": done, "seeds": chosen, "settings": settings, "rows": rows, "summary": summary}
+        record["raw"] = results
         (out / "heldout.json").write_text(json.dumps(record, indent=1))
         made = provenance_here("python -m training " + shlex.join(sys.argv[1:]))
         (out / "heldout.md").write_text(f"{made}\n\n{done} trial(s) per route, seeds {seeds}\n\n{table}\n")

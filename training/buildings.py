@@ -76,6 +76,10 @@ LOOKALIKE_POLICY_HELD_OUT_SEEDS = tuple(range(1040, 1048))
 #: (gen-1047, route 4) was traced to design the change (2026-11-27), so they no longer judge the localizer (fixed
 #: 2026-11-27, before any run on them).
 LOOKALIKE_CHECK_HELD_OUT_SEEDS = tuple(range(1060, 1068))
+#: A sixth look-alike held-out set, for changes to the map-twin search: on 1060-1067 the passive bound's routes
+#: were compared with PIMM's, which showed the search leaving out a place's turned twin (2026-11-27), so they no
+#: longer judge such a change (fixed 2026-11-27, before any run on them).
+LOOKALIKE_TWIN_HELD_OUT_SEEDS = tuple(range(1080, 1088))
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
 POLICY_TRAINING_SEEDS = TRAINING_SEEDS[:8] + LOOKALIKE_DEVELOPMENT_SEEDS[:16]
@@ -107,6 +111,7 @@ NEVER_TRAIN_SEEDS = (
     + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
     + LOOKALIKE_POLICY_HELD_OUT_SEEDS
     + LOOKALIKE_CHECK_HELD_OUT_SEEDS
+    + LOOKALIKE_TWIN_HELD_OUT_SEEDS
     + FURNISHED_HELD_OUT_SEEDS
     + LINTEL_HELD_OUT_SEEDS
 )
@@ -228,6 +233,7 @@ def draw_plan(seed: int) -> tuple[str, Plan]:
         + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
         + LOOKALIKE_POLICY_HELD_OUT_SEEDS
         + LOOKALIKE_CHECK_HELD_OUT_SEEDS
+        + LOOKALIKE_TWIN_HELD_OUT_SEEDS
     ):
         family = LOOKALIKE_FAMILIES[int(rng.integers(len(LOOKALIKE_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))

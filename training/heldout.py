@@ -32,12 +32,13 @@ def needs_preparing(world_file: Path) -> bool:
 
 
 def measure_building(
-    world_file: Path, localizers: list[str], trials: int, scans: int, workers: int, out: Path
+    world_file: Path, localizers: dict[str, dict[str, Any]], trials: int, scans: int, workers: int, out: Path
 ) -> dict[str, Any]:
-    """Perception (once: kept in ``out/perception.json``) and ``trials`` trials per route, continuing the
-    run already in ``out`` (``evaluate.py run --resume``): a stopped benchmark loses no finished trial."""
+    """Perception (once: kept in ``out/perception.json``) and ``trials`` trials per route of ``localizers``
+    (``{name: resolved params}``, ``resolve_localizers``), continuing the run already in ``out``
+    (``evaluate.py run --resume``): a stopped benchmark loses no finished trial."""
     from pimm_agents.experiments.experiment import Execution, Experiment
-    from pimm_agents.experiments.run_plan import RunPlan, resolve_localizers
+    from pimm_agents.experiments.run_plan import RunPlan
     from pimm_agents.measurement.perception_quality import measure_world
 
     out.mkdir(parents=True, exist_ok=True)
@@ -48,7 +49,7 @@ def measure_building(
         perception = measure_world(str(world_file), scans, 1)
         perception["asked"] = asked
         cached.write_text(json.dumps(perception, indent=1))
-    plan = RunPlan(str(world_file), resolve_localizers(localizers), trials=trials)
+    plan = RunPlan(str(world_file), localizers, trials=trials)
     experiment = Experiment.of_plan(plan, Execution(workers, progress=False))
     outcome = experiment.run(out, resume=True)
     return {"perception": perception, "run": {**outcome.summary, "folder": str(outcome.folder)}}
