@@ -1,7 +1,8 @@
 """How soon could any driver have shown the robot where it is? A bound for active localization's time.
 
 From a route's start, the map's twins of the start (twins.py, as PIMM's rival check finds them, but up to
-``max_twins`` of them rather than the check's six best) each predict
+``max_twins`` of them rather than the check's six best, and a match turned half round kept beside one facing the
+other way, as in the passive bound) each predict
 the view at any offset from where they are; at the start itself they predict what the robot sees. The robot
 cannot tell its place from a twin's until it stands where the two views differ (the guide's comparison,
 views.py: at least ``min_share`` of the bearings more than 1 m apart, or the twin's place not passable). The
@@ -17,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from pimm_agents.active.primitives import PRIMITIVES
+from pimm_agents.measurement.passive_bound import BOUND_DISTINCT_TURN_DEG, BOUND_TWINS
 
 #: the forward primitive's speed (m/s)
 FORWARD_SPEED = PRIMITIVES[0].linear
@@ -39,7 +41,8 @@ def active_bounds(
     scenarios: list[str] | None = None,
     reach_m: float = 60.0,
     min_share: float = 0.1,
-    max_twins: int = 20,
+    max_twins: int = BOUND_TWINS,
+    distinct_turn_deg: float = BOUND_DISTINCT_TURN_DEG,
 ) -> list[ActiveBound]:
     """The bound of each route's start in ``world`` (its scenarios without a kidnap, or ``scenarios``)."""
     from pimm_agents.active.views import ViewPredictor
@@ -57,7 +60,8 @@ def active_bounds(
     unknown = [n for n in names if n not in known]
     if unknown:
         raise ExperimentError(f"{world}: no scenario {', '.join(unknown)} (it has {', '.join(known)})")
-    twins = MapTwins(occupancy, replace(PimmConfig().rivals.twins, max_twins=max_twins))
+    looked = replace(PimmConfig().rivals.twins, max_twins=max_twins, distinct_turn_deg=distinct_turn_deg)
+    twins = MapTwins(occupancy, looked)
     views = ViewPredictor(occupancy)
     out = []
     for name in names:
