@@ -260,6 +260,7 @@ def heldout(
     """
     import json
 
+    from pimm_agents.experiments.run_plan import resolve_localizers
     from pimm_agents.results.markdown import provenance_here
     from training.buildings import (
         DEVELOPMENT_SEEDS,
@@ -274,7 +275,6 @@ def heldout(
         LOOKALIKE_SECOND_HELD_OUT_SEEDS,
         LOOKALIKE_TWIN_HELD_OUT_SEEDS,
     )
-    from pimm_agents.experiments.run_plan import resolve_localizers
     from training.heldout import building_row, format_table, measure_building, summarize
 
     chosen = _seed_list(seeds)
