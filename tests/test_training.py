@@ -132,3 +132,17 @@ def test_scans_on_a_local_ray_equal_the_serial_ones():
     on_ray = generate("iilab", 4, seed=7, progress=False, workers=2, backend="ray")
     np.testing.assert_array_equal(on_ray.ranges, serial.ranges)
     np.testing.assert_array_equal(on_ray.poses, serial.poses)
+
+
+def test_heldout_refuses_a_bad_setting_before_writing_any_building(tmp_path):
+    """`python -m training heldout --set`: a setting the localizer does not have is named, and nothing is built."""
+    from typer.testing import CliRunner
+
+    from training.__main__ import app
+
+    worlds, out = tmp_path / "worlds", tmp_path / "out"
+    args = ["heldout", "--seeds", "920", "--localizers", "pimm", "--worlds", str(worlds), "--out", str(out)]
+    result = CliRunner().invoke(app, [*args, "--set", "pimm.rivals.twins.max_twinz=10"])
+    assert result.exit_code != 0
+    assert "max_twinz" in result.output
+    assert not worlds.exists() and not out.exists()
