@@ -16,6 +16,7 @@ from training.buildings import (
     LOOKALIKE_CHECK_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
+    LOOKALIKE_MARGIN_HELD_OUT_SEEDS,
     LOOKALIKE_POLICY_HELD_OUT_SEEDS,
     LOOKALIKE_SECOND_HELD_OUT_SEEDS,
     LOOKALIKE_TWIN_HELD_OUT_SEEDS,
@@ -49,6 +50,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     sixth = set(LOOKALIKE_TWIN_HELD_OUT_SEEDS)
     assert {draw_plan(seed)[0] for seed in sixth} <= {"periodic", "mirror"} and sixth <= set(NEVER_TRAIN_SEEDS)
     assert not sixth & (looked_at | second | third | fourth | fifth | set(LOOKALIKE_HELD_OUT_SEEDS))
+    seventh = set(LOOKALIKE_MARGIN_HELD_OUT_SEEDS)
+    assert {draw_plan(seed)[0] for seed in seventh} <= {"periodic", "mirror"} and seventh <= set(NEVER_TRAIN_SEEDS)
+    assert not seventh & (looked_at | second | third | fourth | fifth | sixth | set(LOOKALIKE_HELD_OUT_SEEDS))
     seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
     assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
     assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))

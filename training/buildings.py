@@ -80,6 +80,10 @@ LOOKALIKE_CHECK_HELD_OUT_SEEDS = tuple(range(1060, 1068))
 #: were compared with PIMM's, which showed the search leaving out a place's turned twin (2026-11-27), so they no
 #: longer judge such a change (fixed 2026-11-27, before any run on them).
 LOOKALIKE_TWIN_HELD_OUT_SEEDS = tuple(range(1080, 1088))
+#: A seventh look-alike held-out set, for changes to the margin at which the rival check lets a rival go: on
+#: 1080-1087 PIMM's times were compared with the passive bound route by route to find that gap (2026-11-27), so
+#: they no longer judge such a change (fixed 2026-11-27, before any run on them).
+LOOKALIKE_MARGIN_HELD_OUT_SEEDS = tuple(range(1100, 1108))
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
 POLICY_TRAINING_SEEDS = TRAINING_SEEDS[:8] + LOOKALIKE_DEVELOPMENT_SEEDS[:16]
@@ -112,6 +116,7 @@ NEVER_TRAIN_SEEDS = (
     + LOOKALIKE_POLICY_HELD_OUT_SEEDS
     + LOOKALIKE_CHECK_HELD_OUT_SEEDS
     + LOOKALIKE_TWIN_HELD_OUT_SEEDS
+    + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
     + FURNISHED_HELD_OUT_SEEDS
     + LINTEL_HELD_OUT_SEEDS
 )
@@ -234,6 +239,7 @@ def draw_plan(seed: int) -> tuple[str, Plan]:
         + LOOKALIKE_POLICY_HELD_OUT_SEEDS
         + LOOKALIKE_CHECK_HELD_OUT_SEEDS
         + LOOKALIKE_TWIN_HELD_OUT_SEEDS
+        + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
     ):
         family = LOOKALIKE_FAMILIES[int(rng.integers(len(LOOKALIKE_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
