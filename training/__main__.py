@@ -312,8 +312,14 @@ def heldout(
             rows[f"gen-{seed}"] = {name: building_row(results[f"gen-{seed}"], name) for name in localizers}
         summary = {name: summarize(rows, name) for name in localizers}
         table = format_table({**rows, "all (mean; time: median)": summary}, localizers)
-        record = {"trials_per_route": done, "seeds": chosen, "settings": settings, "rows": rows, "summary": summary}
-        record["raw"] = results
+        record = {
+            "trials_per_route": done,
+            "seeds": chosen,
+            "settings": settings,
+            "rows": rows,
+            "summary": summary,
+            "raw": results,
+        }
         (out / "heldout.json").write_text(json.dumps(record, indent=1))
         made = provenance_here("python -m training " + shlex.join(sys.argv[1:]))
         (out / "heldout.md").write_text(f"{made}\n\n{done} trial(s) per route, seeds {seeds}\n\n{table}\n")
