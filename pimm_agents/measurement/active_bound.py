@@ -15,10 +15,10 @@ to try several ways). It uses the truth, so it measures a start in a building, n
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from pimm_agents.active.primitives import PRIMITIVES
-from pimm_agents.measurement.passive_bound import BOUND_DISTINCT_TURN_DEG, BOUND_TWINS
+from pimm_agents.measurement.passive_bound import BOUND_TWINS, bound_twin_config
 
 #: the forward primitive's speed (m/s)
 FORWARD_SPEED = PRIMITIVES[0].linear
@@ -42,7 +42,6 @@ def active_bounds(
     reach_m: float = 60.0,
     min_share: float = 0.1,
     max_twins: int = BOUND_TWINS,
-    distinct_turn_deg: float = BOUND_DISTINCT_TURN_DEG,
 ) -> list[ActiveBound]:
     """The bound of each route's start in ``world`` (its scenarios without a kidnap, or ``scenarios``)."""
     from pimm_agents.active.views import ViewPredictor
@@ -60,8 +59,7 @@ def active_bounds(
     unknown = [n for n in names if n not in known]
     if unknown:
         raise ExperimentError(f"{world}: no scenario {', '.join(unknown)} (it has {', '.join(known)})")
-    looked = replace(PimmConfig().rivals.twins, max_twins=max_twins, distinct_turn_deg=distinct_turn_deg)
-    twins = MapTwins(occupancy, looked)
+    twins = MapTwins(occupancy, bound_twin_config(PimmConfig().rivals.twins, max_twins))
     views = ViewPredictor(occupancy)
     out = []
     for name in names:

@@ -19,11 +19,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from pimm_env.geometry import wrap_angle
+
+if TYPE_CHECKING:
+    from pimm_agents.pimm.twins import TwinConfig
 
 #: the twins of the truth scored: the 20 best (as the active-localization guide takes them, against the rival
 #: check's 6), two matches less than 1.5 m apart counting as one only when their turns differ by at most 30 deg
@@ -31,6 +34,11 @@ from pimm_env.geometry import wrap_angle
 #: ``TwinConfig.distinct_turn_deg``)
 BOUND_TWINS = 20
 BOUND_DISTINCT_TURN_DEG = 30.0
+
+
+def bound_twin_config(twins: TwinConfig, max_twins: int = BOUND_TWINS) -> TwinConfig:
+    """``twins`` as both bounds look for twins: ``max_twins`` of them, turned twins kept apart."""
+    return replace(twins, max_twins=max_twins, distinct_turn_deg=BOUND_DISTINCT_TURN_DEG)
 
 
 @dataclass(frozen=True)
@@ -71,8 +79,7 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
                 state["right"] = t - state["t0"]
         if state["tracker"] is None:
             state["tracker"] = RivalTracker(theirs.field, theirs.free, theirs.temperature, theirs.config)
-            looked = replace(theirs.config.twins, max_twins=BOUND_TWINS, distinct_turn_deg=BOUND_DISTINCT_TURN_DEG)
-            state["twins"] = MapTwins(occupancy, looked)
+            state["twins"] = MapTwins(occupancy, bound_twin_config(theirs.config.twins))
         newest = theirs.newest_scan()
         if theirs.scans_added == state["added"] or newest is None:
             return

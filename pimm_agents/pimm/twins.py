@@ -37,8 +37,8 @@ class TwinConfig:
     #: default, as the check was measured) position alone decides, and in a building that looks the same turned
     #: half round a match facing the other way beside a better one is dropped: on development building gen-977
     #: (route 3) the place turned half round, which the scans told from the truth only 20 s later, was missing
-    #: from the twins of the truth's cell, beside a match 1 m off facing the truth's way. ``passive-bound`` uses
-    #: 30 (docs/benchmarks.md)
+    #: from the twins of the truth's cell, beside a match 1 m off facing the truth's way. ``passive-bound`` and
+    #: ``active-bound`` use 30 (docs/benchmarks.md)
     distinct_turn_deg: float = 180.0
     cell_m: float = 1.0  # twins are worked out once per cell of this size and carried to poses inside it
     #: the twins are offered when an estimate is about to be called localized, and again at this many updates'
