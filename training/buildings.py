@@ -84,6 +84,10 @@ LOOKALIKE_TWIN_HELD_OUT_SEEDS = tuple(range(1080, 1088))
 #: 1080-1087 PIMM's times were compared with the passive bound route by route to find that gap (2026-11-27), so
 #: they no longer judge such a change (fixed 2026-11-27, before any run on them).
 LOOKALIKE_MARGIN_HELD_OUT_SEEDS = tuple(range(1100, 1108))
+#: An eighth look-alike held-out set, for changes to how a standing rival is fitted before it is let go: 1100-1107
+#: judged a narrower margin alone, so they no longer judge one made with it (fixed 2026-11-27, before any run on
+#: them).
+LOOKALIKE_REFIT_HELD_OUT_SEEDS = tuple(range(1120, 1128))
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
 POLICY_TRAINING_SEEDS = TRAINING_SEEDS[:8] + LOOKALIKE_DEVELOPMENT_SEEDS[:16]
@@ -117,6 +121,7 @@ NEVER_TRAIN_SEEDS = (
     + LOOKALIKE_CHECK_HELD_OUT_SEEDS
     + LOOKALIKE_TWIN_HELD_OUT_SEEDS
     + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
+    + LOOKALIKE_REFIT_HELD_OUT_SEEDS
     + FURNISHED_HELD_OUT_SEEDS
     + LINTEL_HELD_OUT_SEEDS
 )
@@ -240,6 +245,7 @@ def draw_plan(seed: int) -> tuple[str, Plan]:
         + LOOKALIKE_CHECK_HELD_OUT_SEEDS
         + LOOKALIKE_TWIN_HELD_OUT_SEEDS
         + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
+        + LOOKALIKE_REFIT_HELD_OUT_SEEDS
     ):
         family = LOOKALIKE_FAMILIES[int(rng.integers(len(LOOKALIKE_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
