@@ -341,7 +341,7 @@ def track(
 def round_east_and_round() -> np.ndarray:
     """True poses in the twin rooms: round and about in the second room's west half, east through the door to
     x = 20, and round again there. The block is a few of each scan's 60 rays; the first room's twin, fitted as
-    well as the estimate, trails it by ln 10^6 (and so falls) only from about x = 19.5."""
+    well as the estimate, trails it by the drop margin (and so falls) only once the block is in sight."""
     turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
     drive = [[x, 1.0, 0.0] for x in np.arange(14.0, 20.0, 0.12)]
     return np.vstack([turn, drive, [[20.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)[1:]]])

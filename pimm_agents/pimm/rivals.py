@@ -3,21 +3,21 @@
 A particle filter's weights say how well each place fitted the scans *while particles were there*; a twin place
 that lost its particles early (sampling luck at a global start, or a resampling step) can no longer win weight,
 however well it fits. So the weights alone cannot say whether the estimate is the only place that explains what
-the robot saw. This module asks the scans directly: it keeps the wall points of the last ``history_scans``
-measurement updates with the odometry at each, and for a candidate place carries the candidate back along the
-odometry to every kept scan and sums the scans' tempered log-likelihoods there (the filter's wall field).
-Candidates are the filter's own (its other compact modes and its best particles away from the estimate; the
-injection puts some near every place the fingerprints suggest) and, for a localized estimate, the map's own
-look-alikes of it (twins.py), which the map cannot miss the way the filter can. A candidate is a *rival* while
-its summed evidence is within ``log_ratio`` of the estimate's; rivals are kept, carried by the odometry and re-scored at
-every update, until the scans favour the estimate over them by ``drop_log_ratio`` (a wider margin, so that a twin
-does not flicker in and out). While any rival stands, and until ``settle_scans`` scans are kept, the status is
-``ambiguous`` (a veto: the belief's own confirmation goes on counting, ``veto_only``). The filter is not fed
-from the check (particles injected at every rival made the estimate wander between twins, docs/design.md), with
-one exception: a rival the scans favour over the estimate by ``switch_log_ratio``, both fitted to them to
-convergence, at ``switch_updates`` updates in a row takes the mode of an estimate not reported localized since
-it last jumped (``switch``; ambiguity.py moves it): by the check's own rule the estimate would be no rival of it
-were the two the other way round, and the place left stands as a rival until the scans rule it out.
+the robot saw. This module asks the scans directly: it keeps the wall points of the last ``history_scans`` measurement
+updates with the odometry at each, and for a candidate place carries the candidate back along the odometry to every
+kept scan and sums the scans' tempered log-likelihoods there (the filter's wall field). Candidates are the filter's
+own (its other compact modes and its best particles away from the estimate; the injection puts some near every place
+the fingerprints suggest) and, for a localized estimate, the map's own look-alikes of it (twins.py), which the map
+cannot miss the way the filter can. A candidate is a *rival* while its summed evidence is within ``log_ratio`` of the
+estimate's; rivals are kept, carried by the odometry and re-scored at every update, until the scans favour the
+estimate over them by ``drop_log_ratio`` (a wider margin, so that a twin does not flicker in and out), fitted as a
+newcomer is before they fall (``refit_before_drop``). While any rival stands, and until ``settle_scans`` scans are
+kept, the status is ``ambiguous`` (a veto: the belief's own confirmation goes on counting, ``veto_only``). The filter
+is not fed from the check (particles injected at every rival made the estimate wander between twins, docs/design.md),
+with one exception: a rival the scans favour over the estimate by ``switch_log_ratio``, both fitted to them to
+convergence, at ``switch_updates`` updates in a row takes the mode of an estimate not reported localized since it last
+jumped (``switch``; ambiguity.py moves it): by the check's own rule the estimate would be no rival of it were the two
+the other way round, and the place left stands as a rival until the scans rule it out.
 """
 
 from __future__ import annotations
@@ -44,14 +44,18 @@ class RivalConfig:
     #: a candidate whose summed tempered log-likelihood over the kept scans is within this of the estimate's is a
     #: rival (ln 1000: the scans favour the estimate by less than 1000 to 1)
     log_ratio: float = float(np.log(1000.0))
-    #: a rival stands until the kept scans favour the estimate over it by this much (ln 10^6): a hysteresis, so a
+    #: a rival stands until the kept scans favour the estimate over it by this much (ln 10^4): a hysteresis, so a
     #: twin whose margin wavers as scans come and go stays a rival instead of flickering. Between exact twins
     #: the margin wanders by several units (the true place scored 5-6 below a twin 20 m off over 115 scans of
-    #: a periodic corridor), while scans that tell places apart move it by tens to hundreds.
-    drop_log_ratio: float = float(np.log(1e6))
+    #: a periodic corridor), while scans that tell places apart move it by tens to hundreds. Much of that wander
+    #: was a standing rival's fit drifting (``refit_before_drop``); with the refit, ln 10^4 (was ln 10^6) was
+    #: as safe on the look-alike development and held-out buildings and right sooner where a twin trails slowly
+    #: (docs/design.md)
+    drop_log_ratio: float = float(np.log(1e4))
     #: no place is called localized before this many scans are kept since the estimate was last lost or jumped:
-    #: the candidates get that long to be found and fitted
-    settle_scans: int = 20  # twice refine_scans
+    #: the candidates get that long to be found and fitted (10, as ``refine_scans``, with ``veto_only``; the
+    #: check's own confirmation counted from the last rival's fall, 20 was needed)
+    settle_scans: int = 10
     candidates: int = 2  # new candidates refined per update (the best fits of the newest scans among those offered)
     max_rivals: int = 5
     distinct_m: float = 1.0  # a candidate closer than this (and distinct_deg) to the estimate or a rival is that place
@@ -112,14 +116,21 @@ class RivalConfig:
     #: admitted trailed by at most 17.4 on the newest scans, and 69 % of all by more than 50; the full fit of
     #: every one cost 18 ms an update there, 7 times the standing rivals' touch
     admit_screen: float = 50.0
+    #: a standing rival whose margin has passed ``drop_log_ratio`` gets a newcomer's fit (``admit_rounds`` of
+    #: ``admit_steps``) and is scored again before it falls: fitted a touch per update, a rival drifts behind an
+    #: estimate scored as the better of two places. In two rooms whose scans were identical the first room's
+    #: margin went from -4.9 to -10.2 over 25 updates, and -1.2 once refitted (tests/test_twins.py). False: a
+    #: rival falls on its touched fit
+    refit_before_drop: bool = True
     #: True: a rival standing (or too few scans kept) keeps a localized reading from being reported without
     #: restarting its confirmation (``belief.confirm_updates``, counted on the filter's own reading, a switch
     #: counting the updates its rival led), so a place the belief has held that long is localized at the first
     #: update no rival stands; use it with ``twins.looked_from_cells`` 2. False: the confirmation counts from the
-    #: update the last rival fell. Measured, True called right places localized 2 s sooner, but where the margins
-    #: wander it let a wrong place be localized in the gap between its rivals falling and coming back (4 s on a
-    #: held-out building), which the 10 updates had covered (docs/design.md)
-    veto_only: bool = False
+    #: update the last rival fell. Before ``refit_before_drop``, True let a wrong place be localized in the gap
+    #: between its rivals falling on a drifted fit and coming back (4 s on a held-out building); with the refit it
+    #: called right places localized 0.3-12.6 s sooner on 33 of 40 development trials, wrong on none
+    #: (docs/design.md)
+    veto_only: bool = True
 
     def __post_init__(self) -> None:
         if self.history_scans < 1 or self.candidates < 0 or self.max_rivals < 0 or self.refine_scans < 1:
@@ -423,6 +434,11 @@ class RivalTracker:
         refined = np.vstack([refined, offered])
         scores = self.evidence(np.vstack([*places, refined]), history)
         margins = scores[len(places) :] - scores[: len(places)].max()
+        if c.refit_before_drop:  # a standing rival about to fall is fitted as a newcomer and scored again
+            falling = np.flatnonzero((np.arange(len(refined)) < kept) & (margins <= -c.drop_log_ratio))
+            if len(falling):
+                refined[falling] = self.refine(refined[falling], history, c.admit_rounds, self.admit_steps)
+                margins[falling] = self.evidence(refined[falling], history) - scores[: len(places)].max()
         unique: list[int] = []
         limits = np.where(np.arange(len(refined)) < kept, c.drop_log_ratio, c.log_ratio)
         for i in np.argsort(-margins):

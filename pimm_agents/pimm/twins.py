@@ -47,9 +47,10 @@ class TwinConfig:
     #: a place is called localized only once its twins have been looked for from this many cells: a search
     #: from one cell can miss a twin that the next cell's finds (in a periodic room the six best matches of one
     #: cell were shifted near-copies, tests/test_twins.py), so with 2 a robot turning on one spot stays
-    #: ambiguous until it has moved into a second cell. 0: no such rule; the 10 updates that confirm a place
-    #: after its last rival fell (``rivals.veto_only`` off) give the search those cells as the robot drives on
-    looked_from_cells: int = 0
+    #: ambiguous until it has moved into a second cell (with ``rivals.veto_only``, as by default). 0: no such
+    #: rule, for ``rivals.veto_only`` off, where the 10 updates that confirm a place after its last rival fell
+    #: give the search those cells as the robot drives on
+    looked_from_cells: int = 2
 
     def __post_init__(self) -> None:
         if self.radius_m <= 0 or self.resolution_m <= 0 or self.cell_m <= 0:
