@@ -433,12 +433,13 @@ class RivalTracker:
                 offered = self.refine(offered, history, rounds=c.admit_rounds, steps=self.admit_steps)
         refined = np.vstack([refined, offered])
         scores = self.evidence(np.vstack([*places, refined]), history)
-        margins = scores[len(places) :] - scores[: len(places)].max()
+        estimate_score = scores[: len(places)].max()
+        margins = scores[len(places) :] - estimate_score
         if c.refit_before_drop:  # a standing rival about to fall is fitted as a newcomer and scored again
             falling = np.flatnonzero((np.arange(len(refined)) < kept) & (margins <= -c.drop_log_ratio))
             if len(falling):
                 refined[falling] = self.refine(refined[falling], history, c.admit_rounds, self.admit_steps)
-                margins[falling] = self.evidence(refined[falling], history) - scores[: len(places)].max()
+                margins[falling] = self.evidence(refined[falling], history) - estimate_score
         unique: list[int] = []
         limits = np.where(np.arange(len(refined)) < kept, c.drop_log_ratio, c.log_ratio)
         for i in np.argsort(-margins):
