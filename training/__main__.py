@@ -267,32 +267,14 @@ def heldout(
         FURNISHED_HELD_OUT_SEEDS,
         HELD_OUT_SEEDS,
         LOCALIZER_HELD_OUT_SEEDS,
-        LOOKALIKE_ACTIVE_HELD_OUT_SEEDS,
-        LOOKALIKE_CHECK_HELD_OUT_SEEDS,
+        LOOKALIKE_ALL_HELD_OUT_SEEDS,
         LOOKALIKE_DEVELOPMENT_SEEDS,
-        LOOKALIKE_HELD_OUT_SEEDS,
-        LOOKALIKE_MARGIN_HELD_OUT_SEEDS,
-        LOOKALIKE_POLICY_HELD_OUT_SEEDS,
-        LOOKALIKE_REFIT_HELD_OUT_SEEDS,
-        LOOKALIKE_SECOND_HELD_OUT_SEEDS,
-        LOOKALIKE_TWIN_HELD_OUT_SEEDS,
     )
     from training.heldout import building_row, format_table, measure_building, summarize
 
     chosen = _seed_list(seeds)
     resolved = resolve_localizers(localizers, None, settings)
-    held_out = (
-        LOCALIZER_HELD_OUT_SEEDS
-        + LOOKALIKE_HELD_OUT_SEEDS
-        + LOOKALIKE_SECOND_HELD_OUT_SEEDS
-        + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
-        + LOOKALIKE_POLICY_HELD_OUT_SEEDS
-        + LOOKALIKE_CHECK_HELD_OUT_SEEDS
-        + LOOKALIKE_TWIN_HELD_OUT_SEEDS
-        + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
-        + LOOKALIKE_REFIT_HELD_OUT_SEEDS
-        + FURNISHED_HELD_OUT_SEEDS
-    )
+    held_out = LOCALIZER_HELD_OUT_SEEDS + LOOKALIKE_ALL_HELD_OUT_SEEDS + FURNISHED_HELD_OUT_SEEDS
     outside = sorted(set(chosen) - set(held_out))
     if outside:
         typer.echo(f"note: seeds {outside} are not among the held-out buildings {held_out}", err=True)

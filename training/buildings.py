@@ -88,6 +88,17 @@ LOOKALIKE_MARGIN_HELD_OUT_SEEDS = tuple(range(1100, 1108))
 #: judged a narrower margin alone, so they no longer judge one made with it (fixed 2026-11-27, before any run on
 #: them).
 LOOKALIKE_REFIT_HELD_OUT_SEEDS = tuple(range(1120, 1128))
+#: Every look-alike held-out set above, in the order they were fixed (a new set is added here alone).
+LOOKALIKE_ALL_HELD_OUT_SEEDS = (
+    LOOKALIKE_HELD_OUT_SEEDS
+    + LOOKALIKE_SECOND_HELD_OUT_SEEDS
+    + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
+    + LOOKALIKE_POLICY_HELD_OUT_SEEDS
+    + LOOKALIKE_CHECK_HELD_OUT_SEEDS
+    + LOOKALIKE_TWIN_HELD_OUT_SEEDS
+    + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
+    + LOOKALIKE_REFIT_HELD_OUT_SEEDS
+)
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
 POLICY_TRAINING_SEEDS = TRAINING_SEEDS[:8] + LOOKALIKE_DEVELOPMENT_SEEDS[:16]
@@ -114,14 +125,7 @@ LINTEL_SEEDS = LINTEL_TRAINING_SEEDS + LINTEL_HELD_OUT_SEEDS
 NEVER_TRAIN_SEEDS = (
     HELD_OUT_SEEDS
     + LOCALIZER_HELD_OUT_SEEDS
-    + LOOKALIKE_HELD_OUT_SEEDS
-    + LOOKALIKE_SECOND_HELD_OUT_SEEDS
-    + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
-    + LOOKALIKE_POLICY_HELD_OUT_SEEDS
-    + LOOKALIKE_CHECK_HELD_OUT_SEEDS
-    + LOOKALIKE_TWIN_HELD_OUT_SEEDS
-    + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
-    + LOOKALIKE_REFIT_HELD_OUT_SEEDS
+    + LOOKALIKE_ALL_HELD_OUT_SEEDS
     + FURNISHED_HELD_OUT_SEEDS
     + LINTEL_HELD_OUT_SEEDS
 )
@@ -235,18 +239,7 @@ def draw_plan(seed: int) -> tuple[str, Plan]:
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
         {"home": draw_home, "shop": draw_shop, "ward": draw_ward}[family](rng, plan, float(rng.uniform(2.4, 3.0)))
         return family, plan
-    if (
-        seed
-        in LOOKALIKE_DEVELOPMENT_SEEDS
-        + LOOKALIKE_HELD_OUT_SEEDS
-        + LOOKALIKE_SECOND_HELD_OUT_SEEDS
-        + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
-        + LOOKALIKE_POLICY_HELD_OUT_SEEDS
-        + LOOKALIKE_CHECK_HELD_OUT_SEEDS
-        + LOOKALIKE_TWIN_HELD_OUT_SEEDS
-        + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
-        + LOOKALIKE_REFIT_HELD_OUT_SEEDS
-    ):
+    if seed in LOOKALIKE_DEVELOPMENT_SEEDS + LOOKALIKE_ALL_HELD_OUT_SEEDS:
         family = LOOKALIKE_FAMILIES[int(rng.integers(len(LOOKALIKE_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
         (_periodic if family == "periodic" else _mirror)(rng, plan, float(rng.uniform(2.4, 3.0)))
