@@ -6,7 +6,7 @@ from pimm_agents.particles.belief import BeliefConfig, read_belief
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.pimm.localizer import OdometryHistory, WallFieldConfig, compensate, wall_points
-from pimm_agents.pimm.rivals import RivalConfig
+from pimm_agents.pimm.rival_config import RivalConfig
 from pimm_env.geometry import carry, compose, relative_motion, wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid

@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from pimm_agents.pimm.rivals import DEEP_STEPS, RivalConfig, RivalTracker
+from pimm_agents.pimm.rival_config import RivalConfig
+from pimm_agents.pimm.rivals import DEEP_STEPS, RivalTracker
 from pimm_agents.pimm.scan_stack import turned
 from tests.test_feature_filter import rays_from, twin_rooms, wall_field_for
 

@@ -4,7 +4,7 @@ from scipy import ndimage
 
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
-from pimm_agents.pimm.rivals import RivalConfig
+from pimm_agents.pimm.rival_config import RivalConfig
 from pimm_agents.pimm.twins import MapTwins, TwinConfig, local_peaks
 from pimm_env.errors import LocalizerError, ParamsError
 from pimm_env.geometry import carry, wrap_angle

@@ -19,7 +19,8 @@ import numpy as np
 from pimm_agents.localizer import Hypothesis
 from pimm_agents.particles.belief import BeliefReading, Confirmation, read_belief
 from pimm_agents.particles.likelihood_field import LikelihoodField
-from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
+from pimm_agents.pimm.rival_config import RivalConfig
+from pimm_agents.pimm.rivals import RivalTracker
 from pimm_agents.pimm.twins import MapTwins
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid

@@ -31,7 +31,8 @@ from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
 from pimm_agents.pimm.ambiguity import AmbiguityCheck
 from pimm_agents.pimm.corner_evidence import corner_exponents
-from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
+from pimm_agents.pimm.rival_config import RivalConfig
+from pimm_agents.pimm.rivals import RivalTracker
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid

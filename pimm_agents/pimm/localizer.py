@@ -26,7 +26,7 @@ from pimm_agents.perception.point_features import valid_returns
 from pimm_agents.perception.resample import LayoutResampler
 from pimm_agents.perception.segmenter import CloudSegmenter, Segmenter
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
-from pimm_agents.pimm.rivals import RivalConfig
+from pimm_agents.pimm.rival_config import RivalConfig
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry, compose, relative_motion
 from pimm_env.mapping.corner_map import CornerMap
