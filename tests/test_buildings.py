@@ -19,6 +19,7 @@ from training.buildings import (
     LOOKALIKE_MARGIN_HELD_OUT_SEEDS,
     LOOKALIKE_POLICY_HELD_OUT_SEEDS,
     LOOKALIKE_REFIT_HELD_OUT_SEEDS,
+    LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS,
     LOOKALIKE_SECOND_HELD_OUT_SEEDS,
     LOOKALIKE_TWIN_HELD_OUT_SEEDS,
     NEVER_TRAIN_SEEDS,
@@ -57,6 +58,10 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     eighth = set(LOOKALIKE_REFIT_HELD_OUT_SEEDS)
     assert {draw_plan(seed)[0] for seed in eighth} <= {"periodic", "mirror"} and eighth <= set(NEVER_TRAIN_SEEDS)
     assert not eighth & (looked_at | second | third | fourth | fifth | sixth | seventh | set(LOOKALIKE_HELD_OUT_SEEDS))
+    ninth = set(LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS)
+    assert {draw_plan(seed)[0] for seed in ninth} <= {"periodic", "mirror"} and ninth <= set(NEVER_TRAIN_SEEDS)
+    earlier = second | third | fourth | fifth | sixth | seventh | eighth | set(LOOKALIKE_HELD_OUT_SEEDS)
+    assert not ninth & (looked_at | earlier | set(LOCALIZER_HELD_OUT_SEEDS))
     seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
     assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
     assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))

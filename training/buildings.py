@@ -88,6 +88,10 @@ LOOKALIKE_MARGIN_HELD_OUT_SEEDS = tuple(range(1100, 1108))
 #: judged a narrower margin alone, so they no longer judge one made with it (fixed 2026-11-27, before any run on
 #: them).
 LOOKALIKE_REFIT_HELD_OUT_SEEDS = tuple(range(1120, 1128))
+#: A ninth look-alike held-out set, for active-localization policies trained with the localizer as it is after
+#: the rival check's refit and veto: 1040-1047 judged the policies and `greedy`'s changes before it, and the
+#: eighth set judged the refit itself (fixed 2026-11-28, before any run on them).
+LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS = tuple(range(1140, 1148))
 #: Every look-alike held-out set above, in the order they were fixed (a new set is added here alone).
 LOOKALIKE_ALL_HELD_OUT_SEEDS = (
     LOOKALIKE_HELD_OUT_SEEDS
@@ -98,6 +102,7 @@ LOOKALIKE_ALL_HELD_OUT_SEEDS = (
     + LOOKALIKE_TWIN_HELD_OUT_SEEDS
     + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
     + LOOKALIKE_REFIT_HELD_OUT_SEEDS
+    + LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS
 )
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
