@@ -221,8 +221,8 @@ def _check_backend(backend: str, address: str | None) -> None:
 def buildings(
     seeds: str = typer.Option(
         "100-129",
-        help="building seeds: 'A-B' or 'A,B,C' (furnished: 130-159; held out: 910-929, 980-987, 990-997, 1000-1007,"
-        " 1010-1017, 1020-1027 and 1040-1047, never train on them)",
+        help="building seeds: 'A-B' or 'A,B,C' (furnished: 130-159; held out: training.buildings.NEVER_TRAIN_SEEDS,"
+        " noted when given; never train on them)",
     ),
     out: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
 ) -> None:
