@@ -14,6 +14,7 @@ from training.buildings import (
     LOCALIZER_HELD_OUT_SEEDS,
     LOOKALIKE_ACTIVE_HELD_OUT_SEEDS,
     LOOKALIKE_CHECK_HELD_OUT_SEEDS,
+    LOOKALIKE_DRIVER_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
     LOOKALIKE_MARGIN_HELD_OUT_SEEDS,
@@ -62,6 +63,9 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     assert {draw_plan(seed)[0] for seed in ninth} <= {"periodic", "mirror"} and ninth <= set(NEVER_TRAIN_SEEDS)
     earlier = second | third | fourth | fifth | sixth | seventh | eighth | set(LOOKALIKE_HELD_OUT_SEEDS)
     assert not ninth & (looked_at | earlier | set(LOCALIZER_HELD_OUT_SEEDS))
+    tenth = set(LOOKALIKE_DRIVER_HELD_OUT_SEEDS)
+    assert {draw_plan(seed)[0] for seed in tenth} <= {"periodic", "mirror"} and tenth <= set(NEVER_TRAIN_SEEDS)
+    assert not tenth & (looked_at | earlier | ninth | set(LOCALIZER_HELD_OUT_SEEDS))
     seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
     assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
     assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))

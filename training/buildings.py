@@ -92,6 +92,10 @@ LOOKALIKE_REFIT_HELD_OUT_SEEDS = tuple(range(1120, 1128))
 #: the rival check's refit and veto: 1040-1047 judged the policies and `greedy`'s changes before it, and the
 #: eighth set judged the refit itself (fixed 2026-11-28, before any run on them).
 LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS = tuple(range(1140, 1148))
+#: A tenth look-alike held-out set, for changes to how a trained policy is driven: a policy's failure on
+#: 1140-1147 (gen-1145, route 2) was traced to design one (2026-11-28), so they no longer judge it (fixed
+#: 2026-11-28, before any run on them).
+LOOKALIKE_DRIVER_HELD_OUT_SEEDS = tuple(range(1160, 1168))
 #: Every look-alike held-out set above, in the order they were fixed (a new set is added here alone).
 LOOKALIKE_ALL_HELD_OUT_SEEDS = (
     LOOKALIKE_HELD_OUT_SEEDS
@@ -103,6 +107,7 @@ LOOKALIKE_ALL_HELD_OUT_SEEDS = (
     + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
     + LOOKALIKE_REFIT_HELD_OUT_SEEDS
     + LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS
+    + LOOKALIKE_DRIVER_HELD_OUT_SEEDS
 )
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
