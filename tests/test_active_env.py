@@ -258,6 +258,25 @@ def test_the_shipped_policy_loads_with_its_record_and_acts_on_the_envs_observati
     env.close()
 
 
+def test_a_trained_policy_never_drives_into_a_blocked_way():
+    import torch
+
+    from pimm_agents.active.policies import make_policy
+    from pimm_agents.active.primitives import FORWARD
+
+    env = gym.make("pimm/ActiveLocalization-v0", localizer="amcl")
+    obs, _ = env.reset(seed=2)
+    policy = make_policy("trained", env.unwrapped.scan_range)
+    with torch.no_grad():  # a network that prefers forward whatever it sees
+        policy.model.policy.action_net.bias[FORWARD] += 100.0
+    clear = {**obs, "scan": np.ones_like(obs["scan"])}
+    assert policy(clear) == FORWARD
+    walled = {**obs, "scan": np.full_like(obs["scan"], 0.3 / env.unwrapped.scan_range)}  # 0.3 m all round
+    turn = policy(walled)
+    assert turn != FORWARD and turn == policy.likeliest({k: walled[k] for k in policy.keys}, exclude=FORWARD)
+    env.close()
+
+
 def box_scan(pose: tuple[float, float, float], size: tuple[float, float], bearings: np.ndarray) -> np.ndarray:
     """The ranges from ``pose`` (x, y, heading) to the walls of the room [0, size[0]] x [0, size[1]]."""
     x, y, heading = pose

@@ -13,6 +13,10 @@ Each is a callable ``policy(observation) -> action`` with ``reset(seed)`` called
   (explorer.py, the same exploring as the env's ``explore`` observation);
 - ``trained``: a stable-baselines3 policy loaded from a ``.zip`` (``python -m training policy`` writes one),
   acting deterministically; the name ``trained`` is the shipped one (``SHIPPED_POLICY``, its record beside it).
+  It never chooses the forward primitive while the forward guard would stop it at once (the ``scan``
+  observation's sectors blocked, the guard's own test): it takes the likelier turn instead. ``greedy``, which
+  it imitates, never drives into a blocked way, so the network never saw what to do after doing so, and kept
+  choosing the primitive that stands still.
 """
 
 from __future__ import annotations
@@ -111,7 +115,7 @@ class Trained:
     """A stable-baselines3 policy from a ``.zip``, acting deterministically; named ``trained`` when it is the
     shipped one, else by its file's name."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, max_range: float = 20.0) -> None:
         from stable_baselines3 import PPO
 
         from pimm_env.errors import MissingFileError
@@ -123,6 +127,7 @@ class Trained:
         self.path = Path(path)
         #: the observation's entries it was trained on: a policy trained before an entry was added reads the rest
         self.keys = tuple(getattr(self.model.observation_space, "spaces", {}))
+        self.max_range = max_range  # the 2D LiDAR's, over which the ``scan`` observation is given
 
     def reset(self, seed: int | None = None) -> None:
         pass
@@ -133,8 +138,21 @@ class Trained:
             from pimm_env.errors import EnvError
 
             raise EnvError(f"policy {self.path} reads observation entries {missing} this observation lacks")
-        action, _ = self.model.predict({k: observation[k] for k in self.keys}, deterministic=True)
-        return int(np.asarray(action).item())
+        inputs = {k: observation[k] for k in self.keys}
+        if "scan" not in observation or not sectors_blocked(np.asarray(observation["scan"], float) * self.max_range):
+            action, _ = self.model.predict(inputs, deterministic=True)
+            return int(np.asarray(action).item())
+        return self.likeliest(inputs, exclude=FORWARD)
+
+    def likeliest(self, inputs: dict[str, np.ndarray], exclude: int) -> int:
+        """The action the network finds likeliest at ``inputs``, ``exclude`` left out."""
+        import torch
+
+        tensor, _ = self.model.policy.obs_to_tensor(inputs)
+        with torch.no_grad():
+            probs = self.model.policy.get_distribution(tensor).distribution.probs[0].numpy().copy()
+        probs[exclude] = -1.0
+        return int(np.argmax(probs))
 
 
 def check_policy(name: str) -> None:
@@ -156,4 +174,4 @@ def make_policy(name: str, max_range: float = 20.0) -> Policy:
         return RandomWalk()
     if name == "greedy":
         return Greedy(max_range)
-    return Trained(SHIPPED_POLICY if name == "trained" else Path(name))
+    return Trained(SHIPPED_POLICY if name == "trained" else Path(name), max_range)
