@@ -138,20 +138,18 @@ class Trained:
             from pimm_env.errors import EnvError
 
             raise EnvError(f"policy {self.path} reads observation entries {missing} this observation lacks")
-        inputs = {k: observation[k] for k in self.keys}
-        if "scan" not in observation or not sectors_blocked(np.asarray(observation["scan"], float) * self.max_range):
-            action, _ = self.model.predict(inputs, deterministic=True)
-            return int(np.asarray(action).item())
-        return self.likeliest(inputs, exclude=FORWARD)
+        blocked = "scan" in observation and sectors_blocked(np.asarray(observation["scan"], float) * self.max_range)
+        return self.likeliest({k: observation[k] for k in self.keys}, exclude=FORWARD if blocked else None)
 
-    def likeliest(self, inputs: dict[str, np.ndarray], exclude: int) -> int:
-        """The action the network finds likeliest at ``inputs``, ``exclude`` left out."""
+    def likeliest(self, inputs: dict[str, np.ndarray], exclude: int | None = None) -> int:
+        """The action the network finds likeliest at ``inputs`` (its deterministic choice), ``exclude`` left out."""
         import torch
 
         tensor, _ = self.model.policy.obs_to_tensor(inputs)
         with torch.no_grad():
             probs = self.model.policy.get_distribution(tensor).distribution.probs[0].numpy().copy()
-        probs[exclude] = -1.0
+        if exclude is not None:
+            probs[exclude] = -1.0
         return int(np.argmax(probs))
 
 
