@@ -96,6 +96,10 @@ LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS = tuple(range(1140, 1148))
 #: 1140-1147 (gen-1145, route 2) was traced to design one (2026-11-28), so they no longer judge it (fixed
 #: 2026-11-28, before any run on them).
 LOOKALIKE_DRIVER_HELD_OUT_SEEDS = tuple(range(1160, 1168))
+#: An eleventh look-alike held-out set, for changes to how the rival check weighs scans that cannot tell two
+#: places apart: a false `localized` spell on generic held-out gen-928 was traced to design one (fixed
+#: 2026-11-28, before any run on them).
+LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS = tuple(range(1180, 1188))
 #: Every look-alike held-out set above, in the order they were fixed (a new set is added here alone).
 LOOKALIKE_ALL_HELD_OUT_SEEDS = (
     LOOKALIKE_HELD_OUT_SEEDS
@@ -108,6 +112,7 @@ LOOKALIKE_ALL_HELD_OUT_SEEDS = (
     + LOOKALIKE_REFIT_HELD_OUT_SEEDS
     + LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS
     + LOOKALIKE_DRIVER_HELD_OUT_SEEDS
+    + LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS
 )
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
