@@ -97,15 +97,21 @@ def test_bad_settings_are_named(bad):
 
 
 def started_at_the_truth(
-    twins: bool, veto_only: bool = False, cells: int = 0, injection: float = 0.05, refit: bool = True
+    twins: bool,
+    veto_only: bool = False,
+    cells: int = 0,
+    injection: float = 0.05,
+    refit: bool = True,
+    map_error: float = 0.5,
 ) -> list[tuple[str, np.ndarray, np.ndarray]]:
     """A filter that starts around the true pose in the second room (no particle in the first), driven as in
     the twin-rooms test: east through the door, the block in sight from x = 15.6, on to x = 21; ``injection``
-    is the share of particles replaced at random places after each update (``replace_worst_fraction``)."""
+    is the share of particles replaced at random places after each update (``replace_worst_fraction``);
+    ``map_error`` the rival check's ``map_error_cells``."""
     occupancy = twin_rooms()
     corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
     twin_config = TwinConfig(enabled=twins, looked_from_cells=cells)
-    rivals = RivalConfig(veto_only=veto_only, twins=twin_config, refit_before_drop=refit)
+    rivals = RivalConfig(veto_only=veto_only, twins=twin_config, refit_before_drop=refit, map_error_cells=map_error)
     filt = FeatureFilter(
         occupancy,
         corners,
@@ -135,9 +141,10 @@ def test_a_twin_the_filter_never_held_keeps_the_place_ambiguous_until_the_block_
 def test_a_standing_rival_is_fitted_as_a_newcomer_before_it_falls():
     # the scans are the same in both rooms until the block is in sight: touched once an update, the first room's
     # twin drifts behind the estimate (about 0.2 nats an update) past the drop margin; refitted, it stands. The
-    # check only vetoing, the place is localized at the first update no rival stands.
+    # check only vetoing, the place is localized at the first update no rival stands. (The margins summed as
+    # they are: scan by scan, ``map_error_cells``, the drift stays within the raster's allowance either way.)
     for refit, localized_early in ((True, False), (False, True)):
-        updates = started_at_the_truth(twins=True, veto_only=True, cells=2, refit=refit)
+        updates = started_at_the_truth(twins=True, veto_only=True, cells=2, refit=refit, map_error=0.0)
         before = [status for status, _, pose in updates if pose[0] < 15.5]
         assert ("localized" in before) == localized_early
 
@@ -146,8 +153,9 @@ def test_a_place_is_called_localized_only_once_its_twins_were_looked_for_from_tw
     # turning on one spot, the twin search from its one cell offers shifted near-copies, not the other room:
     # looked for from that cell alone, the place is called localized before the robot has moved
     # (the check only vetoing: the 10 updates that confirm a place after its last rival fell would give it more)
-    # (without the injection, whose random particles in the other room the check can also fit there)
-    turned = started_at_the_truth(twins=True, veto_only=True, cells=1, injection=0.0)
+    # (without the injection, whose random particles in the other room the check can also fit there; the margins
+    # summed as they are: scan by scan, ``map_error_cells``, the place is not called localized on that spot at all)
+    turned = started_at_the_truth(twins=True, veto_only=True, cells=1, injection=0.0, map_error=0.0)
     one_cell = [status for status, _, pose in turned if pose[0] < 15.5]
     assert "localized" in one_cell
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.pimm.rival_config import RivalConfig
-from pimm_agents.pimm.scan_evidence import summed_scan_evidence
+from pimm_agents.pimm.scan_evidence import scan_by_scan_evidence, summed_scan_evidence
 from pimm_agents.pimm.scan_stack import ScanStack, points_centre, turned
 from pimm_env.geometry import relative_motion, wrap_angle
 
@@ -169,6 +169,47 @@ class RivalTracker:
             float(self.temperature),
             float(np.log(0.1)),
         )
+
+    def evidence_by_scan(self, poses: np.ndarray, stack: ScanStack) -> np.ndarray:
+        """``evidence`` kept apart per scan: (K, S), the tempered log-likelihood of each stacked scan for a robot
+        now at each of ``poses``."""
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        grid = self.field.grid
+        return scan_by_scan_evidence(
+            poses,
+            np.ascontiguousarray(stack.motions, dtype=float),
+            np.ascontiguousarray(stack.scan_of, dtype=np.int64),
+            np.ascontiguousarray(stack.points, dtype=float),
+            self.log_pz,
+            self.log_pz_off,
+            self.free,
+            float(grid.origin[0]),
+            float(grid.origin[1]),
+            float(grid.resolution),
+            float(self.temperature),
+            float(np.log(0.1)),
+        )
+
+    def scan_allowance(self, stack: ScanStack) -> np.ndarray:
+        """Per stacked scan (S,): what a wall ``map_error_cells`` cells off costs each of its points, summed and
+        tempered (``RivalConfig.map_error_cells``)."""
+        offset = self.config.map_error_cells * self.field.grid.resolution
+        per_point = offset**2 / (2 * self.field.params.sigma_hit**2)
+        points = np.bincount(stack.scan_of, minlength=len(stack.motions))
+        return self.temperature * per_point * points
+
+    def margins_over(self, poses: np.ndarray, reference: np.ndarray, stack: ScanStack) -> np.ndarray:
+        """How much better the stacked scans fit each of ``poses`` (K, 3) than ``reference`` (3,): the difference
+        of the summed evidence (``map_error_cells`` 0), or scan by scan with each scan's difference counted only
+        beyond ``scan_allowance`` (a difference the map's raster alone could make counts as none)."""
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        reference = np.asarray(reference, dtype=float).reshape(1, 3)
+        if self.config.map_error_cells == 0 or not len(poses):
+            return self.evidence(poses, stack) - self.evidence(reference, stack)[0]
+        by_scan = self.evidence_by_scan(np.vstack([reference, poses]), stack)
+        difference = by_scan[1:] - by_scan[0]
+        beyond = np.maximum(np.abs(difference) - self.scan_allowance(stack), 0.0)
+        return (np.sign(difference) * beyond).sum(axis=1)
 
     def refine(
         self, poses: np.ndarray, stack: ScanStack, rounds: int = 4, steps: tuple[np.ndarray, ...] = REFINE_STEPS
@@ -313,14 +354,14 @@ class RivalTracker:
             if len(offered):
                 offered = self.refine(offered, history, rounds=c.admit_rounds, steps=self.admit_steps)
         refined = np.vstack([refined, offered])
-        scores = self.evidence(np.vstack([*places, refined]), history)
-        estimate_score = scores[: len(places)].max()
-        margins = scores[len(places) :] - estimate_score
+        # against the better scored of the estimate's places
+        reference = places[int(np.argmax(self.evidence(np.array(places), history)))]
+        margins = self.margins_over(refined, reference, history)
         if c.refit_before_drop:  # a standing rival about to fall is fitted as a newcomer and scored again
             falling = np.flatnonzero((np.arange(len(refined)) < kept) & (margins <= -c.drop_log_ratio))
             if len(falling):
                 refined[falling] = self.refine(refined[falling], history, c.admit_rounds, self.admit_steps)
-                margins[falling] = self.evidence(refined[falling], history) - estimate_score
+                margins[falling] = self.margins_over(refined[falling], reference, history)
         unique: list[int] = []
         limits = np.where(np.arange(len(refined)) < kept, c.drop_log_ratio, c.log_ratio)
         for i in np.argsort(-margins):
@@ -360,8 +401,7 @@ class RivalTracker:
         best = self.rivals[ahead[np.argmax(self.margins[ahead])]] if len(ahead) else None
         if best is not None:
             fitted = self.refine(np.vstack([estimate, best]), history, rounds=30, steps=DEEP_STEPS)
-            scores = self.evidence(fitted, history)
-            if scores[1] - scores[0] < self.config.switch_log_ratio:
+            if self.margins_over(fitted[1:], fitted[0], history)[0] < self.config.switch_log_ratio:
                 best = None
         if best is None:
             self._leader, self._lead = None, 0
