@@ -3,7 +3,8 @@
 Along a trial, a tracker of its own keeps the wall scans PIMM weighs (the newest ``history_scans``, never dropped
 at a jump as PIMM's are) and, once it holds ``settle_scans`` of them, scores the *true* pose against the map's
 twins of it (twins.py; the ``BOUND_TWINS`` best, a place turned about distinct from one beside it facing another
-way), each fitted to the kept scans as the rival check fits its rivals. The first time every twin trails the truth
+way), each fitted to the kept scans as the rival check fits its rivals and compared as it compares them
+(``rivals.map_error_cells``). The first time every twin trails the truth
 by ``log_ratio`` (the margin at which the rival check calls a candidate no rival) is the time a perfect rival
 check, offered the right place, could have called it localized: on a route that shows nothing that tells the twins
 apart until late, no passive localizer can be right and sure earlier, and only driving elsewhere (active
@@ -94,8 +95,7 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
         if len(twins):
             history = ours.stack(odom)
             twins = ours.fit_new(twins, ours.recent(odom), history)
-            scores = ours.evidence(np.vstack([truth[None], twins]), history)
-            lead = float(scores[0] - scores[1:].max())
+            lead = -float(ours.margins_over(twins, truth, history).max())
         if state["bound"] is None and lead >= ours.config.log_ratio:
             state["bound"] = t - state["t0"]
         if lead >= ours.config.drop_log_ratio:
