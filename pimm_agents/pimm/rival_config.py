@@ -35,7 +35,7 @@ class RivalConfig:
     #: at every scan: on generic held-out gen-928 (driven by ``greedy``) the true place fitted each of 150 such
     #: scans 0.07 nats worse than a twin one bay (2.8 m) along, no scan by more than 0.12, and the sum (-9.4)
     #: ruled the truth out at ln 10^4: the twin was ``localized`` for 11.8 s. Scan by scan with this allowance the
-    #: margin was -0.2. Scans that tell places apart differ by far more (a point off a wall by 0.5 m costs 0.6).
+    #: margin was -0.2. Scans that tell places apart differ by far more (one point 0.5 m off a wall costs 0.4).
     #: Applied where margins decide (admitting, dropping, refitting and following a rival), not to the fits.
     #: 0: the summed evidence as it is
     map_error_cells: float = 0.5
