@@ -25,6 +25,33 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
+def carried_scans(
+    poses: np.ndarray, motions: np.ndarray, free: np.ndarray, origin_x: float, origin_y: float, resolution: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each scan's robot pose for every candidate pose (K, 3) carried back by the scans' ``motions`` (S, 3),
+    scan-major (S, K) so that the candidates of one point are read together: x, y, cos and sin of the heading,
+    and whether it falls off the ``free`` cells (or off the map)."""
+    k, s = poses.shape[0], motions.shape[0]
+    rows, cols = free.shape
+    tx = np.empty((s, k))
+    ty = np.empty((s, k))
+    ca = np.empty((s, k))
+    sa = np.empty((s, k))
+    off = np.zeros((s, k), dtype=np.bool_)
+    for i in range(k):
+        c, sn = math.cos(poses[i, 2]), math.sin(poses[i, 2])
+        for j in range(s):
+            tx[j, i] = poses[i, 0] + c * motions[j, 0] - sn * motions[j, 1]
+            ty[j, i] = poses[i, 1] + sn * motions[j, 0] + c * motions[j, 1]
+            heading = poses[i, 2] + motions[j, 2]
+            ca[j, i], sa[j, i] = math.cos(heading), math.sin(heading)
+            col = math.floor((tx[j, i] - origin_x) / resolution)
+            row = math.floor((ty[j, i] - origin_y) / resolution)
+            off[j, i] = not (0 <= row < rows and 0 <= col < cols and free[int(row), int(col)])
+    return tx, ty, ca, sa, off
+
+
+@njit(cache=True, nogil=True)
 def summed_scan_evidence(
     poses: np.ndarray,
     motions: np.ndarray,
@@ -44,22 +71,11 @@ def summed_scan_evidence(
     scoring ``log_pz_off``; plus ``off_free`` per scan whose carried pose is not on a ``free`` cell."""
     k, s, p = poses.shape[0], motions.shape[0], points.shape[0]
     rows, cols = log_pz.shape
-    # each scan's robot pose for every candidate, scan-major: the candidates of one point are read together
-    tx = np.empty((s, k))
-    ty = np.empty((s, k))
-    ca = np.empty((s, k))
-    sa = np.empty((s, k))
+    tx, ty, ca, sa, off = carried_scans(poses, motions, free, origin_x, origin_y, resolution)
     penalty = np.zeros(k)
     for i in range(k):
-        c, sn = math.cos(poses[i, 2]), math.sin(poses[i, 2])
         for j in range(s):
-            tx[j, i] = poses[i, 0] + c * motions[j, 0] - sn * motions[j, 1]
-            ty[j, i] = poses[i, 1] + sn * motions[j, 0] + c * motions[j, 1]
-            heading = poses[i, 2] + motions[j, 2]
-            ca[j, i], sa[j, i] = math.cos(heading), math.sin(heading)
-            col = math.floor((tx[j, i] - origin_x) / resolution)
-            row = math.floor((ty[j, i] - origin_y) / resolution)
-            if not (0 <= row < rows and 0 <= col < cols and free[int(row), int(col)]):
+            if off[j, i]:
                 penalty[i] += off_free
     # point by point, every candidate in turn: nearby candidates (a place and its refinement steps) look up
     # nearby cells one after another, which the cache keeps; each candidate's sum runs in point order as before
@@ -99,23 +115,9 @@ def scan_by_scan_evidence(
     (up to the order of the additions)."""
     k, s, p = poses.shape[0], motions.shape[0], points.shape[0]
     rows, cols = log_pz.shape
+    tx, ty, ca, sa, off = carried_scans(poses, motions, free, origin_x, origin_y, resolution)
     out = np.zeros((k, s))
-    penalty = np.zeros((k, s))
-    tx = np.empty((s, k))
-    ty = np.empty((s, k))
-    ca = np.empty((s, k))
-    sa = np.empty((s, k))
-    for i in range(k):
-        c, sn = math.cos(poses[i, 2]), math.sin(poses[i, 2])
-        for j in range(s):
-            tx[j, i] = poses[i, 0] + c * motions[j, 0] - sn * motions[j, 1]
-            ty[j, i] = poses[i, 1] + sn * motions[j, 0] + c * motions[j, 1]
-            heading = poses[i, 2] + motions[j, 2]
-            ca[j, i], sa[j, i] = math.cos(heading), math.sin(heading)
-            col = math.floor((tx[j, i] - origin_x) / resolution)
-            row = math.floor((ty[j, i] - origin_y) / resolution)
-            if not (0 <= row < rows and 0 <= col < cols and free[int(row), int(col)]):
-                penalty[i, j] = off_free
+    penalty = np.where(off.T, off_free, 0.0)
     for q in range(p):
         j = scan_of[q]
         px, py = points[q, 0], points[q, 1]
