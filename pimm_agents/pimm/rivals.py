@@ -154,29 +154,18 @@ class RivalTracker:
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         if len(stack.motions) == 0 or len(poses) == 0:
             return np.zeros(len(poses))
-        grid = self.field.grid
-        return summed_scan_evidence(
-            poses,
-            np.ascontiguousarray(stack.motions, dtype=float),
-            np.ascontiguousarray(stack.scan_of, dtype=np.int64),
-            np.ascontiguousarray(stack.points, dtype=float),
-            self.log_pz,
-            self.log_pz_off,
-            self.free,
-            float(grid.origin[0]),
-            float(grid.origin[1]),
-            float(grid.resolution),
-            float(self.temperature),
-            float(np.log(0.1)),
-        )
+        return summed_scan_evidence(poses, *self._kernel_inputs(stack))
 
     def evidence_by_scan(self, poses: np.ndarray, stack: ScanStack) -> np.ndarray:
         """``evidence`` kept apart per scan: (K, S), the tempered log-likelihood of each stacked scan for a robot
         now at each of ``poses``."""
-        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        return scan_by_scan_evidence(np.asarray(poses, dtype=float).reshape(-1, 3), *self._kernel_inputs(stack))
+
+    def _kernel_inputs(self, stack: ScanStack) -> tuple:
+        """What the compiled evidence loops (scan_evidence.py) take after the poses: the stacked scans, the map's
+        per-cell log-likelihood and free cells, the grid, the temperature and the off-free penalty (ln 0.1)."""
         grid = self.field.grid
-        return scan_by_scan_evidence(
-            poses,
+        return (
             np.ascontiguousarray(stack.motions, dtype=float),
             np.ascontiguousarray(stack.scan_of, dtype=np.int64),
             np.ascontiguousarray(stack.points, dtype=float),
