@@ -22,6 +22,7 @@ from training.buildings import (
     LOOKALIKE_REFIT_HELD_OUT_SEEDS,
     LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS,
     LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS,
+    LOOKALIKE_CRITIC_HELD_OUT_SEEDS,
     LOOKALIKE_SECOND_HELD_OUT_SEEDS,
     LOOKALIKE_TWIN_HELD_OUT_SEEDS,
     NEVER_TRAIN_SEEDS,
@@ -61,10 +62,11 @@ def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart(
     assert {draw_plan(seed)[0] for seed in eighth} <= {"periodic", "mirror"} and eighth <= set(NEVER_TRAIN_SEEDS)
     assert not eighth & (looked_at | second | third | fourth | fifth | sixth | seventh | set(LOOKALIKE_HELD_OUT_SEEDS))
     earlier = second | third | fourth | fifth | sixth | seventh | eighth | set(LOOKALIKE_HELD_OUT_SEEDS)
-    later_sets = (  # the ninth, tenth and eleventh
+    later_sets = (  # the ninth to the twelfth
         LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS,
         LOOKALIKE_DRIVER_HELD_OUT_SEEDS,
         LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS,
+        LOOKALIKE_CRITIC_HELD_OUT_SEEDS,
     )
     for later in later_sets:
         fresh = set(later)

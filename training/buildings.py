@@ -100,6 +100,10 @@ LOOKALIKE_DRIVER_HELD_OUT_SEEDS = tuple(range(1160, 1168))
 #: places apart: a false `localized` spell on generic held-out gen-928 was traced to design one (fixed
 #: 2026-11-28, before any run on them).
 LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS = tuple(range(1180, 1188))
+#: A twelfth look-alike held-out set, for active-localization policies whose critic is fitted during the
+#: imitation: 970-977 validate policies and the earlier sets judged the policies before (fixed 2026-11-29,
+#: before any run on them).
+LOOKALIKE_CRITIC_HELD_OUT_SEEDS = tuple(range(1200, 1208))
 #: Every look-alike held-out set above, in the order they were fixed (a new set is added here alone).
 LOOKALIKE_ALL_HELD_OUT_SEEDS = (
     LOOKALIKE_HELD_OUT_SEEDS
@@ -113,6 +117,7 @@ LOOKALIKE_ALL_HELD_OUT_SEEDS = (
     + LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS
     + LOOKALIKE_DRIVER_HELD_OUT_SEEDS
     + LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS
+    + LOOKALIKE_CRITIC_HELD_OUT_SEEDS
 )
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
