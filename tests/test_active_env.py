@@ -171,11 +171,52 @@ def test_dagger_fits_the_network_to_greedy_where_the_network_itself_drives(tmp_p
     assert " --imitate 64 --dagger 64 --seed 3 " in record["reproduce"]
 
 
-def test_dagger_needs_the_imitation_it_starts_from(tmp_path):
+def test_dagger_and_critic_need_the_imitation_they_start_from(tmp_path):
     from training.policy import train_policy
 
     with pytest.raises(EnvError, match="--imitate"):
         train_policy(["iilab"], 16, tmp_path / "p.zip", localizer="amcl", dagger=64)
+    with pytest.raises(EnvError, match="--imitate"):
+        train_policy(["iilab"], 16, tmp_path / "p.zip", localizer="amcl", critic=True)
+
+
+def test_returns_are_discounted_to_each_episodes_end_and_unknown_for_a_running_one():
+    from training.policy import discounted_returns
+
+    rewards = np.array([[1.0, 0.0], [2.0, 1.0], [4.0, 1.0]])  # three steps of two envs
+    ended = np.array([[False, False], [True, False], [False, False]])  # env 0's first episode ends at step 1
+    returns = discounted_returns(rewards, ended, 0.5)
+    assert returns[:, 0][:2].tolist() == [2.0, 2.0] and np.isnan(returns[2, 0])  # 1 + 0.5 x 2; then running
+    assert np.isnan(returns[:, 1]).all()  # env 1's only episode never ended
+    ended[2] = True
+    assert discounted_returns(rewards, ended, 0.5)[:, 1].tolist() == [0.75, 1.5, 1.0]
+
+
+def test_the_imitation_fits_the_critic_to_the_returns_and_leaves_the_actor_as_it_was():
+    import torch
+    from stable_baselines3.common.policies import MultiInputActorCriticPolicy
+
+    from training.policy import explained_variance, fit_to
+
+    env = gym.make("pimm/ActiveLocalization-v0", world="iilab", localizer="amcl")
+    env.observation_space.seed(0)
+    observations = [env.observation_space.sample() for _ in range(2048)]
+    env.close()
+    rng = np.random.default_rng(0)
+    actions = rng.integers(3, size=2048).tolist()
+    returns = np.array([10.0 * o["status"][0] - 5.0 for o in observations])  # a return the input shows
+    returns[:16] = np.nan  # steps of an episode that had not ended: left out
+    fitted = []
+    for with_returns in (False, True):
+        torch.manual_seed(0)
+        policy = MultiInputActorCriticPolicy(env.observation_space, env.action_space, lambda _: 3e-4)
+        fit_to(policy, observations, actions, torch.Generator().manual_seed(1), returns if with_returns else None)
+        fitted.append(policy)
+    untrained, trained = (explained_variance(p, observations, returns) for p in fitted)
+    assert trained > 0.8 and untrained < 0.2
+    actor = [k for k in fitted[0].state_dict() if "value" not in k]  # the value head and its own layers
+    assert all(torch.equal(fitted[0].state_dict()[k], fitted[1].state_dict()[k]) for k in actor)
+    assert any(not torch.equal(fitted[0].state_dict()[k], fitted[1].state_dict()[k]) for k in fitted[0].state_dict())
 
 
 def test_active_episodes_in_worker_processes_are_those_run_here():

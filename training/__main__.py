@@ -320,6 +320,7 @@ def policy(
     workers: int = typer.Option(1, min=1, help="envs, each in a worker process when more than one"),
     imitate: int = typer.Option(0, min=0, help="steps of the greedy policy the network first learns from"),
     dagger: int = typer.Option(0, min=0, help="then steps of its own drives, labelled by greedy (DAgger)"),
+    critic: bool = typer.Option(False, help="the imitation fits the value head to the drives' returns too"),
     worlds_dir: Path = typer.Option(Path("build/worlds"), "--worlds", help="folder of the generated worlds"),
     out: Path = typer.Option(Path("build/policies/active_ppo.zip"), help="the policy's .zip (record beside it)"),
 ) -> None:
@@ -328,7 +329,7 @@ def policy(
     from training.policy import train_policy
 
     chosen = list(world) or [str(_ready_building(building, worlds_dir)) for building in POLICY_TRAINING_SEEDS]
-    path = train_policy(chosen, steps, out, seed, localizer, workers, algo, imitate, dagger)
+    path = train_policy(chosen, steps, out, seed, localizer, workers, algo, imitate, dagger, critic)
     typer.echo(f"wrote {path} and {path.with_suffix('.json')} (training log: {path.with_suffix('')}_log/)")
 
 

@@ -88,11 +88,13 @@ def train_policy(
     algo: str = "ppo",
     imitate: int = 0,
     dagger: int = 0,
+    critic: bool = False,
 ) -> Path:
     """Train and save a policy to ``out`` (a ``.zip``); returns its path. With ``imitate`` > 0, the policy
     network first learns to act as the ``greedy`` policy does, from that many of its steps in the same envs
     (:func:`imitate_greedy`; with ``dagger`` > 0, then from as many steps of its own drives, labelled by
-    ``greedy``), and PPO goes on from there."""
+    ``greedy``), and PPO goes on from there. With ``critic``, the imitation fits the value head too, to the
+    returns of the steps it learns from, so that PPO's first advantages are not an untrained critic's noise."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
@@ -103,8 +105,8 @@ def train_policy(
         raise EnvError(f"--algo {algo!r}: only ppo is implemented")
     if steps < 1 or workers < 1 or imitate < 0 or dagger < 0 or not worlds:
         raise EnvError("policy training needs steps >= 1, workers >= 1, imitate and dagger >= 0 and a world")
-    if dagger and not imitate:
-        raise EnvError("--dagger drives the network fitted by --imitate: give --imitate too")
+    if (dagger or critic) and not imitate:
+        raise EnvError("--dagger and --critic fit on the drives of --imitate: give --imitate too")
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     builders = [_make_env(worlds, localizer, seed + i) for i in range(workers)]
@@ -124,7 +126,7 @@ def train_policy(
     model.set_logger(logger)
     start = time.perf_counter()
     try:
-        imitation = imitate_greedy(model, venv, imitate, seed, dagger) if imitate else None
+        imitation = imitate_greedy(model, venv, imitate, seed, dagger, critic) if imitate else None
         model.learn(
             total_timesteps=steps, callback=[_progress_bar(steps), _checkpoints(steps, out)], progress_bar=False
         )
@@ -143,11 +145,13 @@ def train_policy(
         "settings": settings,
         "imitate": imitate,
         "dagger": dagger,
+        "critic": critic,
         "imitation": imitation,
         "wall_s": round(wall, 1),
         "versions": _versions(),
         "reproduce": f"python -m training policy --algo {algo} --steps {steps} --imitate {imitate}"
         + (f" --dagger {dagger}" if dagger else "")
+        + (" --critic" if critic else "")
         + f" --seed {seed}"
         f" --workers {workers} --localizer {localizer}" + "".join(f" --world {w}" for w in worlds),
     }
@@ -158,9 +162,14 @@ def train_policy(
 
 #: the imitation's fit: epochs over the greedy policy's steps, minibatch, Adam's step (PPO's own learning rate)
 IMITATION_EPOCHS, IMITATION_BATCH = 20, 64
+#: the weight of the critic's squared error beside the actions' cross-entropy when the imitation fits both
+#: (stable-baselines3 PPO's own ``vf_coef``)
+IMITATION_VALUE_WEIGHT = 0.5
 
 
-def imitate_greedy(model: Any, venv: Any, steps: int, seed: int, dagger: int = 0) -> dict[str, float]:
+def imitate_greedy(
+    model: Any, venv: Any, steps: int, seed: int, dagger: int = 0, critic: bool = False
+) -> dict[str, float]:
     """Drive ``venv`` for ``steps`` steps with the ``greedy`` policy (one per env, reset at each episode) and
     fit ``model``'s policy network to its actions (cross-entropy, Adam): a start for PPO that already follows
     the guide and drives where it is open, instead of the uniform policy that PPO's few thousand episodes here
@@ -172,23 +181,30 @@ def imitate_greedy(model: Any, venv: Any, steps: int, seed: int, dagger: int = 0
     mistakes lead to, and drove on from them where ``greedy`` would have turned. ``greedy`` keeps its memory
     (what it has faced, its last turn) as if its own choices had been driven.
 
-    Returns the fit's agreement with ``greedy`` on its own steps (and on the network's, with ``dagger``)."""
+    With ``critic``, the value head is fitted too, to each step's discounted return (PPO's discount) on the
+    drives (:func:`discounted_returns`): PPO otherwise starts from an untrained critic (explained variance about
+    0 at its first update), whose advantages push the imitated policy about.
+
+    Returns the fit's agreement with ``greedy`` on its own steps (and on the network's, with ``dagger``), and
+    with ``critic`` the share of the returns' variance the value head explains."""
     import torch
 
     from pimm_agents.active.policies import Greedy
     from pimm_env.envs.base_env import SimConfig
 
     teachers = [Greedy(SimConfig().lidar2d.max_range) for _ in range(venv.num_envs)]  # the env's own LiDAR
-    observations, actions = _drive(venv, teachers, steps, "imitation")
+    observations, actions, returns = _drive(venv, teachers, steps, "imitation", gamma=model.gamma)
     generator = torch.Generator().manual_seed(seed)
-    fit_to(model.policy, observations, actions, generator)
+    fit_to(model.policy, observations, actions, generator, returns if critic else None)
     result: dict[str, float] = {"steps": len(actions)}
+    own: list[dict[str, np.ndarray]] = []
     if dagger:
         for teacher in teachers:
             teacher.reset()
-        own, labels = _drive(venv, teachers, dagger, "DAgger", model)
+        own, labels, own_returns = _drive(venv, teachers, dagger, "DAgger", model, gamma=model.gamma)
         before = agreement(model.policy, own, labels)
-        fit_to(model.policy, observations + own, actions + labels, generator)
+        returns = np.concatenate([returns, own_returns])
+        fit_to(model.policy, observations + own, actions + labels, generator, returns if critic else None)
         result.update(
             dagger_steps=len(labels),
             dagger_agreement_before=round(before, 3),
@@ -196,18 +212,25 @@ def imitate_greedy(model: Any, venv: Any, steps: int, seed: int, dagger: int = 0
         )
     result["agreement"] = round(agreement(model.policy, observations, actions), 3)
     result["forward_share"] = round(float(np.mean(np.array(actions) == 0)), 3)
+    if critic:
+        result["value_steps"] = int(np.isfinite(returns).sum())
+        explained = explained_variance(model.policy, observations + own, returns)
+        result["value_explained_variance"] = round(explained, 3) if np.isfinite(explained) else None
     return result
 
 
 def _drive(
-    venv: Any, teachers: list[Any], steps: int, desc: str, driver: Any = None
-) -> tuple[list[dict[str, np.ndarray]], list[int]]:
+    venv: Any, teachers: list[Any], steps: int, desc: str, driver: Any = None, gamma: float = 1.0
+) -> tuple[list[dict[str, np.ndarray]], list[int], np.ndarray]:
     """About ``steps`` steps of ``venv`` (a whole number per env), driven by ``teachers`` or, given, by
-    ``driver``'s deterministic actions: each step's observation and what its env's teacher chose there."""
+    ``driver``'s deterministic actions: each step's observation, what its env's teacher chose there, and the
+    discounted return from it (``gamma``; NaN where its episode had not ended when the drives stopped)."""
     from tqdm import tqdm
 
     observations: list[dict[str, np.ndarray]] = []
     labels: list[int] = []
+    rewards: list[np.ndarray] = []
+    ended: list[np.ndarray] = []
     obs = venv.reset()
     rounds = max(1, steps // venv.num_envs)
     bar = tqdm(total=rounds * venv.num_envs, desc=desc, unit="step")
@@ -217,12 +240,26 @@ def _drive(
         observations += [{k: v[i].copy() for k, v in obs.items()} for i in range(venv.num_envs)]
         labels += chosen
         driven = np.array(chosen) if driver is None else driver.predict(obs, deterministic=True)[0]
-        obs, _, dones, _ = venv.step(np.asarray(driven))
+        obs, reward, dones, _ = venv.step(np.asarray(driven))
+        rewards.append(np.asarray(reward, dtype=float))
+        ended.append(np.asarray(dones, dtype=bool))
         for i, done in enumerate(dones):
             if done:
                 teachers[i].reset()
     bar.close()
-    return observations, labels
+    return observations, labels, discounted_returns(np.array(rewards), np.array(ended), gamma).reshape(-1)
+
+
+def discounted_returns(rewards: np.ndarray, ended: np.ndarray, gamma: float) -> np.ndarray:
+    """Each step's discounted sum of rewards to its episode's end, for rewards and ends of shape (steps, envs)
+    (the vector env's order: a row per step of all envs). An episode cut at the time limit counts as ended
+    there; steps of an episode still running at the last row have no return yet (NaN)."""
+    returns = np.empty_like(rewards, dtype=float)
+    running = np.full(rewards.shape[1], np.nan)
+    for t in range(len(rewards) - 1, -1, -1):
+        running = np.where(ended[t], rewards[t], rewards[t] + gamma * running)
+        returns[t] = running
+    return returns
 
 
 def _batch(observations: list[dict[str, np.ndarray]]) -> dict[str, Any]:
@@ -231,16 +268,30 @@ def _batch(observations: list[dict[str, np.ndarray]]) -> dict[str, Any]:
     return {k: torch.as_tensor(np.stack([o[k] for o in observations])) for k in observations[0]}
 
 
-def fit_to(policy: Any, observations: list[dict[str, np.ndarray]], actions: list[int], generator: Any) -> None:
-    """``IMITATION_EPOCHS`` epochs of cross-entropy of ``policy``'s action distribution on ``actions``."""
+def fit_to(
+    policy: Any,
+    observations: list[dict[str, np.ndarray]],
+    actions: list[int],
+    generator: Any,
+    returns: np.ndarray | None = None,
+) -> None:
+    """``IMITATION_EPOCHS`` epochs of cross-entropy of ``policy``'s action distribution on ``actions``; given
+    ``returns``, plus ``IMITATION_VALUE_WEIGHT`` times the value head's squared error on the finite ones."""
     import torch
 
     batch, target = _batch(observations), torch.as_tensor(np.array(actions))
+    if returns is not None:
+        value_target = torch.as_tensor(np.nan_to_num(returns), dtype=torch.float32)
+        known = torch.as_tensor(np.isfinite(returns))
     optimizer = torch.optim.Adam(policy.parameters(), lr=PPO_SETTINGS["learning_rate"])
     for _ in range(IMITATION_EPOCHS):
         for index in torch.randperm(len(target), generator=generator).split(IMITATION_BATCH):
-            _, log_prob, _ = policy.evaluate_actions({k: v[index] for k, v in batch.items()}, target[index])
+            values, log_prob, _ = policy.evaluate_actions({k: v[index] for k, v in batch.items()}, target[index])
             loss = -log_prob.mean()
+            if returns is not None and bool(known[index].any()):
+                rows = index[known[index]]
+                error = values.flatten()[known[index]] - value_target[rows]
+                loss = loss + IMITATION_VALUE_WEIGHT * (error**2).mean()
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -253,6 +304,22 @@ def agreement(policy: Any, observations: list[dict[str, np.ndarray]], actions: l
     with torch.no_grad():
         probs = policy.get_distribution(_batch(observations)).distribution.probs
     return float((probs.argmax(1) == torch.as_tensor(np.array(actions))).float().mean())
+
+
+def explained_variance(policy: Any, observations: list[dict[str, np.ndarray]], returns: np.ndarray) -> float:
+    """The share of the finite ``returns``' variance that ``policy``'s value head explains (1 - var(G - V) /
+    var(G), as stable-baselines3 logs it; NaN with fewer than two returns or none that vary)."""
+    import torch
+
+    known = np.isfinite(returns)
+    if known.sum() < 2:
+        return float("nan")
+    with torch.no_grad():
+        kept = [o for o, k in zip(observations, known, strict=True) if k]
+        values = policy.predict_values(_batch(kept)).numpy().ravel()
+    target = returns[known]
+    spread = float(np.var(target))
+    return float("nan") if spread == 0 else 1.0 - float(np.var(target - values)) / spread
 
 
 def plot_progress(progress_csv: Path) -> Path | None:
