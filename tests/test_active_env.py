@@ -10,7 +10,7 @@ import pimm_env  # noqa: F401  (registers the envs)
 from pimm_agents.active.env import ActiveConfig, belief_features, scan_sectors, weight_near
 from pimm_agents.active.primitives import blocked_ahead
 from pimm_agents.localizer import Hypothesis, PoseEstimate
-from pimm_env.errors import EnvError
+from pimm_env.errors import EnvError, ExperimentError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -154,6 +154,27 @@ def test_policy_training_repeats_per_seed(tmp_path):
 
     # the record's command names each world with its own --world, as the command line takes them
     assert json.loads((tmp_path / "p0.json").read_text())["reproduce"].endswith("--localizer amcl --world iilab")
+
+
+@pytest.mark.expensive
+def test_policy_training_on_ray_writes_the_policy_of_local_workers(tmp_path):
+    pytest.importorskip("ray")
+    import json
+
+    import torch
+    from stable_baselines3 import PPO
+
+    from training.policy import train_policy
+
+    def train(name: str, **backend: str) -> dict:
+        path = train_policy(["iilab"], 32, tmp_path / name, seed=5, localizer="amcl", workers=2, **backend)
+        return PPO.load(str(path), device="cpu").policy.state_dict()
+
+    local, on_ray = train("local.zip"), train("ray.zip", backend="ray")
+    assert all(torch.equal(local[k], on_ray[k]) for k in local)
+    assert " --backend ray" in json.loads((tmp_path / "ray.json").read_text())["reproduce"]
+    with pytest.raises(ExperimentError, match="local or ray"):
+        train_policy(["iilab"], 32, tmp_path / "x.zip", localizer="amcl", backend="slurm")
 
 
 @pytest.mark.expensive

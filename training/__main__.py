@@ -321,15 +321,18 @@ def policy(
     imitate: int = typer.Option(0, min=0, help="steps of the greedy policy the network first learns from"),
     dagger: int = typer.Option(0, min=0, help="then steps of its own drives, labelled by greedy (DAgger)"),
     critic: bool = typer.Option(False, help="the imitation fits the value head to the drives' returns too"),
+    backend: str = typer.Option("local", help="local (worker processes) or ray (the envs as Ray actors)"),
+    address: str | None = typer.Option(None, help="a Ray cluster's address (with --backend ray)"),
     worlds_dir: Path = typer.Option(Path("build/worlds"), "--worlds", help="folder of the generated worlds"),
     out: Path = typer.Option(Path("build/policies/active_ppo.zip"), help="the policy's .zip (record beside it)"),
 ) -> None:
     """Train an active-localization policy (pimm/ActiveLocalization-v0) with stable-baselines3."""
+    _check_backend(backend, address)
     from training.buildings import POLICY_TRAINING_SEEDS
     from training.policy import train_policy
 
     chosen = list(world) or [str(_ready_building(building, worlds_dir)) for building in POLICY_TRAINING_SEEDS]
-    path = train_policy(chosen, steps, out, seed, localizer, workers, algo, imitate, dagger, critic)
+    path = train_policy(chosen, steps, out, seed, localizer, workers, algo, imitate, dagger, critic, backend, address)
     typer.echo(f"wrote {path} and {path.with_suffix('.json')} (training log: {path.with_suffix('')}_log/)")
 
 

@@ -89,16 +89,21 @@ def train_policy(
     imitate: int = 0,
     dagger: int = 0,
     critic: bool = False,
+    backend: str = "local",
+    address: str | None = None,
 ) -> Path:
     """Train and save a policy to ``out`` (a ``.zip``); returns its path. With ``imitate`` > 0, the policy
     network first learns to act as the ``greedy`` policy does, from that many of its steps in the same envs
     (:func:`imitate_greedy`; with ``dagger`` > 0, then from as many steps of its own drives, labelled by
     ``greedy``), and PPO goes on from there. With ``critic``, the imitation fits the value head too, to the
-    returns of the steps it learns from, so that PPO's first advantages are not an untrained critic's noise."""
+    returns of the steps it learns from, so that PPO's first advantages are not an untrained critic's noise.
+    ``backend`` ``ray`` runs the envs as Ray actors (a local Ray, or the cluster at ``address``) instead of
+    worker processes; the same seeds, so the same policy."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
+    from pimm_agents.experiments.engines import check_backend
     from pimm_env.errors import EnvError
 
     if algo != "ppo":
@@ -107,10 +112,16 @@ def train_policy(
         raise EnvError("policy training needs steps >= 1, workers >= 1, imitate and dagger >= 0 and a world")
     if (dagger or critic) and not imitate:
         raise EnvError("--dagger and --critic fit on the drives of --imitate: give --imitate too")
+    check_backend(backend, address)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     builders = [_make_env(worlds, localizer, seed + i) for i in range(workers)]
-    venv = SubprocVecEnv(builders) if workers > 1 else DummyVecEnv(builders)
+    if backend == "ray":
+        from training.ray_envs import RayVecEnv
+
+        venv = RayVecEnv(builders, address)
+    else:
+        venv = SubprocVecEnv(builders) if workers > 1 else DummyVecEnv(builders)
     settings = dict(PPO_SETTINGS)
     settings["n_steps"] = min(settings["n_steps"], max(steps // len(builders), 8))
     settings["batch_size"] = min(settings["batch_size"], settings["n_steps"] * len(builders))
@@ -142,6 +153,7 @@ def train_policy(
         "worlds": [str(w) for w in worlds],
         "localizer": localizer,
         "workers": workers,
+        "backend": backend,
         "settings": settings,
         "imitate": imitate,
         "dagger": dagger,
@@ -152,6 +164,7 @@ def train_policy(
         "reproduce": f"python -m training policy --algo {algo} --steps {steps} --imitate {imitate}"
         + (f" --dagger {dagger}" if dagger else "")
         + (" --critic" if critic else "")
+        + (" --backend ray" if backend == "ray" else "")
         + f" --seed {seed}"
         f" --workers {workers} --localizer {localizer}" + "".join(f" --world {w}" for w in worlds),
     }
