@@ -158,6 +158,8 @@ def test_policy_training_repeats_per_seed(tmp_path):
 
 @pytest.mark.expensive
 def test_policy_training_on_ray_writes_the_policy_of_local_workers(tmp_path):
+    """The recipe's steps (imitation with the critic, then PPO) over two envs: Ray actors or worker processes,
+    the same weights to the bit."""
     pytest.importorskip("ray")
     import json
 
@@ -167,7 +169,9 @@ def test_policy_training_on_ray_writes_the_policy_of_local_workers(tmp_path):
     from training.policy import train_policy
 
     def train(name: str, **backend: str) -> dict:
-        path = train_policy(["iilab"], 32, tmp_path / name, seed=5, localizer="amcl", workers=2, **backend)
+        path = train_policy(
+            ["iilab"], 32, tmp_path / name, seed=5, localizer="amcl", workers=2, imitate=32, critic=True, **backend
+        )
         return PPO.load(str(path), device="cpu").policy.state_dict()
 
     local, on_ray = train("local.zip"), train("ray.zip", backend="ray")

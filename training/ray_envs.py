@@ -1,8 +1,7 @@
 """A stable-baselines3 vector env whose envs run as Ray actors (``python -m training policy --backend ray``).
 
-Each actor holds one env in a one-env ``DummyVecEnv``, which already does what a vector env must (the reset at
-an episode's end, the terminal observation in the info, the seeds and options of the next reset); this class
-hands every call to the actors and stacks their answers. The seeds are those ``SubprocVecEnv`` gives its
+Each actor holds one env and answers as a ``SubprocVecEnv`` worker does; this class hands every call to the
+actors and stacks their answers as ``SubprocVecEnv`` stacks its workers'. The seeds are those it gives its
 workers, so a run on Ray writes the policy that ``--workers`` local processes write.
 """
 
@@ -19,38 +18,54 @@ from pimm_env.errors import ExperimentError
 
 
 class _OneEnv:
-    """A Ray actor's state: one env in a ``DummyVecEnv``, its torch on one thread (one CPU per actor)."""
+    """A Ray actor's state: one env, its torch on one thread (one CPU per actor). It answers as a
+    ``SubprocVecEnv`` worker does (the reset at an episode's end, the terminal observation in the info, the
+    rewards as the env gives them), so that both backends hand PPO the same numbers."""
 
     def __init__(self, build: Callable[[], gym.Env]) -> None:
-        from stable_baselines3.common.vec_env import DummyVecEnv
-
         from pimm_agents.experiments.engines import limit_threads
 
         limit_threads(1)
-        self.venv = DummyVecEnv([build])
+        self.env = build()
 
     def spaces(self) -> tuple[gym.Space, gym.Space]:
-        return self.venv.observation_space, self.venv.action_space
+        return self.env.observation_space, self.env.action_space
 
-    def reset(self, seed: int | None, options: dict[str, Any] | None) -> tuple[Any, list[dict[str, Any]]]:
-        self.venv._seeds = [seed]  # as given: ``seed(None)`` would draw one from NumPy's global state
-        self.venv.set_options(options or {})
-        return self.venv.reset(), self.venv.reset_infos
+    def reset(self, seed: int | None, options: dict[str, Any] | None) -> tuple[Any, dict[str, Any]]:
+        return self.env.reset(seed=seed, **({"options": options} if options else {}))
 
-    def step(self, action: np.ndarray) -> VecEnvStepReturn:
-        return self.venv.step(action)
+    def step(self, action: Any) -> tuple[Any, float, bool, dict[str, Any], dict[str, Any]]:
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        done = terminated or truncated
+        info["TimeLimit.truncated"] = truncated and not terminated
+        reset_info: dict[str, Any] = {}
+        if done:
+            info["terminal_observation"] = observation
+            observation, reset_info = self.env.reset()
+        return observation, reward, done, info, reset_info
 
-    def call(self, method: str, *args: Any, **kwargs: Any) -> Any:
-        return getattr(self.venv, method)(*args, **kwargs)
+    def get_attr(self, name: str) -> Any:
+        return self.env.get_wrapper_attr(name)
+
+    def set_attr(self, name: str, value: Any) -> None:
+        setattr(self.env, name, value)
+
+    def env_method(self, name: str, *args: Any, **kwargs: Any) -> Any:
+        return self.env.get_wrapper_attr(name)(*args, **kwargs)
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper]) -> bool:
+        from stable_baselines3.common.env_util import is_wrapped
+
+        return is_wrapped(self.env, wrapper_class)
 
     def close(self) -> None:
-        self.venv.close()
+        self.env.close()
 
 
-def _stack(parts: Sequence[Any]) -> Any:
-    if isinstance(parts[0], dict):
-        return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
-    return np.concatenate(parts)
+def _stack(observations: Sequence[Any]) -> Any:
+    if isinstance(observations[0], dict):
+        return {key: np.stack([o[key] for o in observations]) for key in observations[0]}
+    return np.stack(observations)
 
 
 class RayVecEnv(VecEnv):
@@ -80,27 +95,21 @@ class RayVecEnv(VecEnv):
         super().__init__(len(builders), observation_space, action_space)
         self._pending: list[Any] = []
 
-    def _indices(self, indices: VecEnvIndices) -> list[int]:
-        return list(self._get_indices(indices))
-
     def reset(self) -> Any:
         answers = self._ray.get([a.reset.remote(self._seeds[i], self._options[i]) for i, a in enumerate(self._actors)])
-        self.reset_infos = [infos[0] for _, infos in answers]
+        self.reset_infos = [info for _, info in answers]
         self._reset_seeds()
         self._reset_options()
         return _stack([observation for observation, _ in answers])
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._pending = [a.step.remote(np.asarray(actions[i : i + 1])) for i, a in enumerate(self._actors)]
+        self._pending = [a.step.remote(action) for a, action in zip(self._actors, actions, strict=True)]
 
     def step_wait(self) -> VecEnvStepReturn:
         answers = self._ray.get(self._pending)
         self._pending = []
-        observations = _stack([answer[0] for answer in answers])
-        rewards = np.concatenate([answer[1] for answer in answers])
-        dones = np.concatenate([answer[2] for answer in answers])
-        infos = [answer[3][0] for answer in answers]
-        return observations, rewards, dones, infos
+        observations, rewards, dones, infos, self.reset_infos = zip(*answers, strict=True)
+        return _stack(observations), np.stack(rewards), np.stack(dones), list(infos)
 
     def close(self) -> None:
         try:
@@ -111,19 +120,18 @@ class RayVecEnv(VecEnv):
             if self._started:
                 self._ray.shutdown()
 
+    def _ask(self, method: str, indices: VecEnvIndices, *args: Any, **kwargs: Any) -> list[Any]:
+        actors = [self._actors[i] for i in self._get_indices(indices)]
+        return self._ray.get([getattr(a, method).remote(*args, **kwargs) for a in actors])
+
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
-        calls = [self._actors[i].call.remote("get_attr", attr_name) for i in self._indices(indices)]
-        return [answer[0] for answer in self._ray.get(calls)]
+        return self._ask("get_attr", indices, attr_name)
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
-        self._ray.get([self._actors[i].call.remote("set_attr", attr_name, value) for i in self._indices(indices)])
+        self._ask("set_attr", indices, attr_name, value)
 
     def env_method(self, method_name: str, *args: Any, indices: VecEnvIndices = None, **kwargs: Any) -> list[Any]:
-        calls = [
-            self._actors[i].call.remote("env_method", method_name, *args, **kwargs) for i in self._indices(indices)
-        ]
-        return [answer[0] for answer in self._ray.get(calls)]
+        return self._ask("env_method", indices, method_name, *args, **kwargs)
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
-        calls = [self._actors[i].call.remote("env_is_wrapped", wrapper_class) for i in self._indices(indices)]
-        return [answer[0] for answer in self._ray.get(calls)]
+        return self._ask("env_is_wrapped", indices, wrapper_class)
