@@ -108,7 +108,8 @@ class RayVecEnv(VecEnv):
     def step_wait(self) -> VecEnvStepReturn:
         answers = self._ray.get(self._pending)
         self._pending = []
-        observations, rewards, dones, infos, self.reset_infos = zip(*answers, strict=True)
+        observations, rewards, dones, infos, reset_infos = zip(*answers, strict=True)
+        self.reset_infos = list(reset_infos)
         return _stack(observations), np.stack(rewards), np.stack(dones), list(infos)
 
     def close(self) -> None:
