@@ -323,6 +323,7 @@ def explained_variance(policy: Any, observations: list[dict[str, np.ndarray]], r
     """The share of the finite ``returns``' variance that ``policy``'s value head explains (1 - var(G - V) /
     var(G), as stable-baselines3 logs it; NaN with fewer than two returns or none that vary)."""
     import torch
+    from stable_baselines3.common.utils import explained_variance as stable_baselines3_explained_variance
 
     known = np.isfinite(returns)
     if known.sum() < 2:
@@ -330,9 +331,7 @@ def explained_variance(policy: Any, observations: list[dict[str, np.ndarray]], r
     with torch.no_grad():
         kept = [o for o, k in zip(observations, known, strict=True) if k]
         values = policy.predict_values(_batch(kept)).numpy().ravel()
-    target = returns[known]
-    spread = float(np.var(target))
-    return float("nan") if spread == 0 else 1.0 - float(np.var(target - values)) / spread
+    return float(stable_baselines3_explained_variance(values, returns[known]))
 
 
 def plot_progress(progress_csv: Path) -> Path | None:
