@@ -14,8 +14,6 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
-from pimm_env.errors import ExperimentError
-
 
 class _OneEnv:
     """A Ray actor's state: one env, its torch on one thread (one CPU per actor). It answers as a
@@ -73,22 +71,10 @@ class RayVecEnv(VecEnv):
     with a CPU per env unless one runs) or on the cluster at ``address``."""
 
     def __init__(self, builders: Sequence[Callable[[], gym.Env]], address: str | None = None) -> None:
-        try:
-            import ray
-        except ImportError:
-            raise ExperimentError(
-                "--backend ray needs Ray: pip install 'ray>=2.9' (or the project's [ray] extra)"
-            ) from None
+        from pimm_agents.experiments.engines import start_ray
+
+        ray, self._started = start_ray(len(builders), address)
         self._ray = ray
-        self._started = not ray.is_initialized()
-        if self._started:
-            ray.init(
-                address=address,
-                num_cpus=None if address else len(builders),
-                include_dashboard=False,
-                log_to_driver=False,
-                configure_logging=False,
-            )
         actor = ray.remote(num_cpus=1)(_OneEnv)
         self._actors = [actor.remote(build) for build in builders]
         observation_space, action_space = ray.get(self._actors[0].spaces.remote())

@@ -71,13 +71,9 @@ def run_jobs(
     return [results[i] for i in range(len(arguments))]
 
 
-def _run_on_ray(
-    fn: Callable[[Any], Any],
-    arguments: Sequence[Any],
-    workers: int,
-    address: str | None,
-    finish: Callable[[int, Any], None],
-) -> None:
+def start_ray(workers: int, address: str | None) -> tuple[Any, bool]:
+    """Ray, connected: to the running one, to the cluster at ``address``, or to a local one started here with
+    ``workers`` CPUs; and whether it was started here (the caller then shuts it down)."""
     try:
         import ray
     except ImportError:
@@ -93,6 +89,17 @@ def _run_on_ray(
             log_to_driver=False,
             configure_logging=False,
         )
+    return ray, started
+
+
+def _run_on_ray(
+    fn: Callable[[Any], Any],
+    arguments: Sequence[Any],
+    workers: int,
+    address: str | None,
+    finish: Callable[[int, Any], None],
+) -> None:
+    ray, started = start_ray(workers, address)
     try:
         task = ray.remote(num_cpus=1)(_on_one_thread)
         pending = {task.remote((fn, argument)): i for i, argument in enumerate(arguments)}
