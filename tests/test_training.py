@@ -108,6 +108,36 @@ def test_rebuild_command_makes_every_perception_file_for_a_world(room_file, tmp_
     assert len(fmap) >= 3 and fmap.dim == segmenter.descriptor_dim
 
 
+def test_train_command_builds_the_network_of_the_widths_given(room_file, tmp_path, monkeypatch):
+    """`python -m training train --local-widths ...`: the weights are of those widths, and the record says so;
+    a width that is not a positive integer, or widths with --init, are refused by option."""
+    from typer.testing import CliRunner
+
+    from pimm_agents.perception.pointnet import load_checkpoint
+    from training.__main__ import app
+
+    monkeypatch.chdir(tmp_path)
+    runner = CliRunner()
+    made = runner.invoke(app, ["dataset", "--world", str(room_file), "--scans", "10", "--validation", "2"])
+    assert made.exit_code == 0, made.output
+    out = tmp_path / "small.pt"
+    base = ["train", "--world", str(room_file), "--epochs", "1", "--points", "256", "--out", str(out)]
+    widths = ["--local-widths", "16,8", "--global-widths", "12,24", "--head-widths", "10,6"]
+    result = runner.invoke(app, [*base, *widths])
+    assert result.exit_code == 0, result.output
+    model, record = load_checkpoint(out)
+    assert (model.config.local_widths, model.config.global_widths, model.config.head_widths) == (
+        (16, 8),
+        (12, 24),
+        (10, 6),
+    )
+    assert tuple(record["network"]["global_widths"]) == (12, 24) and model.config.points == 256
+    bad = runner.invoke(app, [*base, "--head-widths", "64,0"])
+    assert bad.exit_code != 0 and "--head-widths" in bad.output and "positive integers" in bad.output
+    both = runner.invoke(app, [*base, "--local-widths", "16,8", "--init", str(out)])
+    assert both.exit_code != 0 and "--init" in both.output
+
+
 def test_scans_and_fingerprints_are_the_same_whichever_engine_takes_them(tmp_path):
     """Split over two local processes, the data equal the serial run's (on Ray: the expensive test below)."""
     serial = generate("iilab", 6, seed=3, progress=False)

@@ -91,6 +91,11 @@ def train(
     ),
     epochs: int = typer.Option(40, min=1),
     points: int = typer.Option(2048, min=64, help="points per scan the network looks at"),
+    local_widths: str | None = typer.Option(
+        None, help="the local MLP's widths, e.g. 48,48 (default: PointNetConfig's)"
+    ),
+    global_widths: str | None = typer.Option(None, help="the global MLP's widths, e.g. 96,192"),
+    head_widths: str | None = typer.Option(None, help="the class head's widths, e.g. 64,32"),
     seed: int = typer.Option(0),
     learning_rate: float = typer.Option(1e-3, help="Adam's learning rate (thesis: 1e-3)"),
     init: Path | None = typer.Option(None, help="go on from these weights instead of from scratch"),
@@ -109,6 +114,11 @@ def train(
     if out is None and (len(worlds) > 1 or cloud_sets):
         raise typer.BadParameter("pooling several worlds: say where the weights go", param_hint="--out")
     config = TrainConfig(epochs=epochs, seed=seed, learning_rate=learning_rate)
+    widths = _widths(local_widths=local_widths, global_widths=global_widths, head_widths=head_widths)
+    if widths and init is not None:
+        raise typer.BadParameter(
+            "--init goes on with its own network's widths; leave the widths out", param_hint="--init"
+        )
     scans: Any
     if cloud_sets:
         paths = list(cloud_sets)
@@ -116,13 +126,13 @@ def train(
         order = np.random.default_rng(seed).permutation(len(scans))
         cut = round(0.8 * len(scans))
         train_set, test_set = scans.subset(np.sort(order[:cut])), scans.subset(np.sort(order[cut:]))
-        network = PointNetConfig(points=points, inputs="cloud", context_offsets=())
+        network = PointNetConfig(points=points, inputs="cloud", context_offsets=(), **widths)
         worlds = sorted(set(str(w) for w in scans.worlds))
     else:
         paths = [_dataset_paths(world)[0] for world in worlds]
         scans = pool([load(path) for path in paths])
         train_set, test_set = split(scans, 0.8, np.random.default_rng(seed))
-        network = PointNetConfig(points=points)
+        network = PointNetConfig(points=points, **widths)
     main_path = paths[0]
     initial = load_checkpoint(init)[0] if init is not None else None
     if initial is not None:
@@ -154,6 +164,23 @@ def train(
     record = save_checkpoint(model, target, record)  # its record, checked on every load, goes beside it
     size = target.stat().st_size / 1e6
     typer.echo(f"wrote {target} ({size:.2f} MB, {record['parameters']} parameters)")
+
+
+def _widths(**given: str | None) -> dict[str, tuple[int, ...]]:
+    """The network widths given on the command line (comma-separated positive integers), by field name."""
+    widths = {}
+    for name, text in given.items():
+        if text is None:
+            continue
+        try:
+            values = tuple(int(part) for part in text.split(","))
+        except ValueError:
+            values = ()
+        if not values or min(values) < 1:
+            option = "--" + name.replace("_", "-")
+            raise typer.BadParameter(f"{text!r}: give positive integers separated by commas", param_hint=option)
+        widths[name] = values
+    return widths
 
 
 @command_line.command(app)
