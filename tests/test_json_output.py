@@ -52,6 +52,10 @@ def test_perception_and_bench_print_one_json_document(room_world):
         bench
     )  # where the time goes
     assert bench["pf_converged_particles"] < 10_000  # KLD shrank the converged set the bench times
+    # the scan's perception is a part of each update, and the thesis's network is compared with it too
+    assert 0 < bench["pimm_perception_ms"] < bench["pimm_pipeline_ms"]
+    ratio = bench["thesis_pointnet_ms"] / bench["pimm_perception_ms"]
+    assert bench["thesis_pointnet_over_perception"] == pytest.approx(ratio)
 
 
 def test_a_missing_world_is_one_line_naming_it(tmp_path):
