@@ -102,6 +102,8 @@ def train(
     out: Path | None = typer.Option(None, help="checkpoint path (default with one world: its own pointnet.pt)"),
 ) -> None:
     """Train the segmenter and descriptor on the worlds' datasets (80/20 split), report per-epoch metrics."""
+    from dataclasses import replace
+
     import numpy as np
 
     from pimm_agents.perception.files import own_checkpoint_path
@@ -126,13 +128,13 @@ def train(
         order = np.random.default_rng(seed).permutation(len(scans))
         cut = round(0.8 * len(scans))
         train_set, test_set = scans.subset(np.sort(order[:cut])), scans.subset(np.sort(order[cut:]))
-        network = PointNetConfig(points=points, inputs="cloud", context_offsets=(), **widths)
+        network = replace(PointNetConfig(points=points, inputs="cloud", context_offsets=()), **widths)
         worlds = sorted(set(str(w) for w in scans.worlds))
     else:
         paths = [_dataset_paths(world)[0] for world in worlds]
         scans = pool([load(path) for path in paths])
         train_set, test_set = split(scans, 0.8, np.random.default_rng(seed))
-        network = PointNetConfig(points=points, **widths)
+        network = replace(PointNetConfig(points=points), **widths)
     main_path = paths[0]
     initial = load_checkpoint(init)[0] if init is not None else None
     if initial is not None:
@@ -166,9 +168,9 @@ def train(
     typer.echo(f"wrote {target} ({size:.2f} MB, {record['parameters']} parameters)")
 
 
-def _widths(**given: str | None) -> dict[str, tuple[int, ...]]:
+def _widths(**given: str | None) -> dict[str, Any]:
     """The network widths given on the command line (comma-separated positive integers), by field name."""
-    widths = {}
+    widths: dict[str, Any] = {}
     for name, text in given.items():
         if text is None:
             continue
@@ -405,6 +407,9 @@ def rebuild(
         cloud_sets=[],
         epochs=epochs,
         points=PointNetConfig().points,
+        local_widths=None,
+        global_widths=None,
+        head_widths=None,
         seed=seed,
         learning_rate=1e-3,
         init=None,

@@ -101,7 +101,7 @@ def train_policy(
     worker processes; the same seeds, so the same policy."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
     from pimm_agents.experiments.engines import check_backend
     from pimm_env.errors import EnvError
@@ -116,6 +116,7 @@ def train_policy(
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     builders = [_make_env(worlds, localizer, seed + i) for i in range(workers)]
+    venv: VecEnv
     if backend == "ray":
         from training.ray_envs import RayVecEnv
 
@@ -182,7 +183,7 @@ IMITATION_VALUE_WEIGHT = 0.5
 
 def imitate_greedy(
     model: Any, venv: Any, steps: int, seed: int, dagger: int = 0, critic: bool = False
-) -> dict[str, float]:
+) -> dict[str, float | None]:
     """Drive ``venv`` for ``steps`` steps with the ``greedy`` policy (one per env, reset at each episode) and
     fit ``model``'s policy network to its actions (cross-entropy, Adam): a start for PPO that already follows
     the guide and drives where it is open, instead of the uniform policy that PPO's few thousand episodes here
@@ -209,7 +210,7 @@ def imitate_greedy(
     observations, actions, returns = _drive(venv, teachers, steps, "imitation", gamma=model.gamma)
     generator = torch.Generator().manual_seed(seed)
     fit_to(model.policy, observations, actions, generator, returns if critic else None)
-    result: dict[str, float] = {"steps": len(actions)}
+    result: dict[str, float | None] = {"steps": len(actions)}
     own: list[dict[str, np.ndarray]] = []
     if dagger:
         for teacher in teachers:
