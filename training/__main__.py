@@ -175,7 +175,7 @@ def _widths(**given: str | None) -> dict[str, Any]:
         if text is None:
             continue
         try:
-            values = tuple(int(part) for part in text.split(","))
+            values = _comma_integers(text)
         except ValueError:
             values = ()
         if not values or min(values) < 1:
@@ -379,12 +379,17 @@ def _ready_building(seed: int, worlds: Path) -> Path:
     return world_file
 
 
+def _comma_integers(text: str) -> tuple[int, ...]:
+    """Integers separated by commas (``--seeds A,B,C``, ``--local-widths A,B``); ValueError if a part is not one."""
+    return tuple(int(part) for part in text.split(","))
+
+
 def _seed_list(text: str) -> list[int]:
     try:
         if "-" in text:
             first, last = (int(v) for v in text.split("-"))
             return list(range(first, last + 1))
-        return [int(v) for v in text.split(",")]
+        return list(_comma_integers(text))
     except ValueError:
         raise typer.BadParameter(f"expected 'A-B' or 'A,B,C', got {text!r}", param_hint="--seeds") from None
 
