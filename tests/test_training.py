@@ -9,8 +9,18 @@ from pimm_agents.perception.pointnet import PointNetConfig, PointNetSegmenter, s
 from pimm_agents.perception.segmenter import Segmenter
 from pimm_agents.preparation.fingerprints import _descriptors, build_fingerprint_map
 from pimm_env.envs.iilab_env import IILabEnv
+from pimm_env.errors import PerceptionError
 from training.dataset import generate, load, save, split
-from training.train import TrainConfig, class_weights, contrastive_loss, pair_batches, train
+from training.train import (
+    TrainConfig,
+    check_teacher,
+    class_weights,
+    contrastive_loss,
+    distillation_loss,
+    make_sampler,
+    pair_batches,
+    train,
+)
 
 TINY = PointNetConfig(points=128, local_widths=(8, 16), global_widths=(16, 32), head_widths=(16, 8), descriptor_dim=8)
 
@@ -35,6 +45,48 @@ def test_contrastive_loss_prefers_descriptors_that_agree_with_places():
     good = torch.nn.functional.normalize(torch.tensor([[1.0, 0.1], [1.0, 0.0], [0.0, 1.0], [0.1, 1.0]]), dim=1)
     bad = good[[0, 2, 1, 3]]
     assert contrastive_loss(good, positions, 2.0, 0.1) < contrastive_loss(bad, positions, 2.0, 0.1)
+
+
+def test_distillation_loss_is_zero_only_where_the_student_agrees_with_the_teacher():
+    teacher = torch.tensor([[[3.0, -1.0], [0.0, 2.0], [0.0, 0.0], [-2.0, 0.5]]])  # (batch, classes, points)
+    assert float(distillation_loss(teacher.clone(), teacher, 2.0)) == pytest.approx(0.0, abs=1e-6)
+    shifted = teacher + 5.0  # the same probabilities: softmax ignores a constant per point
+    assert float(distillation_loss(shifted, teacher, 2.0)) == pytest.approx(0.0, abs=1e-5)
+    swapped = teacher[:, [1, 0, 3, 2], :]
+    assert float(distillation_loss(swapped, teacher, 2.0)) > 0.5
+
+
+@pytest.mark.expensive
+def test_a_student_learns_the_teachers_classes():
+    """Trained on a teacher's probabilities alone, a smaller student agrees with it on more points than the
+    same student left where it started (learning rate 0); a teacher of other inputs is refused by name."""
+    scans = generate("iilab", 6, seed=3, progress=False)
+    train_set, test_set = split(scans, 0.8, np.random.default_rng(0))
+    teacher, _ = train(
+        train_set, test_set, TrainConfig(epochs=8, batch_pairs=1, learning_rate=1e-2), TINY, progress=False
+    )
+    student = PointNetConfig(points=128, local_widths=(6, 8), global_widths=(8, 16), head_widths=(8, 4))
+    runs = {
+        rate: train(
+            train_set,
+            test_set,
+            TrainConfig(epochs=12, batch_pairs=1, seed=1, distill_weight=1.0, learning_rate=rate),
+            student,
+            progress=False,
+            teacher=teacher,
+        )
+        for rate in (1e-2, 0.0)
+    }
+    history = runs[1e-2][1]
+    assert history[-1]["distillation_loss"] < history[0]["distillation_loss"]
+    inputs = torch.from_numpy(np.stack([make_sampler(scans, TINY).sample(i, 0)[0] for i in range(len(scans))]))
+    with torch.inference_mode():
+        wanted = teacher(inputs)[0].argmax(1)
+        agree = {rate: float((m(inputs)[0].argmax(1) == wanted).float().mean()) for rate, (m, _) in runs.items()}
+    assert len(torch.unique(wanted)) > 1 and agree[1e-2] > agree[0.0] + 0.1, agree
+    cloud_teacher = PointNetSegmenter(PointNetConfig(points=128, inputs="cloud", context_offsets=()))
+    with pytest.raises(PerceptionError, match="teacher network's inputs"):
+        check_teacher(cloud_teacher, TINY)
 
 
 def test_pair_batches_pair_each_anchor_with_a_near_scan():
@@ -110,7 +162,8 @@ def test_rebuild_command_makes_every_perception_file_for_a_world(room_file, tmp_
 
 def test_train_command_builds_the_network_of_the_widths_given(room_file, tmp_path, monkeypatch):
     """`python -m training train --local-widths ...`: the weights are of those widths, and the record says so;
-    a width that is not a positive integer, or widths with --init, are refused by option."""
+    a width that is not a positive integer, or widths with --init, are refused by option. `--teacher`: a
+    smaller network learns from the first, its record names the teacher; one of other inputs is refused."""
     from typer.testing import CliRunner
 
     from pimm_agents.perception.pointnet import load_checkpoint
@@ -136,6 +189,18 @@ def test_train_command_builds_the_network_of_the_widths_given(room_file, tmp_pat
     assert bad.exit_code != 0 and "--head-widths" in bad.output and "positive integers" in bad.output
     both = runner.invoke(app, [*base, "--local-widths", "16,8", "--init", str(out)])
     assert both.exit_code != 0 and "--init" in both.output
+    taught_path = tmp_path / "taught.pt"
+    teach = ["--teacher", str(out), "--out", str(taught_path), "--local-widths", "8,8", "--global-widths", "8,16"]
+    taught = runner.invoke(app, [*base[:-2], *teach])
+    assert taught.exit_code == 0, taught.output
+    assert "teacher" in taught.output  # its loss reported each epoch
+    record = load_checkpoint(taught_path)[1]
+    assert record["teacher_weights"]["sha256"] == load_checkpoint(out)[1]["sha256"]
+    assert record["history"][0]["distillation_loss"] > 0
+    cloud_path = tmp_path / "cloud.pt"
+    save_checkpoint(PointNetSegmenter(PointNetConfig(points=256, inputs="cloud", context_offsets=())), cloud_path, {})
+    refused = runner.invoke(app, [*base[:-2], "--teacher", str(cloud_path), "--out", str(tmp_path / "no.pt")])
+    assert refused.exit_code != 0 and "--teacher" in refused.output and "inputs" in refused.output
 
 
 def test_scans_and_fingerprints_are_the_same_whichever_engine_takes_them(tmp_path):

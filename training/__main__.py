@@ -99,6 +99,12 @@ def train(
     seed: int = typer.Option(0),
     learning_rate: float = typer.Option(1e-3, help="Adam's learning rate (thesis: 1e-3)"),
     init: Path | None = typer.Option(None, help="go on from these weights instead of from scratch"),
+    teacher: Path | None = typer.Option(
+        None, help="learn from these trained weights' class probabilities too (a smaller network from a larger)"
+    ),
+    distill_weight: float = typer.Option(
+        0.5, min=0.0, max=1.0, help="with --teacher: the loss's share given to matching the teacher"
+    ),
     out: Path | None = typer.Option(None, help="checkpoint path (default with one world: its own pointnet.pt)"),
 ) -> None:
     """Train the segmenter and descriptor on the worlds' datasets (80/20 split), report per-epoch metrics."""
@@ -108,6 +114,7 @@ def train(
 
     from pimm_agents.perception.files import own_checkpoint_path
     from pimm_agents.perception.pointnet import PointNetConfig, load_checkpoint, save_checkpoint
+    from pimm_env.errors import PerceptionError
     from training import cloud_dataset
     from training.dataset import load, pool, split
     from training.train import TrainConfig, describe
@@ -115,7 +122,7 @@ def train(
 
     if out is None and (len(worlds) > 1 or cloud_sets):
         raise typer.BadParameter("pooling several worlds: say where the weights go", param_hint="--out")
-    config = TrainConfig(epochs=epochs, seed=seed, learning_rate=learning_rate)
+    config = TrainConfig(epochs=epochs, seed=seed, learning_rate=learning_rate, distill_weight=distill_weight)
     widths = _widths(local_widths=local_widths, global_widths=global_widths, head_widths=head_widths)
     if widths and init is not None:
         raise typer.BadParameter(
@@ -139,16 +146,24 @@ def train(
     initial = load_checkpoint(init)[0] if init is not None else None
     if initial is not None:
         network = initial.config
+    teacher_model, teacher_record = load_checkpoint(teacher) if teacher is not None else (None, None)
 
     def report(record: dict) -> None:
         ious = " ".join(f"{k} {v:.3f}" for k, v in record["test_iou"].items())
         typer.echo(
             f"epoch {record['epoch']:>3}  {record['seconds']:5.0f} s  loss {record['loss']:.3f} "
-            f"(ce {record['cross_entropy']:.3f}, descriptor {record['descriptor_loss']:.3f})  "
+            f"(ce {record['cross_entropy']:.3f}, descriptor {record['descriptor_loss']:.3f}"
+            + (f", teacher {record['distillation_loss']:.3f}" if teacher is not None else "")
+            + ")  "
             f"train acc {record['train_accuracy']:.3f}  test mIoU {record['test_miou']:.3f} ({ious})"
         )
 
-    model, history = fit(train_set, test_set, config, network, on_epoch=report, initial=initial)
+    try:
+        model, history = fit(
+            train_set, test_set, config, network, on_epoch=report, initial=initial, teacher=teacher_model
+        )
+    except PerceptionError as error:  # a teacher that reads other inputs
+        raise typer.BadParameter(f"{teacher}: {error}", param_hint="--teacher") from None
     target = out or own_checkpoint_path(worlds[0])
     record = {
         "command": "python -m training " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "python -m training",
@@ -160,6 +175,9 @@ def train(
             "test": len(test_set),
         },
         "initial_weights": str(init) if init is not None else None,
+        "teacher_weights": (
+            {"path": str(teacher), "sha256": teacher_record["sha256"]} if teacher_record is not None else None
+        ),
         **describe(config, network, model),
         "history": history,
     }
@@ -418,6 +436,8 @@ def rebuild(
         seed=seed,
         learning_rate=1e-3,
         init=None,
+        teacher=None,
+        distill_weight=0.5,
         out=None,
     )
     validate(world=world, checkpoint=None)

@@ -6,6 +6,10 @@ batches of 16 scans, the learning rate times 0.7 five times over the run (every 
 random rotation is needed; each batch holds 8 pairs of scans taken within ``positive_radius`` of each other,
 and a supervised contrastive loss on the descriptors is added to the cross-entropy so that the global feature
 is a place descriptor by training, not by hope.
+
+A smaller network may learn from a trained one (``teacher``): its class probabilities at a temperature are
+matched to the teacher's on the same points (knowledge distillation, Hinton, Vinyals and Dean 2015), besides
+the labels' cross-entropy.
 """
 
 from __future__ import annotations
@@ -41,6 +45,10 @@ class TrainConfig:
     temperature: float = 0.1
     positive_radius: float = 2.0
     seed: int = 0
+    #: with a teacher: the share of the loss that matches its class probabilities (the rest is the labels'
+    #: cross-entropy) and the temperature they are softened at (Hinton et al. 2015's usual 0.5 and 2)
+    distill_weight: float = 0.5
+    distill_temperature: float = 2.0
 
 
 def class_weights(labels: np.ndarray, num_classes: int = len(CLASS_NAMES)) -> np.ndarray:
@@ -51,6 +59,26 @@ def class_weights(labels: np.ndarray, num_classes: int = len(CLASS_NAMES)) -> np
         raise PerceptionError(f"the training scans have no points of class(es) {missing}")
     freq = counts / counts.sum()
     return (freq.max() / freq) ** (1 / 3)
+
+
+def distillation_loss(student: torch.Tensor, teacher: torch.Tensor, temperature: float) -> torch.Tensor:
+    """KL divergence of the student's class probabilities from the teacher's, both at ``temperature``, per
+    point and times T^2 (so its gradients keep their scale whatever T); logits are (batch, classes, points)."""
+    target = nn.functional.log_softmax(teacher / temperature, dim=1)
+    guess = nn.functional.log_softmax(student / temperature, dim=1)
+    per_point = (target.exp() * (target - guess)).sum(dim=1)
+    return per_point.mean() * temperature**2
+
+
+def check_teacher(teacher: PointNetSegmenter, network: PointNetConfig) -> None:
+    """A teacher must read the student's inputs: the same input kind, features and grid context."""
+    mine, its = network, teacher.config
+    for name in ("inputs", "feature_names", "context_offsets", "num_classes"):
+        if getattr(mine, name) != getattr(its, name):
+            raise PerceptionError(
+                f"the teacher network's {name} {getattr(its, name)!r} differ from the student's "
+                f"{getattr(mine, name)!r}: a teacher must read the same inputs"
+            )
 
 
 def contrastive_loss(descriptors: torch.Tensor, positions: torch.Tensor, radius: float, temperature: float):
@@ -170,13 +198,17 @@ def train(
     on_epoch: Callable[[dict], None] | None = None,
     progress: bool = True,
     initial: PointNetSegmenter | None = None,
+    teacher: PointNetSegmenter | None = None,
 ) -> tuple[PointNetSegmenter, list[dict]]:
-    """Train from scratch (or go on from ``initial``); returns the model (eval mode) and one record of metrics
-    per epoch."""
+    """Train from scratch (or go on from ``initial``), learning from ``teacher``'s class probabilities when
+    one is given; returns the model (eval mode) and one record of metrics per epoch."""
     from tqdm import tqdm
 
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
+    if teacher is not None:
+        check_teacher(teacher, network)
+        teacher = teacher.eval()
     model = PointNetSegmenter(network)
     if initial is not None:
         model.load_state_dict(initial.state_dict())
@@ -193,7 +225,7 @@ def train(
         model.train()
         start = time.perf_counter()
         batches = pair_batches(positions, config.batch_pairs, config.positive_radius, rng)
-        totals = {"loss": 0.0, "ce": 0.0, "descriptor": 0.0, "correct": 0, "points": 0}
+        totals = {"loss": 0.0, "ce": 0.0, "descriptor": 0.0, "distillation": 0.0, "correct": 0, "points": 0}
         bar = tqdm(batches, desc=f"epoch {epoch}/{config.epochs}", disable=not progress, unit="batch", leave=False)
         for indices in bar:
             feats, labels = sampler.batch(indices, rng)
@@ -202,6 +234,13 @@ def train(
             pos = torch.from_numpy(positions[indices]).float()
             metric = contrastive_loss(descriptors, pos, config.positive_radius, config.temperature)
             loss = ce + config.descriptor_weight * metric
+            if teacher is not None:
+                with torch.no_grad():
+                    taught = teacher(feats)[0]
+                distilled = distillation_loss(logits, taught, config.distill_temperature)
+                share = config.distill_weight
+                loss = (1 - share) * ce + share * distilled + config.descriptor_weight * metric
+                totals["distillation"] += distilled.item()
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
@@ -220,6 +259,7 @@ def train(
             "loss": totals["loss"] / len(batches),
             "cross_entropy": totals["ce"] / len(batches),
             "descriptor_loss": totals["descriptor"] / len(batches),
+            "distillation_loss": totals["distillation"] / len(batches),
             "train_accuracy": totals["correct"] / totals["points"],
             "test_iou": dict(zip(CLASS_NAMES, [float(v) for v in iou], strict=True)),
             "test_miou": float(np.nanmean(iou)),
