@@ -201,6 +201,8 @@ def test_train_command_builds_the_network_of_the_widths_given(room_file, tmp_pat
     save_checkpoint(PointNetSegmenter(PointNetConfig(points=256, inputs="cloud", context_offsets=())), cloud_path, {})
     refused = runner.invoke(app, [*base[:-2], "--teacher", str(cloud_path), "--out", str(tmp_path / "no.pt")])
     assert refused.exit_code != 0 and "--teacher" in refused.output and "inputs" in refused.output
+    alone = runner.invoke(app, [*base, "--distill-weight", "0.3"])
+    assert alone.exit_code != 0 and "--distill-weight" in alone.output
 
 
 def test_scans_and_fingerprints_are_the_same_whichever_engine_takes_them(tmp_path):

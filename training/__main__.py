@@ -102,8 +102,8 @@ def train(
     teacher: Path | None = typer.Option(
         None, help="learn from these trained weights' class probabilities too (a smaller network from a larger)"
     ),
-    distill_weight: float = typer.Option(
-        0.5, min=0.0, max=1.0, help="with --teacher: the loss's share given to matching the teacher"
+    distill_weight: float | None = typer.Option(
+        None, min=0.0, max=1.0, help="with --teacher: the loss's share given to matching it (default 0.5)"
     ),
     out: Path | None = typer.Option(None, help="checkpoint path (default with one world: its own pointnet.pt)"),
 ) -> None:
@@ -122,7 +122,11 @@ def train(
 
     if out is None and (len(worlds) > 1 or cloud_sets):
         raise typer.BadParameter("pooling several worlds: say where the weights go", param_hint="--out")
-    config = TrainConfig(epochs=epochs, seed=seed, learning_rate=learning_rate, distill_weight=distill_weight)
+    if distill_weight is not None and teacher is None:
+        raise typer.BadParameter("a share of the loss for a teacher, but no --teacher", param_hint="--distill-weight")
+    config = TrainConfig(epochs=epochs, seed=seed, learning_rate=learning_rate)
+    if distill_weight is not None:
+        config = replace(config, distill_weight=distill_weight)
     widths = _widths(local_widths=local_widths, global_widths=global_widths, head_widths=head_widths)
     if widths and init is not None:
         raise typer.BadParameter(
@@ -437,7 +441,7 @@ def rebuild(
         learning_rate=1e-3,
         init=None,
         teacher=None,
-        distill_weight=0.5,
+        distill_weight=None,
         out=None,
     )
     validate(world=world, checkpoint=None)
