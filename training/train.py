@@ -233,13 +233,14 @@ def train(
             ce = criterion(logits, labels)
             pos = torch.from_numpy(positions[indices]).float()
             metric = contrastive_loss(descriptors, pos, config.positive_radius, config.temperature)
-            loss = ce + config.descriptor_weight * metric
-            if teacher is not None:
+            loss = config.descriptor_weight * metric
+            if teacher is None:
+                loss = loss + ce
+            else:  # the labels' share and the teacher's
                 with torch.no_grad():
                     taught = teacher(feats)[0]
                 distilled = distillation_loss(logits, taught, config.distill_temperature)
-                share = config.distill_weight
-                loss = (1 - share) * ce + share * distilled + config.descriptor_weight * metric
+                loss = loss + (1 - config.distill_weight) * ce + config.distill_weight * distilled
                 totals["distillation"] += distilled.item()
             optimizer.zero_grad()
             loss.backward()
