@@ -117,7 +117,7 @@ def train(
     from pimm_env.errors import PerceptionError
     from training import cloud_dataset
     from training.dataset import load, pool, split
-    from training.train import TrainConfig, describe
+    from training.train import TrainConfig, check_teacher, describe
     from training.train import train as fit
 
     if out is None and (len(worlds) > 1 or cloud_sets):
@@ -151,6 +151,11 @@ def train(
     if initial is not None:
         network = initial.config
     teacher_model, teacher_record = load_checkpoint(teacher) if teacher is not None else (None, None)
+    if teacher_model is not None:
+        try:
+            check_teacher(teacher_model, network)
+        except PerceptionError as error:
+            raise typer.BadParameter(f"{teacher}: {error}", param_hint="--teacher") from None
 
     def report(record: dict) -> None:
         ious = " ".join(f"{k} {v:.3f}" for k, v in record["test_iou"].items())
@@ -162,12 +167,7 @@ def train(
             f"train acc {record['train_accuracy']:.3f}  test mIoU {record['test_miou']:.3f} ({ious})"
         )
 
-    try:
-        model, history = fit(
-            train_set, test_set, config, network, on_epoch=report, initial=initial, teacher=teacher_model
-        )
-    except PerceptionError as error:  # a teacher that reads other inputs
-        raise typer.BadParameter(f"{teacher}: {error}", param_hint="--teacher") from None
+    model, history = fit(train_set, test_set, config, network, on_epoch=report, initial=initial, teacher=teacher_model)
     target = out or own_checkpoint_path(worlds[0])
     record = {
         "command": "python -m training " + shlex.join(sys.argv[1:]) if sys.argv[1:] else "python -m training",
