@@ -19,14 +19,18 @@ def test_pimm_reports_finite_estimates_with_stage_timings(pimm):
     env = IILabEnv()
     obs, _ = env.reset(seed=0, options={"pose": [-18.5, 14.0, 1.57]})
     pimm.reset(seed=0)
-    stages = set()
+    stages, checked = set(), 0
     for _ in range(40):
         estimate = pimm.update(obs)
         assert np.isfinite(estimate.pose).all() and np.isfinite(estimate.covariance).all()
         stages |= set(estimate.timings)
+        if "rival_check" in estimate.timings:  # a part of the measurement update, timed inside it
+            assert 0 <= estimate.timings["rival_check"] <= estimate.timings["measurement_update"]
+            checked += estimate.timings["rival_check"] > 0
         obs, *_ = env.step(np.array([0.3, 0.0], dtype=np.float32))
     env.close()
-    assert {"segmentation", "corners", "pose_inference", "measurement_update", "total"} <= stages
+    assert {"segmentation", "corners", "pose_inference", "measurement_update", "rival_check", "total"} <= stages
+    assert checked > 0
 
 
 def test_pimm_survives_scans_with_no_returns(pimm):

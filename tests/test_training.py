@@ -163,7 +163,8 @@ def test_rebuild_command_makes_every_perception_file_for_a_world(room_file, tmp_
 def test_train_command_builds_the_network_of_the_widths_given(room_file, tmp_path, monkeypatch):
     """`python -m training train --local-widths ...`: the weights are of those widths, and the record says so;
     a width that is not a positive integer, or widths with --init, are refused by option. `--teacher`: a
-    smaller network learns from the first, its record names the teacher; one of other inputs is refused."""
+    smaller network learns from the first, its record names the teacher, also when it goes on from its own weights
+    (`--init`); one of other inputs is refused."""
     from typer.testing import CliRunner
 
     from pimm_agents.perception.pointnet import load_checkpoint
@@ -197,6 +198,12 @@ def test_train_command_builds_the_network_of_the_widths_given(room_file, tmp_pat
     record = load_checkpoint(taught_path)[1]
     assert record["teacher_weights"]["sha256"] == load_checkpoint(out)[1]["sha256"]
     assert record["history"][0]["distillation_loss"] > 0
+    on = runner.invoke(
+        app, [*base[:-2], "--init", str(taught_path), "--teacher", str(out), "--out", str(tmp_path / "on.pt")]
+    )
+    assert on.exit_code == 0, on.output  # going on from the student's weights, still taught
+    record = load_checkpoint(tmp_path / "on.pt")[1]
+    assert record["initial_weights"] == str(taught_path) and record["teacher_weights"]["path"] == str(out)
     cloud_path = tmp_path / "cloud.pt"
     save_checkpoint(PointNetSegmenter(PointNetConfig(points=256, inputs="cloud", context_offsets=())), cloud_path, {})
     refused = runner.invoke(app, [*base[:-2], "--teacher", str(cloud_path), "--out", str(tmp_path / "no.pt")])

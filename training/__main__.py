@@ -103,7 +103,7 @@ def train(
         None, help="learn from these trained weights' class probabilities too (a smaller network from a larger)"
     ),
     distill_weight: float | None = typer.Option(
-        None, min=0.0, max=1.0, help="with --teacher: the loss's share given to matching it (default 0.5)"
+        None, min=0.0, max=1.0, help="with --teacher: the loss's share given to matching it (default: TrainConfig's)"
     ),
     out: Path | None = typer.Option(None, help="checkpoint path (default with one world: its own pointnet.pt)"),
 ) -> None:

@@ -364,6 +364,8 @@ class PimmLocalizer:
                 previous = carry(self._estimate, self._estimate_odom, odom)
             estimate = self.filter.correct(features, self._suggestions, previous, walls)
             timings["measurement_update"] = 1000 * (time.perf_counter() - start)
+            if self.filter.ambiguity is not None:  # the part of it that asks whether a look-alike place fits too
+                timings["rival_check"] = self.filter.rival_check_ms
             if estimate is not None:
                 self._estimate, self._estimate_odom = estimate, odom.copy()
         if self._estimate is None or self._estimate_odom is None:
