@@ -12,7 +12,10 @@ filter's best particles move elsewhere (``RivalConfig.hold``). Whether the estim
 
 from __future__ import annotations
 
-from typing import Any
+import functools
+import time
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -24,6 +27,22 @@ from pimm_agents.pimm.rivals import RivalTracker
 from pimm_agents.pimm.twins import MapTwins
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
+
+Result = TypeVar("Result")
+
+
+def _timed(method: Callable[..., Result]) -> Callable[..., Result]:
+    """A method of the check whose running time is added to ``spent_ms``."""
+
+    @functools.wraps(method)
+    def timed(self: AmbiguityCheck, *args: Any, **kwargs: Any) -> Result:
+        start = time.perf_counter()
+        try:
+            return method(self, *args, **kwargs)
+        finally:
+            self.spent_ms += 1000 * (time.perf_counter() - start)
+
+    return timed
 
 
 def rival_hypothesis(place: np.ndarray) -> Hypothesis:
@@ -51,6 +70,8 @@ class AmbiguityCheck:
         #: rival check (its margins over 150 scans are not enough to overturn a place the scans confirmed)
         self.held = False
         self._kept = 0  # jumps refused since the held estimate was last reported localized (``keeps``)
+        #: ms spent in ``keeps`` and ``check`` since the check was made (a caller times one update by difference)
+        self.spent_ms = 0.0
 
     def reset(self) -> None:
         self.tracker.reset()
@@ -67,6 +88,7 @@ class AmbiguityCheck:
         if not was or not self.held or jumped or status == "localized":
             self._kept = 0  # counted anew while the held place is not confirmed again
 
+    @_timed
     def keeps(
         self, filt: Any, held: np.ndarray, new: np.ndarray, odom: np.ndarray, wall_points: np.ndarray | None = None
     ) -> bool:
@@ -86,6 +108,7 @@ class AmbiguityCheck:
         move_particles(filt, new, filt.belief.mode_of(new, filt.particles), held)
         return True
 
+    @_timed
     def check(
         self,
         filt: Any,

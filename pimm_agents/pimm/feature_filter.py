@@ -6,7 +6,6 @@ All particles are handled at once with numpy; nothing loops over particles. Feat
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -160,8 +159,6 @@ class FeatureFilter:
             self.ambiguity = AmbiguityCheck(occupancy, wall_field, wall_temperature, rivals)
         self.reading = BeliefReading("lost", np.eye(3), ())
         self._odom_ref: np.ndarray | None = None
-        #: ms the rival check (``keeps`` and ``check``) took in the last ``correct`` (0 without one)
-        self.rival_check_ms = 0.0
 
     # ------------------------------------------------------------------ life cycle
     def reset(
@@ -387,7 +384,6 @@ class FeatureFilter:
         Injection follows only an update that weighed something: with nothing measured the weights say
         nothing about which particles are worst, and replacing an arbitrary 5 % per step would wear the
         tracked cluster away while the robot drives through a stretch with no corners."""
-        self.rival_check_ms = 0.0
         labels = cluster_labels(self.particles, self.belief_config.bin_xy, self.belief_config.bin_theta)
         self.measurement_update(features, wall_points, labels)
         self.belief = read_belief(self.particles, self.weights, self.belief_config, labels)
@@ -397,21 +393,17 @@ class FeatureFilter:
             if self.weight_near(estimate, r) <= self.weight_near(previous, r):
                 estimate = None
             elif self.ambiguity is not None and self._odom_ref is not None:
-                start = time.perf_counter()
                 if self.ambiguity.keeps(self, previous, estimate, self._odom_ref, wall_points):
                     estimate = None  # a held place the kept scans favour: its rival's particles were moved onto it
-                self.rival_check_ms += 1000 * (time.perf_counter() - start)
         pose = estimate if estimate is not None else previous
         reading = self.read(pose)
         own, switched = reading.status, False  # the belief's own status, before the rival check
         jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
         if self.ambiguity is not None and self._odom_ref is not None:
             left = previous if jumped else None
-            start = time.perf_counter()
             reading, moved_to = self.ambiguity.check(
                 self, self._odom_ref, pose, reading, wall_points, left, suggestions
             )
-            self.rival_check_ms += 1000 * (time.perf_counter() - start)
             if moved_to is not None:
                 estimate, jumped, switched = moved_to, True, True
         if self.ambiguity is None:

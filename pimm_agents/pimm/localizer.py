@@ -362,10 +362,12 @@ class PimmLocalizer:
             previous = None
             if self._estimate is not None and self._estimate_odom is not None:
                 previous = carry(self._estimate, self._estimate_odom, odom)
+            check = self.filter.ambiguity  # the part of the update that asks whether a look-alike place fits too
+            checked_ms = 0.0 if check is None else check.spent_ms
             estimate = self.filter.correct(features, self._suggestions, previous, walls)
             timings["measurement_update"] = 1000 * (time.perf_counter() - start)
-            if self.filter.ambiguity is not None:  # the part of it that asks whether a look-alike place fits too
-                timings["rival_check"] = self.filter.rival_check_ms
+            if check is not None:
+                timings["rival_check"] = check.spent_ms - checked_ms
             if estimate is not None:
                 self._estimate, self._estimate_odom = estimate, odom.copy()
         if self._estimate is None or self._estimate_odom is None:
