@@ -34,6 +34,11 @@ class PoseEstimate:
 
     ``stamp`` is the sim time of the observation the estimate was made from. ``status`` is one of ``STATUSES``;
     ``hypotheses`` are the belief's best modes, heaviest first (empty for a localizer that keeps none).
+    ``set_aside`` counts the observations its input guard set aside since its reset, by kind, and ``rebases`` the
+    odometry jumps it re-based on. ``inside`` is what the localizer shows of its inner state, for figures, replays
+    and bounds, each where it has it: ``particles`` (N, 3; at most ``INSIDE_PARTICLES``), ``corners`` (K, 2; the
+    features measured at this update, placed at its estimate) and ``suggestions`` (M, 2; positions it was told to
+    look at), all in the map frame, and ``walls`` (M, 2): the wall points this update weighed, in the robot frame.
     """
 
     x: float
@@ -44,6 +49,9 @@ class PoseEstimate:
     timings: dict[str, float] = field(default_factory=dict)
     status: str = "localized"
     hypotheses: tuple[Hypothesis, ...] = ()
+    set_aside: dict[str, int] = field(default_factory=dict)
+    rebases: int = 0
+    inside: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         values = np.array([self.x, self.y, self.theta])
@@ -84,13 +92,8 @@ class Localizer(Protocol):
         ...
 
 
-class Inspectable(Protocol):
-    """A localizer that can show its inner state, for figures and replays (optional; the evaluation draws
-    what a localizer offers). ``snapshot`` returns map-frame arrays: ``particles`` (N, 3), at most
-    ``max_particles`` of them, and where the localizer has them ``corners`` (K, 2), the features it measured
-    at the latest scan placed at its estimate, and ``suggestions`` (M, 2), positions it was told to look at."""
-
-    def snapshot(self, max_particles: int = 500) -> dict[str, np.ndarray]: ...
+#: At most this many particles in an estimate's ``inside`` (a picture needs no more).
+INSIDE_PARTICLES = 500
 
 
 def particle_sample(particles: np.ndarray, max_particles: int) -> np.ndarray:

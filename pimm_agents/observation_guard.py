@@ -13,11 +13,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pimm_agents.localizer import Observation, require
+from pimm_agents.localizer import Observation, PoseEstimate, require
 from pimm_env.errors import ObservationError
 from pimm_env.geometry import compose, relative_motion
 
@@ -109,6 +109,10 @@ class ObservationGuard:
         self._pending.clear()
         self.rebases += 1
         return self._accept(obs, t, odom)
+
+    def stamped(self, estimate: PoseEstimate) -> PoseEstimate:
+        """``estimate`` carrying what the guard has set aside and re-based on so far."""
+        return replace(estimate, set_aside=dict(self.set_aside), rebases=self.rebases)
 
     @property
     def glitches(self) -> int:

@@ -76,8 +76,8 @@ def test_each_scan_weighs_the_particles_once(pimm, monkeypatch):
     env.close()
     pimm.reset(seed=2)
     weighed = []
-    original = pimm.filter.correct
-    monkeypatch.setattr(pimm.filter, "correct", lambda *a, **k: weighed.append(1) or original(*a, **k))
+    original = pimm.filter.weigh
+    monkeypatch.setattr(pimm.filter, "weigh", lambda *a, **k: weighed.append(1) or original(*a, **k))
     for k in range(6):  # 0.2 m a step, well past the motion threshold; a new scan every third step
         moved = dict(obs, odom=obs["odom"] + np.array([0.2 * k, 0.0, 0.0], dtype=np.float32))
         moved["time"] = np.array([0.1 * k])
@@ -155,7 +155,7 @@ def test_pimm_reads_an_os0_64_through_the_networks_layout():
         perceived += "segmentation" in estimate.timings
         obs, *_ = env.step(np.array([0.3, 0.0], dtype=np.float32))
     env.close()
-    assert perceived >= 4 and len(pimm.snapshot()["corners"]) > 0  # scans segmented, corners found
+    assert perceived >= 4 and len(pimm.last_estimate.inside["corners"]) > 0  # scans segmented, corners found
 
 
 def test_an_empty_corner_map_leaves_pimm_its_walls_and_fingerprints():

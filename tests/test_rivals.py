@@ -10,7 +10,7 @@ from pimm_agents.pimm.scan_stack import turned
 from pimm_env.geometry import relative_motion
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
-from tests.test_feature_filter import rays_from, twin_rooms, wall_field_for
+from tests.scenes import rays_from, twin_rooms, wall_field_for
 
 
 def tracker_along(truths: np.ndarray) -> RivalTracker:

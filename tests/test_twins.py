@@ -3,7 +3,7 @@ import pytest
 from scipy import ndimage
 
 from pimm_agents.corners.lookup import NearestCornerGrid
-from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
+from pimm_agents.pimm.feature_filter import FeatureFilterConfig
 from pimm_agents.pimm.rival_config import RivalConfig
 from pimm_agents.pimm.twins import MapTwins, TwinConfig, local_peaks
 from pimm_env.errors import LocalizerError, ParamsError
@@ -11,7 +11,7 @@ from pimm_env.geometry import carry, wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
-from tests.test_feature_filter import rays_from, track, twin_rooms, wall_field_for
+from tests.scenes import make_step, rays_from, track, twin_rooms
 
 
 def turned_rooms() -> OccupancyGrid:
@@ -112,18 +112,13 @@ def started_at_the_truth(
     corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
     twin_config = TwinConfig(enabled=twins, looked_from_cells=cells)
     rivals = RivalConfig(veto_only=veto_only, twins=twin_config, refit_before_drop=refit, map_error_cells=map_error)
-    filt = FeatureFilter(
-        occupancy,
-        corners,
-        FeatureFilterConfig(num_particles=2000, replace_worst_fraction=injection),
-        wall_field_for(occupancy),
-        0.2,
-        rivals=rivals,
+    step = make_step(
+        occupancy, corners, FeatureFilterConfig(num_particles=2000, replace_worst_fraction=injection), rivals
     )
     turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
     truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 21.0, 0.12)]])
-    filt.reset(np.random.default_rng(0), truth[0], np.diag([0.1, 0.1, 0.01]))
-    return track(filt, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
+    step.filter.reset(np.random.default_rng(0), truth[0], np.diag([0.1, 0.1, 0.01]))
+    return track(step, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
 
 
 @pytest.mark.parametrize("veto_only, cells", [(False, 0), (True, 2)])
@@ -177,15 +172,12 @@ def started_in_the_wrong_room(switch: bool) -> list[tuple[str, np.ndarray, np.nd
     more scans."""
     occupancy = twin_rooms()
     corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
-    filt = FeatureFilter(
-        occupancy, corners, FeatureFilterConfig(num_particles=2000), wall_field_for(occupancy), 0.2,
-        rivals=RivalConfig(switch=switch),
-    )  # fmt: skip
+    step = make_step(occupancy, corners, FeatureFilterConfig(num_particles=2000), RivalConfig(switch=switch))
     turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
     drive = [[x, 1.0, 0.0] for x in np.arange(14.0, 21.0, 0.12)]
     truth = np.vstack([turn, drive, [[21.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)[1:]]])
-    filt.reset(np.random.default_rng(0), truth[0] - [12.0, 0.0, 0.0], np.diag([0.1, 0.1, 0.01]))
-    return track(filt, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
+    step.filter.reset(np.random.default_rng(0), truth[0] - [12.0, 0.0, 0.0], np.diag([0.1, 0.1, 0.01]))
+    return track(step, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
 
 
 def test_a_rival_the_scans_favour_decisively_takes_the_estimate():
@@ -204,22 +196,22 @@ def test_a_place_reported_localized_is_not_moved_by_the_rival_check():
     since its last jump): the true place stands as a rival, the estimate is not moved to it."""
     occupancy = twin_rooms()
     corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
-    filt = FeatureFilter(occupancy, corners, FeatureFilterConfig(num_particles=2000), wall_field_for(occupancy), 0.2)
+    step = make_step(occupancy, corners, FeatureFilterConfig(num_particles=2000))
     turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
     truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 21.0, 0.12)]])
-    filt.reset(np.random.default_rng(0), truth[0] - [12.0, 0.0, 0.0], np.diag([0.1, 0.1, 0.01]))
+    step.filter.reset(np.random.default_rng(0), truth[0] - [12.0, 0.0, 0.0], np.diag([0.1, 0.1, 0.01]))
     estimate, at, updates = None, None, 0
     for odom in truth:
-        if filt.motion_update(odom):
+        if step.filter.motion_update(odom):
             previous = None if estimate is None else carry(estimate, at, odom)
-            found = filt.correct(np.zeros((0, 5)), np.zeros((0, 2)), previous, rays_from(occupancy, odom, 10.0))
+            found = step(np.zeros((0, 5)), rays_from(occupancy, odom, 10.0), np.zeros((0, 2)), previous, odom)
             estimate, at = (found, odom) if found is not None else (previous, odom)
             updates += 1
             if updates == 3:
-                filt.ambiguity.held = True
+                step.check.held = True  # as if it had been reported localized since its last jump
     assert estimate is not None and np.hypot(*(estimate[:2] - (truth[-1, :2] - [12.0, 0.0]))) < 0.5
-    assert filt.reading.status != "localized"
-    assert any(np.hypot(h.x - truth[-1, 0], h.y - truth[-1, 1]) < 0.5 for h in filt.reading.hypotheses)
+    assert step.reading.status != "localized"
+    assert any(np.hypot(h.x - truth[-1, 0], h.y - truth[-1, 1]) < 0.5 for h in step.reading.hypotheses)
 
 
 @pytest.mark.parametrize("seed", range(4))

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from pimm_agents.localizer import Hypothesis, Observation, PoseEstimate, particle_sample, require
+from pimm_agents.localizer import INSIDE_PARTICLES, Hypothesis, Observation, PoseEstimate, particle_sample, require
 from pimm_agents.observation_guard import GuardConfig, ObservationGuard
 from pimm_agents.particles.beam_model import BeamModel, BeamModelParams
 from pimm_agents.particles.belief import BeliefConfig, Confirmation, belief_status, hypotheses_of, read_belief
@@ -190,10 +190,6 @@ class Amcl:
         self._pose_at_update = self._read_clusters()
         self._estimate: PoseEstimate | None = None
 
-    def snapshot(self, max_particles: int = 500) -> dict[str, np.ndarray]:
-        """The particle cloud (every k-th particle, at most ``max_particles``)."""
-        return {"particles": particle_sample(self.particles, max_particles)}
-
     def update(self, obs: Observation) -> PoseEstimate:
         self.guard.check(obs, ("odom", "time", "scan_time"))
         if "scan" in obs and np.shape(obs["scan"]) != (self.lidar.beams,):
@@ -206,6 +202,7 @@ class Amcl:
         scan = require(obs, "scan", (self.lidar.beams,))  # NaN or out-of-range beams are skipped (REP 117)
         taken = self.guard.take(obs)
         if taken is None and self._estimate is not None:  # a glitch: keep the estimate
+            self._estimate = self.guard.stamped(self._estimate)
             return self._estimate
         obs = taken or obs
         odom = require(obs, "odom", (3,))
@@ -225,7 +222,7 @@ class Amcl:
                     or (dtheta > self.config.update_min_a)
                 ):
                     self.filter_update(odom, scan, odometry_delta(self._odom_at_update, odom), timings)
-        self._estimate = self._report(odom, stamp, timings)
+        self._estimate = self.guard.stamped(self._report(odom, stamp, timings))
         return self._estimate
 
     # ------------------------------------------------------------------ the filter
@@ -329,9 +326,11 @@ class Amcl:
             pose = mean
         else:
             pose = carry(mean, self._odom_at_update, odom)
+        inside = {"particles": particle_sample(self.particles, INSIDE_PARTICLES)}
         return PoseEstimate(
-            float(pose[0]), float(pose[1]), float(pose[2]), cov.copy(), stamp, timings, status, hypotheses
-        )
+            float(pose[0]), float(pose[1]), float(pose[2]), cov.copy(), stamp, timings, status, hypotheses,
+            inside=inside,
+        )  # fmt: skip
 
     @property
     def particle_count(self) -> int:

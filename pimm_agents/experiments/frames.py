@@ -15,7 +15,7 @@ from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.errors import ExperimentError
 
 
-def collect_frames(spec: TrialSpec, every: int = EVERY_SCANS, max_particles: int = 400) -> list[Frame]:
+def collect_frames(spec: TrialSpec, every: int = EVERY_SCANS) -> list[Frame]:
     """Simulate ``spec`` again and keep a frame at every ``every``-th fresh 2D scan."""
     from pimm_env.sim.lidar import beam_bearings_2d
     from pimm_env.sim.sensors import sensor_layouts
@@ -42,9 +42,8 @@ def collect_frames(spec: TrialSpec, every: int = EVERY_SCANS, max_particles: int
         hit = ranges < lidar.max_range
         bearing = angles[hit] + true[2]
         scan = np.column_stack([true[0] + ranges[hit] * np.cos(bearing), true[1] + ranges[hit] * np.sin(bearing)])
-        localizer = localizers[0]
-        inner = localizer.snapshot(max_particles) if hasattr(localizer, "snapshot") else {}
         estimate = info["estimate"]
+        inner = {key: value for key, value in estimate.inside.items() if key != "walls"}  # map-frame arrays
         modes = np.array([[h.x, h.y, h.theta] for h in estimate.hypotheses]).reshape(-1, 3)
         frames.append(Frame(float(obs["time"][0]), true, estimate.pose, scan, inner, kidnapped, estimate.status, modes))
 

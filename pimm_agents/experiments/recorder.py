@@ -7,7 +7,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from pimm_agents.localizer import STATUSES, Localizer
+from pimm_agents.localizer import STATUSES, Localizer, PoseEstimate
 from pimm_agents.scoring.trial_log import TrialLog
 from pimm_env.errors import ExperimentError
 
@@ -37,6 +37,7 @@ class LocalizationRecorder(gym.Wrapper):
         self._timings: list[dict[str, float]] = []
         self._kidnap_rows: list[int] = []  # the first row after each kidnap; metrics count from the last
         self._corners: list[np.ndarray] = []  # (k, 3): row, x, y
+        self._last: PoseEstimate | None = None  # the newest estimate: what the guard set aside so far
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
@@ -47,6 +48,7 @@ class LocalizationRecorder(gym.Wrapper):
             else:
                 self.localizer.reset(seed=seed)
             self._rows, self._timings, self._kidnap_rows, self._corners = [], [], [], []
+            self._last = None
         else:
             self._kidnap_rows.append(len(self._rows))
         self._observe(obs, info, record=True)
@@ -64,10 +66,11 @@ class LocalizationRecorder(gym.Wrapper):
         info["estimate"] = estimate
         if estimate.timings:
             self._timings.append(dict(estimate.timings))
-        if "corners" in estimate.timings and hasattr(self.localizer, "snapshot"):
+        self._last = estimate
+        if "corners" in estimate.timings:
             # corners found in this update (PIMM perceives a scan when it weighs with it, not always on arrival),
             # kept with this row, or with the last row when this step records none
-            corners = self.localizer.snapshot(max_particles=0).get("corners")
+            corners = estimate.inside.get("corners")
             if corners is not None and len(corners):
                 row = np.full((len(corners), 1), float(len(self._rows) if record else max(len(self._rows) - 1, 0)))
                 self._corners.append(np.hstack([row, np.asarray(corners, dtype=float)[:, :2]]))
@@ -97,15 +100,14 @@ class LocalizationRecorder(gym.Wrapper):
             tuple(self._kidnap_rows),
             np.array(status, dtype=np.int8),
             np.array(cov_xy),
-            *guard_counts(self.localizer, self.passed_over),
+            *guard_counts(self._last, self.passed_over),
         )
 
 
-def guard_counts(localizer: Localizer, passed_over: int = 0) -> tuple[dict[str, int], int]:
-    """(observations set aside by kind, odometry re-bases) by the localizer's observation guard since its last
-    reset (nothing for a localizer without one, a plugin), with ``passed_over`` as ``before_start``."""
-    guard = getattr(localizer, "guard", None)
-    counts = dict(getattr(guard, "set_aside", {}))
+def guard_counts(estimate: PoseEstimate | None, passed_over: int = 0) -> tuple[dict[str, int], int]:
+    """(observations set aside by kind, odometry re-bases) by the localizer's input guard since its last reset,
+    as its newest ``estimate`` carries them, with ``passed_over`` as ``before_start``."""
+    counts = {} if estimate is None else dict(estimate.set_aside)
     if passed_over:
         counts["before_start"] = passed_over
-    return counts, int(getattr(guard, "rebases", 0))
+    return counts, 0 if estimate is None else estimate.rebases

@@ -180,8 +180,11 @@ def pimm_benchmarks(repeats: int) -> dict[str, float]:
     global start: its update whenever it perceives a scan (segmentation, corners, retrieval, and the filter's
     weighing with it), each stage's share, and all its time spread over the scans that arrived."""
     from pimm_agents.factory import make_localizer
+    from pimm_agents.particles.likelihood_field import LikelihoodField
     from pimm_agents.pimm.localizer import PimmLocalizer
     from pimm_env.envs.iilab_env import IILabEnv
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.world.files import load_world
 
     pimm = make_localizer("pimm")
     assert isinstance(pimm, PimmLocalizer)
@@ -198,8 +201,13 @@ def pimm_benchmarks(repeats: int) -> dict[str, float]:
     stages: dict[str, list[float]] = {}
     action = np.array([0.3, 0.0], dtype=np.float32)
     scans, all_updates_ms = 1, 0.0
+    walls, occupancy = pimm.config.wall_field, load_derived_maps(load_world("iilab")).occupancy
+    field = LikelihoodField(occupancy, walls.field_params())
+    tracker = RivalTracker(field, occupancy.free, walls.temperature, pimm.config.rivals)
     while len(stages.get("total", [])) < repeats:
         estimate = pimm.update(obs)
+        if "walls" in estimate.inside:  # the wall points it weighed: the scans its rival check keeps
+            tracker.add_scan(np.asarray(obs["odom"], dtype=float), estimate.inside["walls"])
         all_updates_ms += estimate.timings["total"]
         if "segmentation" in estimate.timings:
             for stage, ms in estimate.timings.items():
@@ -217,9 +225,7 @@ def pimm_benchmarks(repeats: int) -> dict[str, float]:
     # PIMM perceives a scan only when it weighs with it (pimm.lazy_perception): its cost per scan that arrived
     figures["pimm_per_scan_ms"] = all_updates_ms / scans
     figures["pimm_scans_perceived_share"] = repeats / scans
-    tracker = pimm.filter.rivals
-    if tracker is not None:
-        figures.update(rival_evidence_benchmark(tracker, np.asarray(obs["odom"], dtype=float), repeats))
+    figures.update(rival_evidence_benchmark(tracker, np.asarray(obs["odom"], dtype=float), repeats))
     return figures
 
 

@@ -58,6 +58,8 @@ class PassiveBound:
 def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
     """The bound of one trial (see the module docstring), beside PIMM's first right ``localized`` time."""
     from pimm_agents.experiments.runner import run_shared
+    from pimm_agents.particles.likelihood_field import LikelihoodField
+    from pimm_agents.pimm.localizer import PimmConfig
     from pimm_agents.pimm.rivals import RivalTracker
     from pimm_agents.pimm.twins import MapTwins
     from pimm_agents.scoring.trial import TrialSpec
@@ -65,10 +67,13 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
     from pimm_env.world.files import load_world
 
     occupancy = load_derived_maps(load_world(world)).occupancy
-    state: dict[str, Any] = {"tracker": None, "added": 0, "bound": None, "drop": None, "t0": None, "right": None}
+    config = PimmConfig()  # the wall field and the rival check PIMM scores with
+    field = LikelihoodField(occupancy, config.wall_field.field_params())
+    ours = RivalTracker(field, occupancy.free, config.wall_field.temperature, config.rivals)
+    twin_finder = MapTwins(occupancy, bound_twin_config(config.rivals.twins))
+    state: dict[str, Any] = {"bound": None, "drop": None, "t0": None, "right": None}
 
     def watch(localizers: Sequence[Any], obs: dict[str, Any], info: dict[str, Any]) -> None:
-        theirs = localizers[0].filter.rivals  # PIMM's rival tracker: the wall scans it weighs
         t = float(obs["time"][0])
         state["t0"] = t if state["t0"] is None else state["t0"]
         truth = np.asarray(info["true_pose"], dtype=float)
@@ -78,19 +83,14 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
                 wrap_angle(estimate.theta - truth[2])
             ) < np.radians(10.0):
                 state["right"] = t - state["t0"]
-        if state["tracker"] is None:
-            state["tracker"] = RivalTracker(theirs.field, theirs.free, theirs.temperature, theirs.config)
-            state["twins"] = MapTwins(occupancy, bound_twin_config(theirs.config.twins))
-        newest = theirs.newest_scan()
-        if theirs.scans_added == state["added"] or newest is None:
+        points = None if estimate is None else estimate.inside.get("walls")  # the wall points PIMM weighed
+        if points is None or not len(points):
             return
-        state["added"] = theirs.scans_added
-        ours: RivalTracker = state["tracker"]
-        odom, points = newest
+        odom = np.asarray(obs["odom"], dtype=float)
         ours.add_scan(odom, points)
         if state["drop"] is not None or not ours.settled:
             return
-        twins = state["twins"].of(truth)
+        twins = twin_finder.of(truth)
         lead = np.inf  # how far the truth leads its nearest twin over the kept scans
         if len(twins):
             history = ours.stack(odom)

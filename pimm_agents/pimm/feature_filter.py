@@ -15,7 +15,6 @@ from pimm_agents.particles.belief import (
     Belief,
     BeliefConfig,
     BeliefReading,
-    Confirmation,
     belief_status,
     compact_modes,
     covariance_about,
@@ -29,10 +28,7 @@ from pimm_agents.particles.kld import bin_keys, kld_sample_count
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
 from pimm_agents.particles.resampling import residual_resample
-from pimm_agents.pimm.ambiguity import AmbiguityCheck
 from pimm_agents.pimm.corner_evidence import corner_exponents
-from pimm_agents.pimm.rival_config import RivalConfig
-from pimm_agents.pimm.rivals import RivalTracker
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -122,6 +118,15 @@ class FeatureFilterConfig:
                 raise LocalizerError(f"{name} must be in [0, 1], got {getattr(self, name)}")
 
 
+@dataclass(frozen=True)
+class BeliefView:
+    """The filter's particles, weights and modes after a measurement, read-only by agreement."""
+
+    particles: np.ndarray
+    weights: np.ndarray
+    belief: Belief
+
+
 #: Columns of the feature array the filter takes: x, y, theta (robot frame), sigma_pos (m), sigma_theta (rad).
 FEATURE_COLUMNS = ("x", "y", "theta", "sigma_pos", "sigma_theta")
 
@@ -135,11 +140,9 @@ class FeatureFilter:
         wall_field: LikelihoodField | None = None,
         wall_temperature: float | None = None,
         belief: BeliefConfig = BeliefConfig(),
-        rivals: RivalConfig = RivalConfig(),
     ) -> None:
         self.config = config
         self.belief_config = belief
-        self.confirmation = Confirmation(belief.confirm_updates)
         self.corners = corners
         self.wall_field = wall_field
         self.wall_temperature = wall_temperature  # None: nav2's sum of cubes; else the tempered product
@@ -153,11 +156,6 @@ class FeatureFilter:
         self.ess = float(config.num_particles)
         self.informed = False  # whether the last measurement update had anything to weigh with
         self.belief: Belief | None = None  # the modes after the last measurement update
-        #: whether the estimate is the only place the scans allow (ambiguity.py): with a tempered wall field
-        self.ambiguity = None
-        if rivals.enabled and wall_field is not None and wall_temperature is not None:
-            self.ambiguity = AmbiguityCheck(occupancy, wall_field, wall_temperature, rivals)
-        self.reading = BeliefReading("lost", np.eye(3), ())
         self._odom_ref: np.ndarray | None = None
 
     # ------------------------------------------------------------------ life cycle
@@ -177,10 +175,6 @@ class FeatureFilter:
         self.ess = float(self.config.num_particles)
         self._odom_ref = None
         self.belief = None
-        self.confirmation.reset()
-        if self.ambiguity is not None:
-            self.ambiguity.reset()
-        self.reading = BeliefReading("lost", self.covariance(self.best_mean()), ())
 
     # ------------------------------------------------------------------ motion
     def motion_update(self, odom: np.ndarray) -> bool:
@@ -368,55 +362,62 @@ class FeatureFilter:
         self.weights /= self.weights.sum()
         return worst
 
-    def correct(
-        self,
-        features: np.ndarray,
-        suggestions: np.ndarray,
-        previous: np.ndarray | None = None,
-        wall_points: np.ndarray | None = None,
-    ) -> np.ndarray | None:
-        """One measurement step after a motion update: weigh, then read the estimate while the weights still
-        say something, then resample if degenerate and inject. Returns the best-particles mean if the filter
-        has converged by the ESS test and, when it lies away from ``previous`` (the last estimate carried to
-        now), holds more weight than it and, if ``previous`` is held, the kept scans do not rule it out
-        (``AmbiguityCheck.keeps``); else None (the caller carries its last estimate by odometry).
+    def weigh(self, features: np.ndarray, wall_points: np.ndarray | None = None) -> None:
+        """One measurement after a motion update (eq. 3.16 and the wall field): weigh the particles, each
+        compact mode as one, and read the belief's modes from the new weights."""
+        labels = cluster_labels(self.particles, self.belief_config.bin_xy, self.belief_config.bin_theta)
+        self.measurement_update(features, wall_points, labels)
+        self.belief = read_belief(self.particles, self.weights, self.belief_config, labels)
+
+    def estimate(self, previous: np.ndarray | None) -> np.ndarray | None:
+        """The best-particles mean if the filter has converged by the ESS test and, when it jumps away from
+        ``previous`` (the last estimate carried to now, ``jumps``), holds more weight than it; else None (the
+        caller carries its last estimate by odometry). Read while the weights still say something: before
+        ``resample_and_inject``."""
+        estimate = self.best_mean() if self.converged() else None
+        if estimate is None or previous is None or not self.jumps(previous, estimate):
+            return estimate
+        r = self.config.switch_radius_m
+        return estimate if self.weight_near(estimate, r) > self.weight_near(previous, r) else None
+
+    def jumps(self, previous: np.ndarray, estimate: np.ndarray) -> bool:
+        """Whether ``estimate`` lies away from ``previous`` by more than ``switch_radius_m`` (0: never)."""
+        r = self.config.switch_radius_m
+        return r > 0 and bool(np.hypot(*(estimate[:2] - previous[:2])) > r)
+
+    def move_mode(self, pose: np.ndarray, target: np.ndarray) -> None:
+        """Move the particles of the mode ``pose`` lies in (those within 1 m and 30 deg of it if it is in none)
+        rigidly from ``pose`` to ``target``, and read the belief again: how a decision to hold a place, or to
+        move to one, is applied (pimm/ambiguity.py)."""
+        assert self.belief is not None
+        chosen = self.belief.mode_of(pose, self.particles)
+        if chosen >= 0:
+            members = self.belief.particle_mode == chosen
+        else:
+            d = self.particles - pose
+            members = (np.hypot(d[:, 0], d[:, 1]) <= 1.0) & (np.abs(wrap_angle(d[:, 2])) <= np.radians(30.0))
+        turn = wrap_angle(target[2] - pose[2])
+        c, s = np.cos(turn), np.sin(turn)
+        d = self.particles[members, :2] - pose[:2]
+        self.particles[members, 0] = target[0] + c * d[:, 0] - s * d[:, 1]
+        self.particles[members, 1] = target[1] + s * d[:, 0] + c * d[:, 1]
+        self.particles[members, 2] = wrap_angle(self.particles[members, 2] + turn)
+        self.belief = read_belief(self.particles, self.weights, self.belief_config)
+
+    def resample_and_inject(self, suggestions: np.ndarray) -> None:
+        """The end of a measurement step: resample if degenerate, then inject around ``suggestions``.
 
         Injection follows only an update that weighed something: with nothing measured the weights say
         nothing about which particles are worst, and replacing an arbitrary 5 % per step would wear the
         tracked cluster away while the robot drives through a stretch with no corners."""
-        labels = cluster_labels(self.particles, self.belief_config.bin_xy, self.belief_config.bin_theta)
-        self.measurement_update(features, wall_points, labels)
-        self.belief = read_belief(self.particles, self.weights, self.belief_config, labels)
-        estimate = self.best_mean() if self.converged() else None
-        r = self.config.switch_radius_m
-        if estimate is not None and previous is not None and r > 0 and np.hypot(*(estimate[:2] - previous[:2])) > r:
-            if self.weight_near(estimate, r) <= self.weight_near(previous, r):
-                estimate = None
-            elif self.ambiguity is not None and self._odom_ref is not None:
-                if self.ambiguity.keeps(self, previous, estimate, self._odom_ref, wall_points):
-                    estimate = None  # a held place the kept scans favour: its rival's particles were moved onto it
-        pose = estimate if estimate is not None else previous
-        reading = self.read(pose)
-        own, switched = reading.status, False  # the belief's own status, before the rival check
-        jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > max(r, 0.5))
-        if self.ambiguity is not None and self._odom_ref is not None:
-            left = previous if jumped else None
-            reading, moved_to = self.ambiguity.check(
-                self, self._odom_ref, pose, reading, wall_points, left, suggestions
-            )
-            if moved_to is not None:
-                estimate, jumped, switched = moved_to, True, True
-        if self.ambiguity is None:
-            status = self.confirmation(reading.status, jumped)
-        else:
-            status = self.ambiguity.confirmed(self.confirmation, own, reading.status, jumped, switched)
-        self.reading = BeliefReading(status, reading.covariance, reading.hypotheses)
-        if self.ambiguity is not None:
-            self.ambiguity.after(self.reading.status, jumped)
         self.resample_if_degenerate()
         if self.informed:
             self.inject(suggestions)
-        return estimate
+
+    def view(self) -> BeliefView:
+        """The belief as it stands, for a reviewer that must not change it (pimm/ambiguity.py)."""
+        assert self.belief is not None
+        return BeliefView(self.particles, self.weights, self.belief)
 
     # ------------------------------------------------------------------ estimate
     def read(self, pose: np.ndarray | None) -> BeliefReading:
@@ -431,11 +432,6 @@ class FeatureFilter:
         status = belief_status(self.belief, chosen, self.belief_config)
         cov = covariance_about(self.belief.modes[chosen], pose) if chosen >= 0 else self.covariance(pose)
         return BeliefReading(status, cov, hypotheses, chosen)
-
-    @property
-    def rivals(self) -> RivalTracker | None:
-        """The rival check's tracker (its kept scans and standing rivals), if the filter has one."""
-        return None if self.ambiguity is None else self.ambiguity.tracker
 
     def weight_near(self, pose: np.ndarray, radius: float, max_angle: float = np.radians(30.0)) -> float:
         """Total weight of the particles within ``radius`` and ``max_angle`` of ``pose``."""

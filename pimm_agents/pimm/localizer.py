@@ -17,7 +17,7 @@ import numpy as np
 
 from pimm_agents.corners.detector import CornerDetectorConfig, FeatureList, detect_corners
 from pimm_agents.corners.lookup import NearestCornerGrid
-from pimm_agents.localizer import Observation, PoseEstimate, particle_sample, require
+from pimm_agents.localizer import INSIDE_PARTICLES, Observation, PoseEstimate, particle_sample, require
 from pimm_agents.observation_guard import GuardConfig, ObservationGuard
 from pimm_agents.particles.belief import BeliefConfig
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
@@ -25,8 +25,10 @@ from pimm_agents.perception.fingerprint_map import FingerprintMap
 from pimm_agents.perception.point_features import valid_returns
 from pimm_agents.perception.resample import LayoutResampler
 from pimm_agents.perception.segmenter import CloudSegmenter, Segmenter
+from pimm_agents.pimm.ambiguity import AmbiguityCheck
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.pimm.rival_config import RivalConfig
+from pimm_agents.pimm.step import MeasurementStep
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry, compose, relative_motion
 from pimm_env.mapping.corner_map import CornerMap
@@ -73,6 +75,16 @@ class WallFieldConfig:
             raise LocalizerError(f"wall_field.temperature must be positive, got {self.temperature}")
         if self.min_z_m >= self.max_z_m:
             raise LocalizerError(f"wall_field.min_z_m ({self.min_z_m}) must be below max_z_m ({self.max_z_m})")
+
+    def field_params(self) -> LikelihoodFieldParams:
+        """The likelihood field's parameters."""
+        return LikelihoodFieldParams(
+            self.z_hit, self.z_rand, self.sigma_hit, self.max_distance, self.range_max, self.surfaces_only
+        )
+
+    def rival_temperature(self) -> float | None:
+        """The temperature the ambiguity check scores with (the product model's; None: no check possible)."""
+        return self.temperature if self.enabled and self.model == "product" else None
 
 
 def wall_points(cloud: np.ndarray, labels: np.ndarray, config: WallFieldConfig) -> np.ndarray:
@@ -205,9 +217,6 @@ class PimmLocalizer:
         self.segmenter = segmenter
         self.fingerprints = fingerprints
         walls = config.wall_field
-        field_params = LikelihoodFieldParams(
-            walls.z_hit, walls.z_rand, walls.sigma_hit, walls.max_distance, walls.range_max, walls.surfaces_only
-        )
         lookup = None
         if len(corners):
             lookup = NearestCornerGrid(
@@ -228,15 +237,14 @@ class PimmLocalizer:
                 " and the fingerprint suggestions alone",
                 stacklevel=2,
             )
-        self.filter = FeatureFilter(
-            occupancy,
-            lookup,
-            config.filter,
-            LikelihoodField(occupancy, field_params) if walls.enabled else None,
-            wall_temperature=walls.temperature if walls.model == "product" else None,
-            belief=config.belief,
-            rivals=config.rivals,
-        )
+        field = LikelihoodField(occupancy, walls.field_params()) if walls.enabled else None
+        temperature = walls.temperature if walls.model == "product" else None
+        self.filter = FeatureFilter(occupancy, lookup, config.filter, field, temperature, config.belief)
+        #: beside the filter: whether the estimate is the only place the scans allow (needs a tempered wall field)
+        check = None
+        if config.rivals.enabled and field is not None and temperature is not None:
+            check = AmbiguityCheck(occupancy, field, temperature, config.rivals)
+        self.step = MeasurementStep(self.filter, check, config.belief.confirm_updates)
         self.history = OdometryHistory(config.odometry_history_s)
         self.guard = ObservationGuard(config.guard)
         self._warm_up()
@@ -271,6 +279,7 @@ class PimmLocalizer:
         """Forget everything: global localization, or particles about ``initial_pose`` (nav2's covariance)."""
         self.rng = np.random.default_rng(seed)
         self.filter.reset(self.rng, initial_pose, initial_cov)
+        self.step.reset()
         self.guard.reset()
         self._last: PoseEstimate | None = None
         self.history.clear()
@@ -313,17 +322,6 @@ class PimmLocalizer:
             self._pending = None
             self.perceive(cloud, mask, stamp, timings)
 
-    def snapshot(self, max_particles: int = 500) -> dict[str, np.ndarray]:
-        """Particles, the last perceived scan's corners placed at the current estimate, and its fingerprint
-        suggestions."""
-        pose = self._estimate if self._estimate is not None else self.filter.best_mean()
-        corners = compose(pose, self._features[:, :3])[:, :2] if len(self._features) else np.zeros((0, 2))
-        return {
-            "particles": particle_sample(self.filter.particles, max_particles),
-            "corners": corners,
-            "suggestions": np.asarray(self._suggestions, dtype=float).reshape(-1, 2),
-        }
-
     def update(self, obs: Observation) -> PoseEstimate:
         began = time.perf_counter()
         timings: dict[str, float] = {}
@@ -331,6 +329,7 @@ class PimmLocalizer:
         cloud, mask = self.guard.cloud(obs)
         taken = self.guard.take(obs)
         if taken is None and self._last is not None:  # a glitch: keep the estimate
+            self._last = self.guard.stamped(self._last)
             return self._last
         obs = taken or obs
         stamp = float(require(obs, "time", (1,))[0])
@@ -348,7 +347,7 @@ class PimmLocalizer:
                     self._pending = (np.array(cloud), np.array(mask), cloud_time)
                 else:
                     self.perceive(cloud, mask, cloud_time, timings)
-        moved = self.filter.motion_update(odom)
+        moved, weighed = self.filter.motion_update(odom), None
         if moved and (self._unused_scan or not self.config.measure_once_per_scan):
             self._unused_scan = False
             self._perceive_pending(timings)
@@ -357,26 +356,39 @@ class PimmLocalizer:
                 at_scan = self.history.at(self._features_stamp)
                 features = compensate(features, at_scan, odom)
                 walls = None if walls is None else compensate(walls, at_scan, odom)
-            self._walls = None  # each scan's walls weigh once, whatever measure_once_per_scan says
+            self._walls, weighed = None, walls  # each scan's walls weigh once, whatever measure_once_per_scan says
             start = time.perf_counter()
             previous = None
             if self._estimate is not None and self._estimate_odom is not None:
                 previous = carry(self._estimate, self._estimate_odom, odom)
-            check = self.filter.ambiguity  # the part of the update that asks whether a look-alike place fits too
-            checked_ms = 0.0 if check is None else check.spent_ms
-            estimate = self.filter.correct(features, self._suggestions, previous, walls)
+            estimate = self.step(features, walls, self._suggestions, previous, odom)
             timings["measurement_update"] = 1000 * (time.perf_counter() - start)
-            if check is not None:
-                timings["rival_check"] = check.spent_ms - checked_ms
+            if self.step.check is not None:
+                timings["rival_check"] = self.step.check_ms
             if estimate is not None:
                 self._estimate, self._estimate_odom = estimate, odom.copy()
         if self._estimate is None or self._estimate_odom is None:
             self._estimate, self._estimate_odom = self.filter.best_mean(), odom.copy()
         pose = carry(self._estimate, self._estimate_odom, odom)
         timings["total"] = 1000 * (time.perf_counter() - began)
-        reading = self.filter.reading
-        self._last = PoseEstimate(
+        reading = self.step.reading
+        reported = PoseEstimate(
             float(pose[0]), float(pose[1]), float(pose[2]), reading.covariance.copy(), stamp, timings,
-            reading.status, reading.hypotheses,
+            reading.status, reading.hypotheses, inside=self._inside(weighed),
         )  # fmt: skip
+        self._last = self.guard.stamped(reported)
         return self._last
+
+    def _inside(self, walls: np.ndarray | None) -> dict[str, np.ndarray]:
+        """A sample of the particles, the last perceived scan's corners placed at the estimate, its fingerprint
+        suggestions, and the wall points this update weighed (``walls``; robot frame)."""
+        pose = self._estimate if self._estimate is not None else self.filter.best_mean()
+        corners = compose(pose, self._features[:, :3])[:, :2] if len(self._features) else np.zeros((0, 2))
+        inside = {
+            "particles": particle_sample(self.filter.particles, INSIDE_PARTICLES),
+            "corners": corners,
+            "suggestions": np.asarray(self._suggestions, dtype=float).reshape(-1, 2),
+        }
+        if walls is not None:
+            inside["walls"] = walls
+        return inside

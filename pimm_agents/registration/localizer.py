@@ -122,6 +122,7 @@ class RegistrationLocalizer:
         cloud, mask = self.guard.cloud(obs)
         taken = self.guard.take(obs)
         if taken is None and self._last is not None:  # a glitch: keep the estimate
+            self._last = self.guard.stamped(self._last)
             return self._last
         obs = taken or obs
         stamp = float(require(obs, "time", (1,))[0])
@@ -141,7 +142,8 @@ class RegistrationLocalizer:
         if not self._tracking:
             self._status, self._cov = "lost", LOST_COV.copy()  # searching globally, the pose a guess
         x, y, theta = (float(v) for v in predicted)
-        self._last = PoseEstimate(x, y, theta, self._cov.copy(), stamp, timings, self._status, self._hypotheses)
+        estimate = PoseEstimate(x, y, theta, self._cov.copy(), stamp, timings, self._status, self._hypotheses)
+        self._last = self.guard.stamped(estimate)
         return self._last
 
     @property

@@ -27,7 +27,7 @@ class Frame:
     true: np.ndarray  # (3,) map frame
     estimate: np.ndarray  # (3,)
     scan: np.ndarray  # (B, 2) the 2D scan's returns in the map frame, placed at the true pose
-    inner: dict[str, np.ndarray]  # the localizer's snapshot: particles, corners, suggestions (what it offers)
+    inner: dict[str, np.ndarray]  # the estimate's inside: particles, corners, suggestions (what it offers)
     kidnapped: bool  # after the kidnap
     status: str = "localized"  # the localizer's status with this estimate
     hypotheses: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (K, 3) its modes (and rivals)
