@@ -32,6 +32,7 @@ class BuiltIn:
 
     default_config: Callable[[], Any]
     build: Callable[[World, Any, str, str | None], Localizer]  # world, config, name, sensor presets
+    in_default_runs: bool = True  # run when no localizer is named (a preset for reproducing a paper is not)
 
 
 #: The AMCL presets: nav2's default, the two recoveries, and nav2's other two laser models.
@@ -62,10 +63,13 @@ def _build_amcl(world: World, config: Any, name: str, sensors: str | None) -> Lo
     return Amcl(load_derived_maps(world).occupancy, config, lidar=sensor_layouts(sensors)[1], name=name)
 
 
-def _pimm_config() -> Any:
-    from pimm_agents.pimm.localizer import PimmConfig
+def _pimm_config(preset: str) -> Callable[[], Any]:
+    def make() -> Any:
+        from pimm_agents.pimm.config import PRESETS
 
-    return PimmConfig()
+        return PRESETS[preset]
+
+    return make
 
 
 def _build_pimm(world: World, config: Any, name: str, sensors: str | None) -> Localizer:
@@ -104,7 +108,8 @@ _MAP_CLOUDS: dict[tuple[str, float, float], Any] = {}
 
 
 BUILT_IN: dict[str, BuiltIn] = {
-    "pimm": BuiltIn(_pimm_config, _build_pimm),
+    "pimm": BuiltIn(_pimm_config("pimm"), _build_pimm),
+    "pimm-thesis": BuiltIn(_pimm_config("pimm-thesis"), _build_pimm, in_default_runs=False),
     **{name: BuiltIn(_amcl_config(name), _build_amcl) for name in AMCL_PRESETS},
     "registration": BuiltIn(_registration_config, _build_registration),
 }
@@ -112,6 +117,11 @@ BUILT_IN: dict[str, BuiltIn] = {
 
 def _installed() -> dict[str, Any]:
     return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name not in BUILT_IN}
+
+
+def default_localizers() -> list[str]:
+    """The localizers a run uses when none is named: the built-ins (less the reproduction presets) and plugins."""
+    return [*(name for name, b in BUILT_IN.items() if b.in_default_runs), *sorted(_installed())]
 
 
 def available_localizers() -> list[str]:

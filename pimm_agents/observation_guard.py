@@ -4,9 +4,9 @@
   any state changes, so the localizer goes on as if the observation had never come.
 - A glitch is set aside and the last estimate kept: a stamp that goes back, or jumps further ahead than
   ``max_gap_s``; odometry that moved faster than the robot can (``max_speed``, ``max_turn_rate``) since the last
-  observation taken, allowing ``stamp_jitter_s`` for stamps that lag the motion (bursty logs). A sensor stamp
-  ahead of the observation's own time (``stamp_slack_s``) marks that sensor's data as not fresh.
-- A change that lasts is a new base, not a glitch: after ``confirm`` observations in a row agree with each other
+  observation taken, allowing ``STAMP_JITTER_S`` for stamps that lag the motion (bursty logs). A sensor stamp
+  ahead of the observation's own time (``STAMP_SLACK_S``) marks that sensor's data as not fresh.
+- A change that lasts is a new base, not a glitch: after ``CONFIRM`` observations in a row agree with each other
   (the odometry frame was reset, a bag paused), they are taken, the odometry re-anchored so that the jump counts
   as no motion.
 """
@@ -21,29 +21,28 @@ from pimm_agents.localizer import Observation, PoseEstimate, require
 from pimm_env.errors import ObservationError
 from pimm_env.geometry import compose, relative_motion
 
+#: A sensor stamp this far (s) ahead of the observation's own time marks that sensor's data as not fresh (ours).
+STAMP_SLACK_S = 0.5
+#: Observations in a row that agree with each other after a jump make a new base, not a glitch (ours).
+CONFIRM = 5
+#: Odometry may be stamped this far (s) from when it was measured (robots that log it in bursts a few ms apart):
+#: the speed limits allow for that much more time between two observations (measured: docs/design.md#the-guard).
+STAMP_JITTER_S = 0.2
+
 
 @dataclass(frozen=True)
 class GuardConfig:
     """Ours; the speed limits are three times the simulated robot's (1 m/s, 2 rad/s). Every localizer takes
     them from its params' ``guard`` section (``pimm.guard.max_speed``, ``amcl.guard.max_speed``, ...)."""
 
-    max_gap_s: float = 30.0
-    max_speed: float = 3.0  # m/s
-    max_turn_rate: float = 6.0  # rad/s
-    stamp_slack_s: float = 0.5
-    confirm: int = 5
-    #: odometry may be stamped this far from when it was measured (robots that log it in bursts a few ms apart):
-    #: the speed limits allow for that much more time between two observations
-    stamp_jitter_s: float = 0.2
+    max_gap_s: float = 30.0  # ours: a stamp further ahead than this is a glitch
+    max_speed: float = 3.0  # ours, m/s
+    max_turn_rate: float = 6.0  # ours, rad/s
 
     def __post_init__(self) -> None:
-        for name in ("max_gap_s", "max_speed", "max_turn_rate", "stamp_slack_s"):
+        for name in ("max_gap_s", "max_speed", "max_turn_rate"):
             if not getattr(self, name) > 0:
                 raise ObservationError(f"guard.{name} must be positive, got {getattr(self, name)}")
-        if self.stamp_jitter_s < 0:
-            raise ObservationError(f"guard.stamp_jitter_s must be at least 0, got {self.stamp_jitter_s}")
-        if self.confirm < 1:
-            raise ObservationError(f"guard.confirm must be at least 1, got {self.confirm}")
 
 
 class ObservationGuard:
@@ -100,7 +99,7 @@ class ObservationGuard:
         if self._pending and self._fault(*self._pending[-1], t, odom) is not None:
             self._pending.clear()
         self._pending.append((t, odom))
-        if len(self._pending) < self.config.confirm:
+        if len(self._pending) < CONFIRM:
             return None
         # A new base: the jump from the last taken observation to the first of these counts as no motion.
         _, first_odom = self._pending[0]
@@ -129,7 +128,7 @@ class ObservationGuard:
             return "stamp_gap"
         step = relative_motion(odom0, odom1)
         slack = 0.05  # m and rad: what a single control step may show at standstill
-        allowed = dt + c.stamp_jitter_s
+        allowed = dt + STAMP_JITTER_S
         fast = (
             np.hypot(step[0], step[1]) > c.max_speed * allowed + slack
             or abs(step[2]) > c.max_turn_rate * allowed + slack
@@ -142,6 +141,6 @@ class ObservationGuard:
         if np.any(self.offset):
             out["odom"] = compose(self.offset, odom)[0].astype(np.asarray(obs["odom"]).dtype)
         for key in ("cloud_time", "scan_time"):
-            if key in out and float(np.asarray(out[key]).reshape(-1)[0]) > t + self.config.stamp_slack_s:
+            if key in out and float(np.asarray(out[key]).reshape(-1)[0]) > t + STAMP_SLACK_S:
                 out[key] = np.array([-np.inf])  # stamped in the future: not a fresh reading
         return out

@@ -9,7 +9,7 @@ from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
 from pimm_agents.pimm.ambiguity import AmbiguityCheck
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
-from pimm_agents.pimm.rival_config import RivalConfig
+from pimm_agents.pimm.rivals import RivalConfig
 from pimm_agents.pimm.step import MeasurementStep
 from pimm_env.geometry import carry, relative_motion
 from pimm_env.mapping.corner_map import CornerMap

@@ -2,7 +2,7 @@
 
 import pytest
 
-import pimm_agents.pimm.twins as twins_module
+import pimm_env.mapping.twins as twins_module
 from pimm_agents.measurement.active_bound import active_bounds
 from pimm_agents.measurement.passive_bound import BOUND_DISTINCT_TURN_DEG, BOUND_TWINS
 

@@ -24,14 +24,14 @@ def test_two_places_of_like_weight_are_ambiguous_and_one_alone_is_localized():
     rng = np.random.default_rng(0)
     poses = np.vstack([blob(rng, [1, 1, 0], 500), blob(rng, [9, 1, 0], 500)])
     config = BeliefConfig()
-    belief = read_belief(poses, np.full(1000, 1e-3), config)
+    belief = read_belief(poses, np.full(1000, 1e-3))
     assert len(belief.modes) == 2 and belief_status(belief, 0, config) == "ambiguous"
     hypotheses = hypotheses_of(belief, 3)
     assert len(hypotheses) == 2 and {round(h.x) for h in hypotheses} == {1, 9}
     assert sum(h.weight for h in hypotheses) == pytest.approx(1.0)
     # the evidence moves 97 % of the weight to the place at x = 9: one place, localized
     weights = np.where(poses[:, 0] > 5, 0.97 / 500, 0.03 / 500)
-    belief = read_belief(poses, weights, config)
+    belief = read_belief(poses, weights)
     assert belief.modes[0].mean[0] == pytest.approx(9, abs=0.05)
     assert belief_status(belief, 0, config) == "localized"
     assert belief_status(belief, 1, config) == "lost"  # an estimate in the light mode holds 3 % of the belief
@@ -40,7 +40,7 @@ def test_two_places_of_like_weight_are_ambiguous_and_one_alone_is_localized():
 def test_a_cloud_still_searching_is_lost():
     rng = np.random.default_rng(1)
     poses = np.column_stack([rng.uniform(0, 20, 3000), rng.uniform(0, 10, 3000), rng.uniform(-np.pi, np.pi, 3000)])
-    belief = read_belief(poses, np.full(3000, 1 / 3000), BeliefConfig())
+    belief = read_belief(poses, np.full(3000, 1 / 3000))
     assert belief_status(belief, 0, BeliefConfig()) == "lost"
 
 
@@ -99,7 +99,7 @@ def test_cluster_labels_number_clusters_as_ndimage_does(seed):
 def test_covariance_about_an_offset_estimate_grows_by_the_offset():
     rng = np.random.default_rng(3)
     poses = blob(rng, [2, 2, 0], 400)
-    belief = read_belief(poses, np.full(400, 1 / 400), BeliefConfig())
+    belief = read_belief(poses, np.full(400, 1 / 400))
     cov = covariance_about(belief.modes[0], belief.modes[0].mean + np.array([0.3, 0, 0]))
     assert cov[0, 0] == pytest.approx(belief.modes[0].covariance[0, 0] + 0.09)
 
@@ -118,7 +118,7 @@ def test_a_switch_counts_the_updates_its_rival_led():
 
 
 def test_bad_settings_are_named():
-    with pytest.raises(ValueError, match="rival_ratio"):
-        BeliefConfig(rival_ratio=1.5)
+    with pytest.raises(ValueError, match="localized_min_weight"):
+        BeliefConfig(localized_min_weight=1.5)
     with pytest.raises(ValueError, match="confirm_updates"):
         BeliefConfig(confirm_updates=-1)

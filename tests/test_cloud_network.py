@@ -128,7 +128,8 @@ def test_pimm_with_cloud_weights_reads_another_lidar_as_it_is(tmp_path):
 
     from pimm_agents.perception.fingerprint_map import FingerprintMap
     from pimm_agents.perception.segmenter import CloudSegmenter
-    from pimm_agents.pimm.localizer import PimmConfig, PimmLocalizer
+    from pimm_agents.pimm.config import PimmConfig
+    from pimm_agents.pimm.localizer import PimmLocalizer
     from pimm_env.envs.iilab_env import IILabEnv
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.sim.sensors import LIDAR_3D

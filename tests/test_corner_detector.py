@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+import pimm_agents.corners.detector as detector
 from pimm_agents.corners.detector import CornerDetectorConfig, _ends_at, detect_corners
 from pimm_agents.corners.planes import Plane
 from pimm_env.world.semantics import SemanticClass
@@ -110,7 +111,7 @@ def test_a_wall_that_runs_on_only_under_a_step_in_the_ceiling_keeps_its_corner()
     assert len(found) == 1 and np.hypot(found.features[0].x - 2.0, found.features[0].y - 3.0) < 0.02
 
 
-def test_a_wall_whose_face_stays_far_below_the_corner_does_not_end_there():
+def test_a_wall_whose_face_stays_far_below_the_corner_does_not_end_there(monkeypatch):
     # the plane y = 3 holds a full-height pier for the last 0.25 m before the corner (2, 3) at the 4.5 m
     # ceiling, shorter than min_face, and beyond it a 1.5 m partition: the face lies more than face_band below
     # the ceiling, so this is not the wall of that ceiling's corner (B's inner wall and the low rooms beyond it)
@@ -119,9 +120,11 @@ def test_a_wall_whose_face_stays_far_below_the_corner_does_not_end_there():
     low = wall_y(3.0, np.arange(-1.0, 1.75, 0.05), np.arange(-0.5, 1.0, 0.05))
     full = wall_y(3.0, np.arange(-1.0, 1.75, 0.05), np.arange(-0.5, 4.5, 0.05))
     normal = np.array([0.0, 1.0, 0.0])
-    assert not _ends_at(Plane(normal, -3.0, np.concatenate([pier, low]), 0.0), corner, CornerDetectorConfig())
-    assert _ends_at(Plane(normal, -3.0, np.concatenate([pier, low]), 0.0), corner, CornerDetectorConfig(face_band=99))
-    assert _ends_at(Plane(normal, -3.0, np.concatenate([pier, full]), 0.0), corner, CornerDetectorConfig())
+    config = CornerDetectorConfig()
+    assert not _ends_at(Plane(normal, -3.0, np.concatenate([pier, low]), 0.0), corner, config)
+    assert _ends_at(Plane(normal, -3.0, np.concatenate([pier, full]), 0.0), corner, config)
+    monkeypatch.setattr(detector, "FACE_BAND", 99.0)  # the test is that of the face band
+    assert _ends_at(Plane(normal, -3.0, np.concatenate([pier, low]), 0.0), corner, config)
 
 
 def test_nan_points_are_ignored_and_empty_input_gives_an_empty_list():
@@ -140,13 +143,15 @@ def test_detection_is_reproducible():
     assert [(f.x, f.y, f.theta) for f in a.features] == [(f.x, f.y, f.theta) for f in b.features]
 
 
-@pytest.mark.parametrize("field", ["face_band", "through_points", "max_corner_distance"])
+@pytest.mark.parametrize("field", ["distance_threshold", "max_corner_distance", "merge_distance"])
 def test_a_negative_setting_is_refused_by_name(field: str) -> None:
-    with pytest.raises(ValueError, match=f"CornerDetectorConfig.{field} must be at least 0, got -1"):
+    with pytest.raises(ValueError, match=f"corners.{field} must be positive, got -1"):
         CornerDetectorConfig(**{field: -1})
+    with pytest.raises(ValueError, match="corners.min_inliers must be at least 3, got 2"):
+        CornerDetectorConfig(min_inliers=2)
 
 
-def test_faces_that_end_either_side_of_a_doorway_make_no_corner_in_the_gap():
+def test_faces_that_end_either_side_of_a_doorway_make_no_corner_in_the_gap(monkeypatch):
     # a corridor wall y = 0 resumes at x = 0.6 after a doorway; a partition x = 0 starts 0.15 m past it (behind
     # the corridor wall's thickness): their planes meet at (0, 0), in the doorway, 0.6 m from the corridor wall
     rng = np.random.default_rng(8)
@@ -154,15 +159,17 @@ def test_faces_that_end_either_side_of_a_doorway_make_no_corner_in_the_gap():
     partition = wall_x(0.0, np.arange(0.15, 3.0, 0.05), height)
     resumed = wall_y(0.0, np.arange(0.6, 4.0, 0.05), height)
     assert len(detect_corners(*scene([partition, resumed], rng))) == 0
-    found = detect_corners(*scene([partition, resumed], rng), config=CornerDetectorConfig(max_wall_gap=0.0))
-    assert len(found) == 1, "the test is that of max_wall_gap: without it the phantom is there"
+    with monkeypatch.context() as patch:
+        patch.setattr(detector, "MAX_WALL_GAP", 0.0)
+        found = detect_corners(*scene([partition, resumed], rng))
+    assert len(found) == 1, "the test is that of the wall gap: without it the phantom is there"
     # the same two walls meeting at (0, 0) make a corner
     meeting = [wall_x(0.0, np.arange(0.0, 3.0, 0.05), height), wall_y(0.0, np.arange(0.0, 4.0, 0.05), height)]
     found = detect_corners(*scene(meeting, rng))
     assert len(found) == 1 and np.hypot(found.features[0].x, found.features[0].y) < 0.02
 
 
-def test_the_gap_is_measured_on_every_wall_return_not_only_the_subsample_the_planes_were_fitted_to():
+def test_the_gap_is_measured_on_every_wall_return_not_only_the_subsample_the_planes_were_fitted_to(monkeypatch):
     # two walls meeting at (0, 0) under a ceiling, each seen near the corner only as a thin column of returns
     # 0.2 m from it (as far, grazing walls give), densely from 0.6 m on: the planes are fitted to 150 points of
     # each class, which keep none of the columns, but the scan has them, so the walls reach the corner
@@ -171,7 +178,8 @@ def test_the_gap_is_measured_on_every_wall_return_not_only_the_subsample_the_pla
     column = np.array([0.2])
     partition = np.concatenate([wall_x(0.0, column, height[::6]), wall_x(0.0, np.arange(0.6, 3.0, 0.05), height)])
     corridor = np.concatenate([wall_y(0.0, column, height[::6]), wall_y(0.0, np.arange(0.6, 4.0, 0.05), height)])
-    config = CornerDetectorConfig(max_points_per_class=150)
+    monkeypatch.setattr(detector, "MAX_POINTS_PER_CLASS", 150)
+    config = CornerDetectorConfig()
     points, labels = scene([partition, corridor], rng)
     found = detect_corners(points, labels, config=config)
     assert len(found) == 1 and np.hypot(found.features[0].x, found.features[0].y) < 0.05

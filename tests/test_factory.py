@@ -30,14 +30,31 @@ def test_installed_entry_points_are_registered(monkeypatch):
 
 
 def test_nested_configs_take_namespaced_settings_and_refuse_unknown_keys():
-    config = factory.resolve_config("pimm", {"corners": {"planes": {"method": "open3d", "min_inliers": 30}}})
-    assert config.corners.planes.method == "open3d" and config.corners.planes.min_inliers == 30
-    with pytest.raises(ParamsError, match=r"pimm.corners.planes: unknown key 'inliers'; valid keys: .*min_inliers"):
-        factory.resolve_config("pimm", {"corners": {"planes": {"inliers": 30}}})
+    config = factory.resolve_config("pimm", {"corners": {"min_inliers": 30}, "rivals": {"settle_scans": 12}})
+    assert config.corners.min_inliers == 30 and config.corners.planes.min_inliers == 30
+    assert config.rivals.settle_scans == 12
+    with pytest.raises(ParamsError, match=r"pimm.corners: unknown key 'inliers'; valid keys: .*min_inliers"):
+        factory.resolve_config("pimm", {"corners": {"inliers": 30}})
     with pytest.raises(ParamsError, match="pimm.filter.num_particles: expected a int, got 'many'"):
         factory.resolve_config("pimm", {"filter": {"num_particles": "many"}})
-    with pytest.raises(ParamsError, match="PlaneParams.method 'magic'"):
-        factory.resolve_config("pimm", {"corners": {"planes": {"method": "magic"}}})
+    with pytest.raises(ParamsError, match="corners.min_inliers must be at least 3"):
+        factory.resolve_config("pimm", {"corners": {"min_inliers": 1}})
+
+
+def test_the_two_presets_are_the_default_and_the_thesis_filter_as_published():
+    from pimm_agents.pimm.config import PRESETS, PimmConfig
+
+    assert factory.resolve_config("pimm") == PimmConfig() == PRESETS["pimm"]
+    thesis = factory.resolve_config("pimm-thesis")
+    assert thesis.filter.thesis and not thesis.wall_field.enabled and not thesis.rivals.enabled
+    f = thesis.filter  # what the thesis published: a fixed set, nearest corners, the mean of the heaviest
+    assert (f.adaptive, f.mode_min_particles, f.mode_evidence, f.estimate_bin_xy, f.orientation_bins) == (
+        False, 0, "sum", 0.0, 1,
+    )  # fmt: skip
+    assert thesis.filter.num_particles == 10_000 and thesis.filter.alpha == 0.8  # table 3.5 in both
+    assert "pimm-thesis" in factory.available_localizers() and "pimm-thesis" not in factory.default_localizers()
+    # the preset takes the same params as the default
+    assert factory.resolve_config("pimm-thesis", {"filter": {"num_particles": 500}}).filter.thesis
 
 
 def test_resolved_params_read_back_to_the_same_config(tmp_path):

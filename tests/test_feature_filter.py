@@ -1,9 +1,10 @@
 import numpy as np
 import pytest
 
-from pimm_agents.particles.belief import BeliefConfig, read_belief
+from pimm_agents.particles.belief import read_belief
+from pimm_agents.pimm.config import WallFieldConfig
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
-from pimm_agents.pimm.localizer import OdometryHistory, WallFieldConfig, compensate, wall_points
+from pimm_agents.pimm.scan_features import OdometryHistory, compensate, wall_points
 from pimm_env.geometry import carry, compose, wrap_angle
 from pimm_env.world.semantics import SemanticClass
 from tests.scenes import features_from, l_room, path, wall_field_for, walls_seen_from
@@ -63,10 +64,10 @@ def test_the_estimate_is_the_heavier_mode_not_the_point_between_modes():
     filt.weights[:100] = 1.0
     filt.weights /= filt.weights.sum()
     assert np.allclose(filt.best_mean(), [2.0, 1.5, 0.3])
-    filt.config = FeatureFilterConfig(num_particles=1000, estimate_bin_xy=0.0)
+    filt.config = FeatureFilterConfig(num_particles=1000, thesis=True)  # the mean of all the heaviest
     assert np.allclose(filt.best_mean(), [2.0, 3.1, 0.3])
-    with pytest.raises(ValueError, match="estimate_bin_xy"):
-        FeatureFilterConfig(estimate_bin_xy=-1.0)
+    with pytest.raises(ValueError, match="estimate_num_particles"):
+        FeatureFilterConfig(estimate_num_particles=0)
 
 
 def test_no_features_keeps_weights_normalized_and_finite():
@@ -155,12 +156,11 @@ def test_a_heavier_few_elsewhere_do_not_move_a_held_estimate():
     assert np.allclose(correct(filt, np.zeros((0, 5)), np.zeros((0, 2)), previous=held)[:2], elsewhere[:2])
 
 
-@pytest.mark.parametrize("temperature", [None, 0.2])  # nav2's sum of cubes, the tempered product
-def test_wall_points_alone_find_and_hold_the_pose(temperature):
+def test_wall_points_alone_find_and_hold_the_pose():
     """No corners at all (a corridor's case): the scan's walls against the occupancy map still localize."""
     occupancy, corners = l_room()
     config = FeatureFilterConfig(num_particles=3000)
-    filt = FeatureFilter(occupancy, corners, config, wall_field_for(occupancy), temperature)
+    filt = FeatureFilter(occupancy, corners, config, wall_field_for(occupancy), 0.2)
     filt.reset(np.random.default_rng(0))
     poses = path()
     for pose in poses:
@@ -185,26 +185,23 @@ def test_nothing_measured_replaces_no_particle():
 
 
 def test_wall_points_are_the_wall_band_spread_over_bearings():
-    config = WallFieldConfig(points=4)
     angles = np.linspace(-np.pi, np.pi, 40, endpoint=False)
     cloud = np.column_stack([3 * np.cos(angles), 3 * np.sin(angles), np.zeros(40)])
     cloud[::2, 2] = 1.8  # above the band (a lintel height): never used
     labels = np.full(40, int(SemanticClass.WALL))
     labels[1::4] = int(SemanticClass.CLUTTER)
-    points = wall_points(cloud, labels, config)
+    points = wall_points(cloud, labels, 4)
     assert points.shape == (4, 2)
     kept = np.arange(40)[(cloud[:, 2] < 1.0) & (labels == int(SemanticClass.WALL))]
     assert all(np.any(np.all(np.isclose(cloud[kept, :2], p), axis=1)) for p in points)
     bearings = np.sort(np.arctan2(points[:, 1], points[:, 0]))
     assert np.min(np.diff(bearings)) > np.pi / 4  # spread round the scan, not bunched
-    with pytest.raises(ValueError, match="min_z_m"):
-        WallFieldConfig(min_z_m=1.0, max_z_m=0.0)
-    with pytest.raises(ValueError, match="'product' or 'sum_of_cubes'"):
-        WallFieldConfig(model="beam")
+    with pytest.raises(ValueError, match="wall_field.points"):
+        WallFieldConfig(points=0)
 
 
 def test_adaptive_set_shrinks_once_converged_and_finds_a_kidnapped_robot():
-    filt = make_filter(6000, adaptive=True, min_particles=500)
+    filt = make_filter(6000, min_particles=500)
     east = np.array([[x, 1.5, 0.0] for x in np.arange(1.0, 8.0, 0.15)])
     sizes = []
     for pose in east:
@@ -227,12 +224,12 @@ def test_adaptive_set_shrinks_once_converged_and_finds_a_kidnapped_robot():
 
 
 def test_adaptive_injection_joins_a_small_set_and_replaces_in_a_full_one():
-    filt = make_filter(2000, adaptive=True, min_particles=100)
+    filt = make_filter(2000, min_particles=100)
     filt.particles, filt.weights = filt.particles[:300], np.full(300, 1 / 300)
     added = filt.inject(np.array([[2.0, 2.0]]))
     assert len(filt.particles) == 400 and list(added) == list(range(300, 400))  # 5 % of 2000 joined
     assert filt.weights.sum() == pytest.approx(1.0)
-    full = make_filter(2000, adaptive=True, min_particles=100)
+    full = make_filter(2000, min_particles=100)
     full.inject(np.array([[2.0, 2.0]]))
     assert len(full.particles) == 2000
     with pytest.raises(ValueError, match="min_particles must be at least 1, got 0"):
@@ -240,7 +237,7 @@ def test_adaptive_injection_joins_a_small_set_and_replaces_in_a_full_one():
 
 
 def test_per_mode_budgets_keep_a_light_twin_alive_with_its_weight():
-    filt = make_filter(2000, adaptive=False)
+    filt = make_filter(2000)
     rng = np.random.default_rng(4)
     filt.particles = np.vstack(
         [
@@ -250,12 +247,12 @@ def test_per_mode_budgets_keep_a_light_twin_alive_with_its_weight():
     )
     filt.weights = np.concatenate([np.full(1900, 0.98 / 1900), np.full(100, 0.02 / 100)])
     filt.ess = 1.0  # degenerate: resample now
-    filt.belief = read_belief(filt.particles, filt.weights, BeliefConfig())
+    filt.belief = read_belief(filt.particles, filt.weights)
     assert filt.resample_if_degenerate()
     twin = filt.particles[:, 1] > 3
     # the twin keeps its 2 % of the belief and mode_min_particles particles (its share alone would be 40)
     assert twin.sum() == 100 and filt.weights[twin].sum() == pytest.approx(0.02)
-    plain = make_filter(2000, adaptive=False, mode_min_particles=0)
+    plain = make_filter(2000, thesis=True)  # resampled as one set
     plain.particles, plain.weights, plain.ess = filt.particles.copy(), filt.weights.copy(), 1.0
     plain.weights = np.where(twin, 0.02 / twin.sum(), 0.98 / (~twin).sum())
     plain.resample_if_degenerate()

@@ -5,7 +5,7 @@ import pytest
 
 from pimm_agents.pimm.ambiguity import Decision
 from pimm_agents.pimm.feature_filter import FeatureFilterConfig
-from pimm_agents.pimm.rival_config import RivalConfig
+from pimm_agents.pimm.rivals import RivalConfig
 from tests.scenes import (
     features_from,
     l_room,

@@ -246,7 +246,7 @@ def test_heldout_refuses_a_bad_setting_before_writing_any_building(tmp_path):
 
     worlds, out = tmp_path / "worlds", tmp_path / "out"
     args = ["heldout", "--seeds", "920", "--localizers", "pimm", "--worlds", str(worlds), "--out", str(out)]
-    result = CliRunner().invoke(app, [*args, "--set", "pimm.rivals.twins.max_twinz=10"])
+    result = CliRunner().invoke(app, [*args, "--set", "pimm.rivals.max_rivalz=10"])
     assert result.exit_code != 0
-    assert "max_twinz" in result.output
+    assert "max_rivalz" in result.output
     assert not worlds.exists() and not out.exists()

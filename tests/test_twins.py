@@ -2,14 +2,15 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+import pimm_agents.pimm.ambiguity as ambiguity
+import pimm_agents.pimm.rivals as rivals
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.pimm.feature_filter import FeatureFilterConfig
-from pimm_agents.pimm.rival_config import RivalConfig
-from pimm_agents.pimm.twins import MapTwins, TwinConfig, local_peaks
 from pimm_env.errors import LocalizerError, ParamsError
 from pimm_env.geometry import carry, wrap_angle
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.mapping.twins import MapTwins, TwinConfig, local_peaks
 from pimm_env.world.grid import GridSpec
 from tests.scenes import make_step, rays_from, track, twin_rooms
 
@@ -96,83 +97,66 @@ def test_bad_settings_are_named(bad):
         TwinConfig(**bad)
 
 
-def started_at_the_truth(
-    twins: bool,
-    veto_only: bool = False,
-    cells: int = 0,
-    injection: float = 0.05,
-    refit: bool = True,
-    map_error: float = 0.5,
-) -> list[tuple[str, np.ndarray, np.ndarray]]:
+def started_at_the_truth(injection: float = 0.05) -> list[tuple[str, np.ndarray, np.ndarray]]:
     """A filter that starts around the true pose in the second room (no particle in the first), driven as in
     the twin-rooms test: east through the door, the block in sight from x = 15.6, on to x = 21; ``injection``
-    is the share of particles replaced at random places after each update (``replace_worst_fraction``);
-    ``map_error`` the rival check's ``map_error_cells``."""
+    is the share of particles replaced at random places after each update (``replace_worst_fraction``)."""
     occupancy = twin_rooms()
     corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
-    twin_config = TwinConfig(enabled=twins, looked_from_cells=cells)
-    rivals = RivalConfig(veto_only=veto_only, twins=twin_config, refit_before_drop=refit, map_error_cells=map_error)
-    step = make_step(
-        occupancy, corners, FeatureFilterConfig(num_particles=2000, replace_worst_fraction=injection), rivals
-    )
+    step = make_step(occupancy, corners, FeatureFilterConfig(num_particles=2000, replace_worst_fraction=injection))
     turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
     truth = np.vstack([turn, [[x, 1.0, 0.0] for x in np.arange(14.0, 21.0, 0.12)]])
     step.filter.reset(np.random.default_rng(0), truth[0], np.diag([0.1, 0.1, 0.01]))
     return track(step, truth, truth, lambda pose: (np.zeros((0, 5)), rays_from(occupancy, pose, 10.0)))
 
 
-@pytest.mark.parametrize("veto_only, cells", [(False, 0), (True, 2)])
-def test_a_twin_the_filter_never_held_keeps_the_place_ambiguous_until_the_block_is_seen(veto_only, cells):
-    with_twins = started_at_the_truth(twins=True, veto_only=veto_only, cells=cells)
+def test_a_twin_the_filter_never_held_keeps_the_place_ambiguous_until_the_block_is_seen(monkeypatch):
+    with_twins = started_at_the_truth()
     before = [status for status, _, pose in with_twins if pose[0] < 15.5]
     assert "localized" not in before
     assert with_twins[-1][0] == "localized"
     # without the map's twins, and without the injection (whose random particles in the first room the check
     # can also fit there), nothing offers the first room, and the place is called localized before the block
-    without = [status for status, _, pose in started_at_the_truth(twins=False, injection=0.0) if pose[0] < 15.5]
+    monkeypatch.setattr(MapTwins, "of", lambda self, pose: np.zeros((0, 3)))
+    without = [status for status, _, pose in started_at_the_truth(injection=0.0) if pose[0] < 15.5]
     assert "localized" in without
 
 
-def test_a_standing_rival_is_fitted_as_a_newcomer_before_it_falls():
-    # the scans are the same in both rooms until the block is in sight: touched once an update, the first room's
-    # twin drifts behind the estimate (about 0.2 nats an update) past the drop margin; refitted, it stands. The
-    # check only vetoing, the place is localized at the first update no rival stands. (The margins summed as
-    # they are: scan by scan, ``map_error_cells``, the drift stays within the raster's allowance either way.)
-    for refit, localized_early in ((True, False), (False, True)):
-        updates = started_at_the_truth(twins=True, veto_only=True, cells=2, refit=refit, map_error=0.0)
-        before = [status for status, _, pose in updates if pose[0] < 15.5]
-        assert ("localized" in before) == localized_early
-
-
-def test_a_place_is_called_localized_only_once_its_twins_were_looked_for_from_two_cells():
+def test_a_place_is_called_localized_only_once_its_twins_were_looked_for_from_two_cells(monkeypatch):
     # turning on one spot, the twin search from its one cell offers shifted near-copies, not the other room:
-    # looked for from that cell alone, the place is called localized before the robot has moved
-    # (the check only vetoing: the 10 updates that confirm a place after its last rival fell would give it more)
-    # (without the injection, whose random particles in the other room the check can also fit there; the margins
-    # summed as they are: scan by scan, ``map_error_cells``, the place is not called localized on that spot at all)
-    turned = started_at_the_truth(twins=True, veto_only=True, cells=1, injection=0.0, map_error=0.0)
-    one_cell = [status for status, _, pose in turned if pose[0] < 15.5]
+    # looked for from that cell alone, the place is called localized before the robot has moved (without the
+    # injection, whose random particles in the other room the check can also fit there; the margins summed as
+    # they are, without the raster's allowance, under which the place is not called localized on that spot at all)
+    monkeypatch.setattr(ambiguity, "TWINS_FROM_CELLS", 1)
+    monkeypatch.setattr(rivals, "MAP_ERROR_CELLS", 0.0)
+    one_cell = [status for status, _, pose in started_at_the_truth(injection=0.0) if pose[0] < 15.5]
     assert "localized" in one_cell
 
 
-def test_the_twins_are_set_from_a_params_section():
+def test_the_rival_check_is_set_from_a_params_section_and_settings_that_go_together_are_checked_together():
     from pimm_agents.params import apply_params
-    from pimm_agents.pimm.localizer import PimmConfig
+    from pimm_agents.pimm.config import PimmConfig
 
-    config = apply_params(PimmConfig(), {"rivals": {"log_ratio": 5.0, "twins": {"radius_m": 6.0}}}, "pimm")
-    assert config.rivals.twins.radius_m == 6.0 and config.rivals.log_ratio == 5.0
-    with pytest.raises(ParamsError, match="pimm.rivals.twins.*angle_step_deg"):
-        apply_params(PimmConfig(), {"rivals": {"twins": {"angle_step_deg": 7.0}}}, "pimm")
+    config = apply_params(PimmConfig(), {"rivals": {"log_ratio": 5.0, "settle_scans": 20}}, "pimm")
+    assert config.rivals.log_ratio == 5.0 and config.rivals.settle_scans == 20
+    with pytest.raises(ParamsError, match="drop_log_ratio.*log_ratio"):
+        apply_params(PimmConfig(), {"rivals": {"log_ratio": 10.0}}, "pimm")
+    with pytest.raises(ParamsError, match="history_scans.*settle_scans"):
+        apply_params(PimmConfig(), {"rivals": {"history_scans": 20, "settle_scans": 30}}, "pimm")
+    with pytest.raises(ParamsError, match="rivals.enabled needs pimm.wall_field.enabled"):
+        apply_params(PimmConfig(), {"wall_field": {"enabled": False}}, "pimm")
+    thesis = apply_params(PimmConfig(), {"wall_field": {"enabled": False}, "rivals": {"enabled": False}}, "pimm")
+    assert not thesis.wall_field.enabled and not thesis.rivals.enabled
 
 
-def started_in_the_wrong_room(switch: bool) -> list[tuple[str, np.ndarray, np.ndarray]]:
+def started_in_the_wrong_room() -> list[tuple[str, np.ndarray, np.ndarray]]:
     """The twin-rooms drive with every particle about the first room's twin of the true pose (12 m west), and a
     turn on the spot at its end: the switch comes once 10 updates in a row favour the true place by ln 1000 (here
     at about x = 20; the block is in sight from 15.6), and a place switched to is called localized only after 20
     more scans."""
     occupancy = twin_rooms()
     corners = NearestCornerGrid(CornerMap(xy=np.zeros((1, 2)), z=np.ones(1), theta=np.zeros(1)))
-    step = make_step(occupancy, corners, FeatureFilterConfig(num_particles=2000), RivalConfig(switch=switch))
+    step = make_step(occupancy, corners, FeatureFilterConfig(num_particles=2000))
     turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
     drive = [[x, 1.0, 0.0] for x in np.arange(14.0, 21.0, 0.12)]
     truth = np.vstack([turn, drive, [[21.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)[1:]]])
@@ -181,14 +165,11 @@ def started_in_the_wrong_room(switch: bool) -> list[tuple[str, np.ndarray, np.nd
 
 
 def test_a_rival_the_scans_favour_decisively_takes_the_estimate():
-    moved = started_in_the_wrong_room(switch=True)
+    moved = started_in_the_wrong_room()
     status, estimate, truth = moved[-1]
     assert status == "localized" and np.hypot(*(estimate[:2] - truth[:2])) < 0.3
     # never localized in the wrong room on the way
     assert all(s != "localized" or np.hypot(*(e[:2] - t[:2])) < 1.0 for s, e, t in moved)
-    # reporting only, the estimate stays in the wrong room, ambiguous, with the true place a standing rival
-    status, estimate, truth = started_in_the_wrong_room(switch=False)[-1]
-    assert status != "localized" and np.hypot(*(estimate[:2] - truth[:2])) > 10.0
 
 
 def test_a_place_reported_localized_is_not_moved_by_the_rival_check():

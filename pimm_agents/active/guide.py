@@ -24,9 +24,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pimm_agents.active.views import ViewConfig, ViewPredictor, in_frame, place
-from pimm_agents.pimm.twins import MapTwins, TwinConfig
 from pimm_env.geometry import compose, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.mapping.twins import MapTwins, TwinConfig
 
 if TYPE_CHECKING:
     from pimm_agents.localizer import PoseEstimate

@@ -309,7 +309,7 @@ class Amcl:
         """nav2's estimate (the heaviest cluster's mean and covariance), with the status and hypotheses the
         clusters give (particles/belief.py); ``update``: read at a measurement update (the status's
         confirmation counts it), ``previous`` the last estimate carried to it by the odometry."""
-        belief = read_belief(self.particles, self.weights, self.config.belief)
+        belief = read_belief(self.particles, self.weights)
         best = belief.modes[0]
         status = belief_status(belief, 0, self.config.belief)
         if update:

@@ -12,7 +12,7 @@ to the corner; these three offset variances map to the corner through the invers
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
@@ -23,73 +23,47 @@ from pimm_agents.perception.point_arrays import finite_rows
 from pimm_env.errors import LocalizerError
 from pimm_env.world.semantics import SemanticClass
 
+#: The detector's fixed choices (thesis section 3.3.4, or measured on 150 fresh scans, seeds 1-3; each in
+#: docs/design.md#corners): RANSAC draws upright wall planes and level ceiling planes only, each hypothesis scored
+#: on SCORE_POINTS points (``planes.constrained_ransac``), at most MAX_PLANES planes of RANSAC_ITERATIONS draws
+MAX_PLANES, RANSAC_ITERATIONS, SCORE_POINTS = 20, 100, 600
+VERTICAL_MAX_NZ = 0.1  # walls: |n_z| below this (thesis)
+HORIZONTAL_MIN_NZ = 0.9  # ceilings: |n_z| above this (thesis)
+MIN_PLANE_ANGLE = np.pi / 4  # every pair of the three normals at least this far from parallel (thesis)
+MIN_FACE = 0.3  # m, the corner map's rule: each wall runs on at least this far from the corner...
+MIN_FACE_POINTS = 5  # ... with this many inliers on that stretch
+FACE_BAND = 3.0  # m: and within this height of the corner
+THROUGH_POINTS = 7  # a wall with this many inliers past the corner as well runs through it...
+THROUGH_BAND = 2.0  # m: ... counting only inliers within this height of the corner
+#: m: each wall has a wall return this close to the corner's vertical edge (in the floor plane), counting the
+#: returns within WALL_GAP_BAND of its plane (or 3 RMS of its fit): drops the phantoms of doorway gaps
+MAX_WALL_GAP, WALL_GAP_BAND = 0.5, 0.1
+MAX_POINTS_PER_CLASS = 2500  # random subsample of each class, for speed
+MIN_POSITION_STD, MIN_ORIENTATION_STD = 0.02, float(np.radians(1.0))  # floors on the derived uncertainty
+
 
 @dataclass(frozen=True)
 class CornerDetectorConfig:
-    """Thesis section 3.3.4 values as defaults, with five measured changes (150 fresh scans, seeds 1-3):
+    """Thesis section 3.3.4's values, the inlier minimum scaled to the subsampled classes (measured)."""
 
-    - each class is cut to 2500 random points;
-    - the thesis's 150-inlier minimum, set for whole 10 000-point clouds, is scaled to 20 for that density
-      (40 until the wall-gap test counted every wall return; docs/design.md#measured-choices);
-    - RANSAC draws only upright wall planes and level ceiling planes, scoring each hypothesis on 600 points
-      (``planes.constrained_ransac``, compiled): precision 0.90 / recall 0.84 against 0.92 / 0.82 for
-      Open3D's (1750 points) on true labels, at a fraction of its time;
-    - a wall must run on at least ``min_face`` from the corner (the corner map's own rule), which drops the
-      phantom corners that infinite planes make with slivers of wall: precision 0.88 -> 0.92 at equal recall;
-    - a wall must end at the corner: not run on past it as well (``through_points``, ``through_band``), and
-      have its face within ``face_band`` of the corner's height. This drops the phantoms that a wall makes
-      with one in the next room, with a parallel face merged into it, or with a ceiling it does not reach:
-      on predicted labels precision 0.88 -> 0.95, which paid for the lower inlier minimum (predicted labels:
-      0.95 / 0.81; true labels: 0.95 / 0.86).
-    """
-
-    planes: PlaneParams = field(
-        default_factory=lambda: PlaneParams(min_inliers=20, method="constrained", score_points=600)
-    )
-    vertical_max_nz: float = 0.1  # walls: |n_z| below this
-    horizontal_min_nz: float = 0.9  # ceilings: |n_z| above this
-    min_plane_angle: float = np.pi / 4  # every pair of the three normals at least this far from parallel
-    max_corner_distance: float = 2.0  # from the corner to the nearest inlier of each plane
-    merge_distance: float = 0.5
-    min_face: float = 0.3  # ours, the corner map's rule: each wall runs on at least this far from the corner
-    min_face_points: int = 5  # inliers that must lie on that stretch
-    face_band: float = 3.0  # ours, m: and within this height of the corner
-    through_points: int = 7  # ours: a wall with this many inliers past the corner as well runs through it
-    through_band: float = 2.0  # m: only inliers within this height of the corner count as running through
-    # ours, m: each wall has an inlier this close to the corner's vertical edge (in the floor plane). Planes
-    # of two faces that end either side of a doorway meet in the gap, up to max_corner_distance (2 m) from
-    # either; in office rows those phantoms were half the features seen while driving. 0: no test.
-    max_wall_gap: float = 0.5
-    # ours, m: the gap is measured to the scan's wall returns (every one, not only the 2 500 the planes were
-    # fitted to) within this distance of the wall's plane (or 3 RMS of its fit, if more). Where one wall
-    # reaches the corner, its returns there lie in the other's band too: the test rejects the corner only when
-    # neither face comes near its edge, as in a doorway's gap
-    wall_gap_band: float = 0.1
-    # ours: the gap allowed grows by this much per metre from the sensor to the corner, as the returns thin
-    # out with range; 0: the same gap at any range
-    wall_gap_per_m: float = 0.0
-    max_points_per_class: int = 2500  # random subsample for speed; 0 keeps all
-    min_position_std: float = 0.02  # m: a floor on the derived position uncertainty
-    min_orientation_std: float = np.radians(1.0)
+    distance_threshold: float = 0.2  # thesis: RANSAC's inlier distance (m)
+    min_inliers: int = 20  # measured: the thesis's 150 for 10 000-point clouds, scaled (docs/design.md#corners)
+    max_corner_distance: float = 2.0  # thesis: from the corner to the nearest inlier of each plane (m)
+    merge_distance: float = 0.5  # thesis: corners closer than this are one (m)
 
     def __post_init__(self) -> None:
-        for name in (
-            "max_corner_distance",
-            "merge_distance",
-            "min_face",
-            "min_face_points",
-            "face_band",
-            "through_points",
-            "through_band",
-            "max_wall_gap",
-            "wall_gap_band",
-            "wall_gap_per_m",
-            "max_points_per_class",
-            "min_position_std",
-            "min_orientation_std",
-        ):
-            if not getattr(self, name) >= 0:
-                raise LocalizerError(f"CornerDetectorConfig.{name} must be at least 0, got {getattr(self, name)}")
+        for name in ("distance_threshold", "max_corner_distance", "merge_distance"):
+            if not getattr(self, name) > 0:
+                raise LocalizerError(f"corners.{name} must be positive, got {getattr(self, name)}")
+        if self.min_inliers < 3:
+            raise LocalizerError(f"corners.min_inliers must be at least 3, got {self.min_inliers}")
+
+    @property
+    def planes(self) -> PlaneParams:
+        """What RANSAC is run with."""
+        return PlaneParams(
+            MAX_PLANES, self.distance_threshold, self.min_inliers, RANSAC_ITERATIONS, "constrained", SCORE_POINTS
+        )
 
 
 @dataclass(frozen=True)
@@ -130,11 +104,11 @@ def detect_corners(
     rng = np.random.default_rng(seed)
     wall_points = _points_of(points, labels, SemanticClass.WALL)
     walls = _planes_of(wall_points, config, rng, seed, "vertical")
-    walls = [p for p in walls if abs(p.normal[2]) < config.vertical_max_nz]
+    walls = [p for p in walls if abs(p.normal[2]) < VERTICAL_MAX_NZ]
     if len(walls) < 2:
         return FeatureList(stamp, [])
     ceilings = _planes_of(_points_of(points, labels, SemanticClass.CEILING), config, rng, seed + 1, "horizontal")
-    ceilings = [p for p in ceilings if abs(p.normal[2]) > config.horizontal_min_nz]
+    ceilings = [p for p in ceilings if abs(p.normal[2]) > HORIZONTAL_MIN_NZ]
     candidates = [
         feature
         for a, b, ceiling, corner in _intersections(walls, ceilings, config)
@@ -152,8 +126,8 @@ def _points_of(points: np.ndarray, labels: np.ndarray, semantic: SemanticClass) 
 def _planes_of(
     points: np.ndarray, config: CornerDetectorConfig, rng: np.random.Generator, seed: int, orientation: str
 ) -> list[Plane]:
-    if config.max_points_per_class and len(points) > config.max_points_per_class:
-        points = points[rng.choice(len(points), config.max_points_per_class, replace=False)]
+    if MAX_POINTS_PER_CLASS and len(points) > MAX_POINTS_PER_CLASS:
+        points = points[rng.choice(len(points), MAX_POINTS_PER_CLASS, replace=False)]
     return extract_planes(points, config.planes, seed, orientation)
 
 
@@ -167,7 +141,7 @@ def _intersections(
         return []
     triples = [(a, b, c) for c in ceilings for a, b in combinations(walls, 2)]
     normals = np.array([[a.normal, b.normal, c.normal] for a, b, c in triples])
-    max_cos = np.cos(config.min_plane_angle) + 1e-12
+    max_cos = np.cos(MIN_PLANE_ANGLE) + 1e-12
     cosines = np.abs(np.einsum("kij,klj->kil", normals, normals))[:, [0, 0, 1], [1, 2, 2]]
     apart = np.all(cosines <= max_cos, axis=1)
     if not apart.any():
@@ -195,10 +169,10 @@ def _corner(
         if distance > config.max_corner_distance or not ends:
             return None
         reach = max(reach, distance)
-    if config.max_wall_gap > 0:
-        allowed = config.max_wall_gap + config.wall_gap_per_m * float(np.hypot(corner[0], corner[1]))
+    if MAX_WALL_GAP > 0:
+        allowed = MAX_WALL_GAP
         for wall in (a, b):
-            band = max(config.wall_gap_band, 3 * wall.rms)
+            band = max(WALL_GAP_BAND, 3 * wall.rms)
             if _floor_gap(wall_points, np.array([*wall.normal, wall.d]), band, corner) > allowed:
                 return None
     towards = [(p.centroid - corner)[:2] for p in (a, b)]
@@ -236,8 +210,8 @@ def _wall_checks(wall: Plane, corner: np.ndarray, config: CornerDetectorConfig) 
     """The distance from the corner to the wall's nearest inlier, and whether the wall ends at the corner
     (:func:`_ends_at`), in one pass over its inliers."""
     return _compiled_wall_checks(
-        wall.inliers, wall.normal, np.asarray(corner, dtype=float), config.max_corner_distance, config.min_face,
-        config.min_face_points, config.face_band, config.through_points, config.through_band,
+        wall.inliers, wall.normal, np.asarray(corner, dtype=float), config.max_corner_distance, MIN_FACE,
+        MIN_FACE_POINTS, FACE_BAND, THROUGH_POINTS, THROUGH_BAND,
     )  # fmt: skip
 
 
@@ -310,8 +284,8 @@ def _uncertainty(
         tilt_var.append(tilt)
     inverse = np.linalg.inv(normals)
     cov = inverse @ np.diag(offset_var) @ inverse.T
-    position = cov[:2, :2] + np.eye(2) * config.min_position_std**2
-    orientation = (tilt_var[0] + tilt_var[1]) / 4 + config.min_orientation_std**2
+    position = cov[:2, :2] + np.eye(2) * MIN_POSITION_STD**2
+    orientation = (tilt_var[0] + tilt_var[1]) / 4 + MIN_ORIENTATION_STD**2
     return position, float(orientation)
 
 

@@ -149,13 +149,13 @@ def read_plan(path: Path) -> RunPlan:
 def resolve_localizers(
     names: Sequence[str] | None, params_file: Path | None = None, settings: Sequence[str] = ()
 ) -> dict[str, dict[str, Any]]:
-    """``{name: resolved params}`` for the localizers to run (default: the params file's sections, else every
-    registered one), from a params file and ``NAME.KEY=VALUE`` settings; a bad name or setting raises here."""
-    from pimm_agents.factory import available_localizers, check_name, resolved_params
+    """``{name: resolved params}`` for the localizers to run (default: the params file's sections, else
+    ``default_localizers``), from a params file and ``NAME.KEY=VALUE`` settings; a bad name or setting raises here."""
+    from pimm_agents.factory import check_name, default_localizers, resolved_params
     from pimm_agents.params import merge_params, parse_settings, read_params_file
 
     from_file = read_params_file(params_file) if params_file is not None else {}
-    chosen = list(names or from_file or available_localizers())
+    chosen = list(names or from_file or default_localizers())
     for name in chosen:
         check_name(name)
     sections = merge_params(from_file, parse_settings(settings, chosen))

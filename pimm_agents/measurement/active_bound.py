@@ -45,11 +45,10 @@ def active_bounds(
 ) -> list[ActiveBound]:
     """The bound of each route's start in ``world`` (its scenarios without a kidnap, or ``scenarios``)."""
     from pimm_agents.active.views import ViewPredictor
-    from pimm_agents.pimm.localizer import PimmConfig
-    from pimm_agents.pimm.twins import MapTwins
     from pimm_env.driving.scenarios import load_scenarios
     from pimm_env.errors import ExperimentError
     from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.mapping.twins import MapTwins, TwinConfig
     from pimm_env.world.files import load_world
 
     loaded = load_world(world)
@@ -59,7 +58,7 @@ def active_bounds(
     unknown = [n for n in names if n not in known]
     if unknown:
         raise ExperimentError(f"{world}: no scenario {', '.join(unknown)} (it has {', '.join(known)})")
-    twins = MapTwins(occupancy, bound_twin_config(PimmConfig().rivals.twins, max_twins))
+    twins = MapTwins(occupancy, bound_twin_config(TwinConfig(), max_twins))
     views = ViewPredictor(occupancy)
     out = []
     for name in names:

@@ -262,11 +262,11 @@ def numpy_scan_evidence(tracker: RivalTracker, poses: np.ndarray, stack: ScanSta
 
 
 def converged_update_benchmark(filt: FeatureFilter, features: np.ndarray, repeats: int) -> dict[str, float]:
-    """The measurement update of a copy of ``filt`` with adaptive particles (``filter.adaptive``) once it has
-    converged: particles about one pose (0.1 m, 3 deg), resampled so that KLD's bound shrinks the set, then
-    one injection's worth added (as after every informed update). Also the set's size then."""
+    """The measurement update of a copy of ``filt`` (KLD-sampling, as by default) once it has converged:
+    particles about one pose (0.1 m, 3 deg), resampled so that KLD's bound shrinks the set, then one injection's
+    worth added (as after every informed update). Also the set's size then."""
     adaptive = copy.copy(filt)  # the same maps; reset gives the copy its own particles and weights
-    adaptive.config = replace(filt.config, adaptive=True)
+    adaptive.config = replace(filt.config, thesis=False)
     adaptive.reset(np.random.default_rng(0), np.array([-10.0, 4.2, 0.0]), np.diag([0.01, 0.01, 0.003]))
     adaptive.ess = 1.0  # taken as degenerate: the resampling draws from particles 0.1 m about the pose, few bins
     adaptive.resample_if_degenerate()

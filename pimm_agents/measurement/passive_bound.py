@@ -27,7 +27,7 @@ import numpy as np
 from pimm_env.geometry import wrap_angle
 
 if TYPE_CHECKING:
-    from pimm_agents.pimm.twins import TwinConfig
+    from pimm_env.mapping.twins import TwinConfig
 
 #: the twins of the truth scored: the 20 best (as the active-localization guide takes them, against the rival
 #: check's 6), two matches less than 1.5 m apart counting as one only when their turns differ by at most 30 deg
@@ -59,18 +59,18 @@ def passive_bound(world: str, scenario: str, seed: int = 0) -> PassiveBound:
     """The bound of one trial (see the module docstring), beside PIMM's first right ``localized`` time."""
     from pimm_agents.experiments.runner import run_shared
     from pimm_agents.particles.likelihood_field import LikelihoodField
-    from pimm_agents.pimm.localizer import PimmConfig
+    from pimm_agents.pimm.config import PimmConfig
     from pimm_agents.pimm.rivals import RivalTracker
-    from pimm_agents.pimm.twins import MapTwins
     from pimm_agents.scoring.trial import TrialSpec
     from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.mapping.twins import MapTwins, TwinConfig
     from pimm_env.world.files import load_world
 
     occupancy = load_derived_maps(load_world(world)).occupancy
     config = PimmConfig()  # the wall field and the rival check PIMM scores with
     field = LikelihoodField(occupancy, config.wall_field.field_params())
     ours = RivalTracker(field, occupancy.free, config.wall_field.temperature, config.rivals)
-    twin_finder = MapTwins(occupancy, bound_twin_config(config.rivals.twins))
+    twin_finder = MapTwins(occupancy, bound_twin_config(TwinConfig()))
     state: dict[str, Any] = {"bound": None, "drop": None, "t0": None, "right": None}
 
     def watch(localizers: Sequence[Any], obs: dict[str, Any], info: dict[str, Any]) -> None:

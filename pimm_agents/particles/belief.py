@@ -26,39 +26,32 @@ from pimm_agents.particles.pose_clusters import PoseCluster, cluster_labels, clu
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import wrap_angle
 
+#: nav2's pose-cluster bins (m, rad): particles in touching bins are one mode
+BIN_XY, BIN_THETA = 0.5, float(np.radians(10.0))
+#: a compact mode with at least this share of the chosen mode's weight keeps the status ambiguous (measured:
+#: docs/design.md#the-belief-and-its-status)
+RIVAL_RATIO = 0.1
+#: a mode is compact (a place, not a cloud still searching) when its largest position standard deviation and its
+#: heading's are under these: nav2's AMCL tracks right with a cluster of 0.4-0.5 m and 13-16 deg
+COMPACT_STD_M, COMPACT_STD_DEG = 1.0, 20.0
+MODES_EXAMINED = 20  # the heaviest modes looked at for rivals (a rival is among them)
+
 
 @dataclass(frozen=True)
 class BeliefConfig:
-    """Ours: nav2 reports its heaviest cluster only, with no status."""
+    """How a particle belief is read as a status (ours: nav2 reports its heaviest cluster only, with no status)."""
 
-    bin_xy: float = 0.5  # nav2's pose-cluster bins (m)
-    bin_theta: float = float(np.radians(10.0))
-    hypotheses: int = 3  # modes reported, heaviest first
-    #: a compact mode with at least this share of the chosen mode's weight keeps the status ambiguous
-    rival_ratio: float = 0.1
-    #: the chosen mode's share of the whole belief below which the status is lost
-    localized_min_weight: float = 0.5
-    #: a mode is compact (a place, not a cloud still searching) when its largest position standard deviation
-    #: and its heading's are under these: nav2's AMCL tracks right with a cluster of 0.4-0.5 m and 13-16 deg
-    compact_std_m: float = 1.0
-    compact_std_deg: float = 20.0
-    modes_examined: int = 20  # the heaviest modes looked at for rivals (a rival is among them)
-    confirm_updates: int = 10  # measurement updates in a row a localized reading needs before it is reported
+    hypotheses: int = 3  # ours: modes reported, heaviest first
+    localized_min_weight: float = 0.5  # ours: the chosen mode's share of the belief below which it is lost
+    confirm_updates: int = 10  # measured: updates in a row a localized reading needs (docs/design.md#statuses)
 
     def __post_init__(self) -> None:
-        if self.bin_xy <= 0 or self.bin_theta <= 0:
-            raise LocalizerError(f"belief bins must be positive, got {self.bin_xy} m and {self.bin_theta} rad")
         if self.confirm_updates < 0:
             raise LocalizerError(f"belief.confirm_updates must be at least 0, got {self.confirm_updates}")
-        if self.hypotheses < 1 or self.modes_examined < 1:
-            raise LocalizerError(
-                f"belief.hypotheses and modes_examined must be at least 1, got {self.hypotheses}, {self.modes_examined}"
-            )
-        for name in ("rival_ratio", "localized_min_weight"):
-            if not 0 <= getattr(self, name) <= 1:
-                raise LocalizerError(f"belief.{name} must be in [0, 1], got {getattr(self, name)}")
-        if self.compact_std_m <= 0 or self.compact_std_deg <= 0:
-            raise LocalizerError("belief.compact_std_m and compact_std_deg must be positive")
+        if self.hypotheses < 1:
+            raise LocalizerError(f"belief.hypotheses must be at least 1, got {self.hypotheses}")
+        if not 0 <= self.localized_min_weight <= 1:
+            raise LocalizerError(f"belief.localized_min_weight must be in [0, 1], got {self.localized_min_weight}")
 
 
 @dataclass(frozen=True)
@@ -75,25 +68,23 @@ class Belief:
         return int(self.particle_mode[int(np.argmin(distance))])
 
 
-def read_belief(
-    particles: np.ndarray, weights: np.ndarray, config: BeliefConfig, labels: np.ndarray | None = None
-) -> Belief:
+def read_belief(particles: np.ndarray, weights: np.ndarray, labels: np.ndarray | None = None) -> Belief:
     """Cluster the weighted particles into modes (heaviest first, ``modes_examined`` of them); ``labels``: the
-    particles' clusters if they are known already (``cluster_labels`` with the config's bins)."""
+    particles' clusters if they are known already (``cluster_labels`` with nav2's bins)."""
     if labels is None:
-        labels = cluster_labels(particles, config.bin_xy, config.bin_theta)
+        labels = cluster_labels(particles, BIN_XY, BIN_THETA)
     total = np.bincount(labels, weights)
-    order = np.argsort(-total, kind="stable")[: config.modes_examined]
+    order = np.argsort(-total, kind="stable")[:MODES_EXAMINED]
     rank = np.full(len(total), -1)
     rank[order] = np.arange(len(order))
-    modes = cluster_statistics(particles, weights, labels, limit=config.modes_examined)
+    modes = cluster_statistics(particles, weights, labels, limit=MODES_EXAMINED)
     return Belief(modes, rank[labels])
 
 
-def is_compact(mode: PoseCluster, config: BeliefConfig) -> bool:
-    """Whether the mode's largest position spread and its heading spread are within the config's limits."""
+def is_compact(mode: PoseCluster) -> bool:
+    """Whether the mode's largest position spread and its heading spread are within the compact limits."""
     largest = float(np.linalg.eigvalsh(mode.covariance[:2, :2])[-1])
-    return largest <= config.compact_std_m**2 and mode.covariance[2, 2] <= np.radians(config.compact_std_deg) ** 2
+    return largest <= COMPACT_STD_M**2 and mode.covariance[2, 2] <= np.radians(COMPACT_STD_DEG) ** 2
 
 
 def belief_status(belief: Belief, chosen: int, config: BeliefConfig) -> str:
@@ -101,10 +92,10 @@ def belief_status(belief: Belief, chosen: int, config: BeliefConfig) -> str:
     if chosen < 0:
         return "lost"
     mode = belief.modes[chosen]
-    if not is_compact(mode, config) or mode.weight < config.localized_min_weight:
+    if not is_compact(mode) or mode.weight < config.localized_min_weight:
         return "lost"
     for index, other in enumerate(belief.modes):
-        if index != chosen and other.weight >= config.rival_ratio * mode.weight and is_compact(other, config):
+        if index != chosen and other.weight >= RIVAL_RATIO * mode.weight and is_compact(other):
             return "ambiguous"
     return "localized"
 
@@ -147,10 +138,8 @@ class Confirmation:
         return "localized" if self.streak >= self.updates else "ambiguous"
 
 
-def compact_modes(
-    particles: np.ndarray, weights: np.ndarray, labels: np.ndarray, config: BeliefConfig
-) -> tuple[np.ndarray, np.ndarray]:
-    """The clusters that are compact modes (more than one particle, weighed, spreads within ``config``'s
+def compact_modes(particles: np.ndarray, weights: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The clusters that are compact modes (more than one particle, weighed, spreads within the compact
     limits; position by the trace of its covariance) and their weighted mean poses (K, 3)."""
     count = int(labels.max()) + 1
     members = np.bincount(labels, minlength=count)
@@ -162,8 +151,8 @@ def compact_modes(
     )
     trace = (mxx - mx**2) + (myy - my**2)
     theta_var = -2.0 * np.log(np.clip(np.hypot(mc, ms), 1e-12, 1.0))
-    compact = (members > 1) & (total > 0) & (trace <= config.compact_std_m**2)
-    compact &= theta_var <= np.radians(config.compact_std_deg) ** 2
+    compact = (members > 1) & (total > 0) & (trace <= COMPACT_STD_M**2)
+    compact &= theta_var <= np.radians(COMPACT_STD_DEG) ** 2
     ids = np.flatnonzero(compact)
     return ids, np.column_stack([mx[ids], my[ids], np.arctan2(ms[ids], mc[ids])])
 

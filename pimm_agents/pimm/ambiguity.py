@@ -25,15 +25,21 @@ import numpy as np
 from pimm_agents.localizer import Hypothesis
 from pimm_agents.particles.belief import BeliefReading
 from pimm_agents.particles.likelihood_field import LikelihoodField
-from pimm_agents.pimm.rival_config import RivalConfig
-from pimm_agents.pimm.rivals import RivalTracker
-from pimm_agents.pimm.twins import MapTwins
+from pimm_agents.pimm.rivals import CANDIDATES, RivalConfig, RivalTracker
 from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.mapping.twins import MapTwins, TwinConfig
 
 if TYPE_CHECKING:
     from pimm_agents.pimm.feature_filter import BeliefView
 
 Result = TypeVar("Result")
+
+#: The map's twins are offered when an estimate is about to be called localized, and again at this many updates'
+#: interval while it is (2 s of 10 Hz scans): a twin the scans had ruled out is not re-offered at once (ours).
+TWINS_EVERY_UPDATES = 20
+#: A place is called localized only once its twins have been looked for from this many map cells: a search from
+#: one cell can miss a twin that the next cell's finds (measured: docs/design.md#the-maps-twins).
+TWINS_FROM_CELLS = 2
 
 
 def _timed(method: Callable[..., Result]) -> Callable[..., Result]:
@@ -78,7 +84,7 @@ class AmbiguityCheck:
     ) -> None:
         #: look-alike places the recent scans cannot tell from the estimate (rivals.py)
         self.tracker = RivalTracker(wall_field, occupancy.free, temperature, config)
-        self.twins = MapTwins(occupancy, config.twins) if config.twins.enabled else None
+        self.twins = MapTwins(occupancy, TwinConfig())
         self._odom: np.ndarray | None = None  # the odometry the rivals were last carried to
         self._twin_updates = 0  # localized updates since the twins were last offered
         #: the cells the twins were looked for from since the estimate was last lost or jumped
@@ -114,7 +120,7 @@ class AmbiguityCheck:
         stays, the localizer moves the particles of ``new``'s mode onto ``held``; ``review`` then scores ``new``
         as any other candidate."""
         config = self.tracker.config
-        if not (self.held and config.hold) or self._kept >= config.switch_updates:
+        if not self.held or self._kept >= config.switch_updates:
             return False
         if not self.tracker.holds(held, new, odom, wall_points):
             return False
@@ -159,16 +165,16 @@ class AmbiguityCheck:
         chosen, belief = reading.chosen, view.belief
         modes = np.array([m.mean for k, m in enumerate(belief.modes) if k != chosen and m.weight > 0])
         modes = modes.reshape(-1, 3)
-        tried = self.tracker.config.candidates  # the heaviest other modes are tried first, whatever their fit
+        tried = CANDIDATES  # the heaviest other modes are tried first, whatever their fit
         outside = np.flatnonzero(belief.particle_mode != chosen)
-        heaviest = outside[np.argsort(-view.weights[outside])[: 5 * self.tracker.config.candidates]]
+        heaviest = outside[np.argsort(-view.weights[outside])[: 5 * CANDIDATES]]
         suggested = self.tracker.headings(np.asarray(suggestions, dtype=float).reshape(-1, 2), odom)
         candidates = np.vstack([modes[tried:], suggested, view.particles[heaviest]])
         first = modes[:tried]
-        if self.twins is not None and reading.status == "localized":
+        if reading.status == "localized":
             # the map's look-alikes of a place about to be called localized, and every few updates while it is
             self._twin_updates += 1
-            if reported != "localized" or self._twin_updates >= self.twins.config.every_updates:
+            if reported != "localized" or self._twin_updates >= TWINS_EVERY_UPDATES:
                 first = np.vstack([first, self.twins.of(pose)])
                 self._twin_updates = 0
                 self._twin_cells.add(self.twins.cell_of(pose))
@@ -176,7 +182,7 @@ class AmbiguityCheck:
             if reading.status == "localized" and not (self.tracker.settled and self.twins_looked()):
                 return Decision("ambiguous")
             return unchanged
-        decisive = self.tracker.decisive() if self.tracker.config.switch and not self.held else None
+        decisive = None if self.held else self.tracker.decisive()
         if decisive is not None:
             return self._move(pose, decisive)
         status = "ambiguous" if reading.status == "localized" else reading.status
@@ -189,8 +195,8 @@ class AmbiguityCheck:
         self._twin_cells.clear()
 
     def twins_looked(self) -> bool:
-        """Whether the map's twins of the place have been looked for from enough cells (``looked_from_cells``)."""
-        return self.twins is None or len(self._twin_cells) >= self.twins.config.looked_from_cells
+        """Whether the map's twins of the place have been looked for from enough cells (``TWINS_FROM_CELLS``)."""
+        return len(self._twin_cells) >= TWINS_FROM_CELLS
 
     def standing(self) -> tuple[Hypothesis, ...]:
         """The standing rivals as hypotheses (``rival_hypothesis``)."""

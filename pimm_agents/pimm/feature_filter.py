@@ -12,6 +12,8 @@ import numpy as np
 
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.particles.belief import (
+    BIN_THETA,
+    BIN_XY,
     Belief,
     BeliefConfig,
     BeliefReading,
@@ -33,89 +35,87 @@ from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
 
+#: Ours (nav2's values where they are nav2's; each measured in docs/design.md#the-particle-filter):
+SMART_SHARE = 0.5  # of the replaced particles, the share placed around the fingerprint suggestions
+OCCUPIED_PENALTY = 0.1  # weight factor for a particle in an occupied or unknown cell
+ESTIMATE_BIN_THETA = float(np.radians(10.0))  # the estimate's cluster bins: nav2's
+ESTIMATE_BIN_XY = 0.5
+#: a converged estimate further than this (m) from the last one, carried by odometry, replaces it only if the
+#: particles within this distance (and 30 deg) of it weigh more than those about the last one
+SWITCH_RADIUS_M = 1.0
+KLD_ERR, KLD_Z = 0.05, 0.99  # nav2's pf_err and pf_z; KLD's bins are nav2's pose-cluster bins
+MODE_MIN_PARTICLES = 100  # at resampling, a mode weighing MODE_KEEP_RATIO of the heaviest keeps this many
+MODE_KEEP_RATIO = 0.01
+LOOKUP_ORIENTATION_BINS = 8  # heading bins of the nearest-corner grid (45 deg; corners/lookup.py)
+
 
 @dataclass(frozen=True)
 class FeatureFilterConfig:
-    """Defaults: thesis table 3.5; the rest are ours and say so."""
+    """PIMM's particle filter. ``thesis`` runs it as the thesis published it; the default adds what measurement
+    chose (docs/design.md#the-particle-filter): KLD-sampling, per-mode budgets, each compact mode weighed at its
+    mean, the estimate over its heaviest cluster, a switch radius, corners matched by heading, one weighing per
+    scan."""
 
-    num_particles: int = 10_000
-    motion_threshold_m: float = 0.1
-    motion_threshold_rad: float = 0.01
-    resample_ess_threshold: float = 0.3
-    alpha: float = 0.8
-    motion_x_variance: float = 0.001
-    motion_y_variance: float = 0.001
-    motion_theta_variance: float = 0.001  # not in table 3.5; the same value as x and y
-    replace_worst_fraction: float = 0.05
-    smart_sigma_m: float = 0.5
-    smart_share: float = 0.5  # ours: of the replaced particles, the share placed around suggestions
-    estimate_num_particles: int = 100
-    # ours: the estimate averages only the heaviest cluster of those particles (nav2's bins, as our AMCL);
-    # the thesis averaged all of them, which between two modes gives a pose in neither. 0 m: the thesis's way
-    estimate_bin_xy: float = 0.5
-    estimate_bin_theta: float = float(np.radians(10.0))
-    occupied_penalty: float = 0.1  # ours: weight factor for a particle in an occupied or unknown cell
-    #: ours: a converged estimate more than this (m) from the last one, carried by odometry, replaces it only
-    #: if the particles within this distance (and 30 deg) of it weigh more than those about the last one: a
-    #: handful injected in a look-alike room cannot pull the estimate there, while after a kidnap the weight
-    #: moves, and the estimate with it. 0 turns the test off (the thesis's behaviour).
-    switch_radius_m: float = 1.0
-    lookup_resolution_m: float = 0.25  # ours: cell size of the nearest-corner grid
-    #: ours: heading bins of that grid; a feature is matched to the corner that best explains its position
-    #: and heading (8: 45 deg bins), not only the nearest (1: the thesis's); see corners/lookup.py
-    lookup_orientation_bins: int = 8
-    #: ours (the thesis's future work): KLD-sampling (Fox 2003, as nav2's AMCL) at each resampling, so that the
-    #: set shrinks to what its spread needs once it has converged; num_particles is then the most it holds.
-    #: The injection keeps its size of num_particles x replace_worst_fraction and joins the set while it is
-    #: smaller than num_particles (rather than replacing its worst), so a kidnap is searched for as before.
-    #: On by default since it held the iiLab table (10 trials) and the held-out one (README); False: the thesis's.
-    adaptive: bool = True
-    #: ours: KLD's floor (nav2's 500 is for a 2D scan's denser weighing); a smaller num_particles is kept whole
-    min_particles: int = 1000
-    kld_err: float = 0.05  # nav2 pf_err
-    kld_z: float = 0.99  # nav2 pf_z
-    kld_bin_xy: float = 0.5  # nav2's bins
-    kld_bin_theta: float = float(np.radians(10.0))
-    #: ours: per-mode particle budgets. At resampling every mode (cluster of the belief, belief.py) weighing at
-    #: least ``mode_keep_ratio`` of the heaviest keeps at least ``mode_min_particles`` particles, its weight
-    #: shared among them, so a look-alike place is not starved of particles while the evidence cannot yet
-    #: tell it from the heaviest; it is dropped once the evidence has made it light. 0 particles: the thesis's.
-    mode_min_particles: int = 100
-    mode_keep_ratio: float = 0.01
-    #: ours: how a measurement weighs a compact mode (a place, belief.py). "mean": by the measurement's
-    #: likelihood at the mode's mean pose, as a multi-hypothesis tracker weighs each hypothesis (its particles
-    #: keep their shares within it), so two places that fit alike keep their weights better. "sum", the particle
-    #: filter's own: by the sum of its particles' likelihoods; of two exact twin rooms, the one that happened
-    #: to hold fewer particles lost the whole belief within one turn on the spot (docs/design.md). Modes that
-    #: are not compact, and single particles, are weighed as the particle filter weighs them either way.
-    mode_evidence: str = "mean"
+    num_particles: int = 10_000  # thesis table 3.5 (with KLD-sampling: the most it holds)
+    min_particles: int = 1000  # measured: KLD's floor (docs/design.md#the-particle-filter)
+    motion_threshold_m: float = 0.1  # thesis table 3.5
+    motion_threshold_rad: float = 0.01  # thesis table 3.5
+    motion_variance: float = 0.001  # thesis table 3.5 (x and y; heading the same)
+    resample_ess_threshold: float = 0.3  # thesis table 3.5
+    alpha: float = 0.8  # thesis table 3.5
+    replace_worst_fraction: float = 0.05  # thesis table 3.5
+    smart_sigma_m: float = 0.5  # thesis table 3.5
+    estimate_num_particles: int = 100  # thesis section 3.4
+    min_sigma_pos_m: float = 0.3  # measured: floor on a corner's position uncertainty (docs/design.md#corners)
+    min_sigma_theta_rad: float = 0.2  # measured: and on its heading's
+    thesis: bool = False  # the filter as the thesis published it (the ``thesis`` preset)
 
     def __post_init__(self) -> None:
         if self.num_particles < 1:
-            raise LocalizerError(f"num_particles must be at least 1, got {self.num_particles}")
+            raise LocalizerError(f"filter.num_particles must be at least 1, got {self.num_particles}")
         if self.min_particles < 1:  # above num_particles it is num_particles: a small set is kept whole
-            raise LocalizerError(f"min_particles must be at least 1, got {self.min_particles}")
+            raise LocalizerError(f"filter.min_particles must be at least 1, got {self.min_particles}")
         if not 0 < self.alpha <= 1:
-            raise LocalizerError(f"alpha must be in (0, 1], got {self.alpha}")
-        if self.estimate_bin_xy < 0 or self.estimate_bin_theta <= 0:
-            raise LocalizerError(
-                f"estimate_bin_xy must be at least 0 and estimate_bin_theta above 0, got {self.estimate_bin_xy}"
-                f" and {self.estimate_bin_theta}"
-            )
-        if self.mode_evidence not in ("mean", "sum"):
-            raise LocalizerError(f"mode_evidence must be 'mean' or 'sum', got {self.mode_evidence!r}")
-        if self.mode_min_particles < 0:
-            raise LocalizerError(f"mode_min_particles must be at least 0, got {self.mode_min_particles}")
-        names = (
-            "resample_ess_threshold",
-            "replace_worst_fraction",
-            "smart_share",
-            "occupied_penalty",
-            "mode_keep_ratio",
-        )
-        for name in names:
+            raise LocalizerError(f"filter.alpha must be in (0, 1], got {self.alpha}")
+        for name in ("motion_variance", "smart_sigma_m", "min_sigma_pos_m", "min_sigma_theta_rad"):
+            if not getattr(self, name) > 0:
+                raise LocalizerError(f"filter.{name} must be positive, got {getattr(self, name)}")
+        if self.estimate_num_particles < 1:
+            raise LocalizerError(f"filter.estimate_num_particles must be at least 1, got {self.estimate_num_particles}")
+        for name in ("resample_ess_threshold", "replace_worst_fraction"):
             if not 0 <= getattr(self, name) <= 1:
-                raise LocalizerError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+                raise LocalizerError(f"filter.{name} must be in [0, 1], got {getattr(self, name)}")
+
+    # What ``thesis`` selects (each the thesis's value, or ours):
+    @property
+    def adaptive(self) -> bool:
+        """KLD-sampling at each resampling (the thesis's future work; nav2's), or a fixed set."""
+        return not self.thesis
+
+    @property
+    def mode_min_particles(self) -> int:
+        """The particles each kept mode is given at resampling (0: resampled as one set, the thesis's)."""
+        return 0 if self.thesis else MODE_MIN_PARTICLES
+
+    @property
+    def mode_evidence(self) -> str:
+        """``mean``: a compact mode weighed by the measurement at its mean pose; ``sum``: by its particles'."""
+        return "sum" if self.thesis else "mean"
+
+    @property
+    def estimate_bin_xy(self) -> float:
+        """The estimate's cluster bins (0: the mean of all the heaviest particles, the thesis's)."""
+        return 0.0 if self.thesis else ESTIMATE_BIN_XY
+
+    @property
+    def switch_radius_m(self) -> float:
+        """How far a new estimate may lie from the last before it must outweigh it (0: no test, the thesis's)."""
+        return 0.0 if self.thesis else SWITCH_RADIUS_M
+
+    @property
+    def orientation_bins(self) -> int:
+        """Heading bins of the corner lookup (1: the nearest corner, the thesis's)."""
+        return 1 if self.thesis else LOOKUP_ORIENTATION_BINS
 
 
 @dataclass(frozen=True)
@@ -138,14 +138,14 @@ class FeatureFilter:
         corners: NearestCornerGrid | None,
         config: FeatureFilterConfig = FeatureFilterConfig(),
         wall_field: LikelihoodField | None = None,
-        wall_temperature: float | None = None,
+        wall_temperature: float = 0.2,
         belief: BeliefConfig = BeliefConfig(),
     ) -> None:
         self.config = config
         self.belief_config = belief
         self.corners = corners
         self.wall_field = wall_field
-        self.wall_temperature = wall_temperature  # None: nav2's sum of cubes; else the tempered product
+        self.wall_temperature = wall_temperature  # the tempered product of the points' likelihoods
         self.free_space = FreeSpace(occupancy)
         grid = occupancy.grid
         self._grid = grid
@@ -189,7 +189,7 @@ class FeatureFilter:
         if np.hypot(delta[0], delta[1]) < c.motion_threshold_m and abs(delta[2]) < c.motion_threshold_rad:
             return False
         n = len(self.particles)
-        std = np.sqrt([c.motion_x_variance, c.motion_y_variance, c.motion_theta_variance])
+        std = np.sqrt([c.motion_variance, c.motion_variance, c.motion_variance])
         noisy = delta + self.rng.standard_normal((n, 3)) * std
         cos, sin = np.cos(self.particles[:, 2]), np.sin(self.particles[:, 2])
         self.particles[:, 0] += cos * noisy[:, 0] - sin * noisy[:, 1]
@@ -231,8 +231,8 @@ class FeatureFilter:
         self, features: np.ndarray, wall_points: np.ndarray | None = None, labels: np.ndarray | None = None
     ) -> None:
         """Weights by eq. 3.16, then, given ``wall_points`` (M, 2; robot frame now) and a wall field, by the
-        likelihood field: exp(temperature x sum of log pz), or nav2's 1 + sum of pz^3 without a temperature;
-        with neither only the occupied-cell penalty applies. Given the particles' cluster ``labels`` and
+        likelihood field, tempered: exp(temperature x sum of log pz); with neither only the occupied-cell
+        penalty applies. Given the particles' cluster ``labels`` and
         ``mode_evidence`` "mean", each compact mode is then weighed by the measurement at its mean pose
         (``weigh_modes``). Normalized; the ESS."""
         features = np.asarray(features, dtype=float).reshape(-1, len(FEATURE_COLUMNS))
@@ -243,7 +243,7 @@ class FeatureFilter:
         n = len(self.particles)
         modes = None
         if labels is not None and self.config.mode_evidence == "mean" and self.informed:
-            modes = compact_modes(self.particles, self.weights, labels, self.belief_config)
+            modes = compact_modes(self.particles, self.weights, labels)
         poses = self.particles if modes is None else np.vstack([self.particles, modes[1]])
         factors = self.measurement_factors(poses, features, wall_points if use_walls else None)
         w = self.weights * factors[:n]
@@ -267,12 +267,9 @@ class FeatureFilter:
         if wall_points is not None and self.wall_field is not None:
             points = np.asarray(wall_points, dtype=float).reshape(-1, 2)
             ranges, bearings = np.hypot(points[:, 0], points[:, 1]), np.arctan2(points[:, 1], points[:, 0])
-            if self.wall_temperature is None:
-                factors = factors * self.wall_field.weight_factors(poses, ranges, bearings)
-            else:
-                log_l = self.wall_field.log_likelihoods(poses, ranges, bearings)
-                factors = factors * np.exp(self.wall_temperature * (log_l - log_l.max()))
-        return np.where(self.in_free_space(poses), factors, factors * self.config.occupied_penalty)
+            log_l = self.wall_field.log_likelihoods(poses, ranges, bearings)
+            factors = factors * np.exp(self.wall_temperature * (log_l - log_l.max()))
+        return np.where(self.in_free_space(poses), factors, factors * OCCUPIED_PENALTY)
 
     # ------------------------------------------------------------------ resampling and injection
     def resample_if_degenerate(self) -> bool:
@@ -285,8 +282,8 @@ class FeatureFilter:
             return False
         if c.adaptive:
             drawn = self.particles[self.rng.permutation(residual_resample(self.weights, self.rng, c.num_particles))]
-            keys = bin_keys(drawn, c.kld_bin_xy, c.kld_bin_theta)
-            n = kld_sample_count(keys, c.kld_err, c.kld_z, c.min_particles, c.num_particles)
+            keys = bin_keys(drawn, BIN_XY, BIN_THETA)
+            n = kld_sample_count(keys, KLD_ERR, KLD_Z, c.min_particles, c.num_particles)
             if c.mode_min_particles == 0 or self.belief is None:
                 self.particles, self.weights = drawn[:n], np.full(n, 1.0 / n)
                 return True
@@ -307,7 +304,7 @@ class FeatureFilter:
         assert self.belief is not None
         c = self.config
         modes, of = self.belief.modes, self.belief.particle_mode
-        kept = [k for k, m in enumerate(modes) if m.weight >= c.mode_keep_ratio * modes[0].weight and m.weight > 0]
+        kept = [k for k, m in enumerate(modes) if m.weight >= MODE_KEEP_RATIO * modes[0].weight and m.weight > 0]
         mode_weights = np.array([modes[k].weight for k in kept])
         rest = np.flatnonzero(~np.isin(of, kept))
         rest_weight = float(self.weights[rest].sum()) if len(rest) else 0.0
@@ -350,7 +347,7 @@ class FeatureFilter:
             count = min(count, n)
             worst = np.argpartition(self.weights, count - 1)[:count]
         suggestions = np.asarray(suggestions, dtype=float).reshape(-1, 2)
-        smart = round(c.smart_share * count) if len(suggestions) else 0
+        smart = round(SMART_SHARE * count) if len(suggestions) else 0
         new = np.empty((count, 3))
         if smart:
             centres = suggestions[self.rng.integers(0, len(suggestions), smart)]
@@ -365,9 +362,9 @@ class FeatureFilter:
     def weigh(self, features: np.ndarray, wall_points: np.ndarray | None = None) -> None:
         """One measurement after a motion update (eq. 3.16 and the wall field): weigh the particles, each
         compact mode as one, and read the belief's modes from the new weights."""
-        labels = cluster_labels(self.particles, self.belief_config.bin_xy, self.belief_config.bin_theta)
+        labels = cluster_labels(self.particles, BIN_XY, BIN_THETA)
         self.measurement_update(features, wall_points, labels)
-        self.belief = read_belief(self.particles, self.weights, self.belief_config, labels)
+        self.belief = read_belief(self.particles, self.weights, labels)
 
     def estimate(self, previous: np.ndarray | None) -> np.ndarray | None:
         """The best-particles mean if the filter has converged by the ESS test and, when it jumps away from
@@ -402,7 +399,7 @@ class FeatureFilter:
         self.particles[members, 0] = target[0] + c * d[:, 0] - s * d[:, 1]
         self.particles[members, 1] = target[1] + s * d[:, 0] + c * d[:, 1]
         self.particles[members, 2] = wrap_angle(self.particles[members, 2] + turn)
-        self.belief = read_belief(self.particles, self.weights, self.belief_config)
+        self.belief = read_belief(self.particles, self.weights)
 
     def resample_and_inject(self, suggestions: np.ndarray) -> None:
         """The end of a measurement step: resample if degenerate, then inject around ``suggestions``.
@@ -424,7 +421,7 @@ class FeatureFilter:
         """The status, covariance and hypotheses of the belief for an estimate at ``pose`` (None: no estimate
         yet, lost), from the modes of the last measurement update."""
         if self.belief is None:
-            self.belief = read_belief(self.particles, self.weights, self.belief_config)
+            self.belief = read_belief(self.particles, self.weights)
         hypotheses = hypotheses_of(self.belief, self.belief_config.hypotheses)
         if pose is None:
             return BeliefReading("lost", self.covariance(self.best_mean()), hypotheses)
@@ -453,7 +450,7 @@ class FeatureFilter:
         w = w / w.sum() if w.sum() > 0 else np.full(m, 1.0 / m)
         p = self.particles[best]
         if self.config.estimate_bin_xy > 0:
-            labels = cluster_labels(p, self.config.estimate_bin_xy, self.config.estimate_bin_theta)
+            labels = cluster_labels(p, self.config.estimate_bin_xy, ESTIMATE_BIN_THETA)
             return heaviest_cluster(p, w, labels).mean
         theta = np.arctan2(np.sum(w * np.sin(p[:, 2])), np.sum(w * np.cos(p[:, 2])))
         return np.array([np.sum(w * p[:, 0]), np.sum(w * p[:, 1]), theta])

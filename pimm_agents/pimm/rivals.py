@@ -23,14 +23,58 @@ the other way round, and the place left stands as a rival until the scans rule i
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 
 from pimm_agents.particles.likelihood_field import LikelihoodField
-from pimm_agents.pimm.rival_config import RivalConfig
 from pimm_agents.pimm.scan_evidence import scan_by_scan_evidence, summed_scan_evidence
 from pimm_agents.pimm.scan_stack import ScanStack, points_centre, turned
+from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
+
+
+@dataclass(frozen=True)
+class RivalConfig:
+    """The ambiguity check's settings (``pimm.rivals``; ours, each measured: docs/design.md#the-ambiguity-check)."""
+
+    enabled: bool = True  # the check beside the filter; off: the filter's own status, 5 ms an update less
+    history_scans: int = 150  # measured: the scans kept (one per measurement update)
+    log_ratio: float = float(np.log(1000.0))  # measured: a candidate within this of the estimate is a rival
+    drop_log_ratio: float = float(np.log(1e4))  # measured: a rival stands until it trails by this (hysteresis)
+    settle_scans: int = 10  # measured: no place is localized before this many scans are kept since a jump
+    switch_updates: int = 10  # measured: updates in a row a rival must lead decisively to take the estimate
+
+    def __post_init__(self) -> None:
+        if self.history_scans < 1 or self.switch_updates < 1 or self.settle_scans < 0:
+            raise LocalizerError(
+                f"rivals: history_scans and switch_updates must be at least 1, settle_scans at least 0; got"
+                f" {self.history_scans}, {self.switch_updates}, {self.settle_scans}"
+            )
+        if self.history_scans < max(self.settle_scans, REFINE_SCANS):
+            raise LocalizerError(
+                f"rivals.history_scans ({self.history_scans}) must be at least rivals.settle_scans"
+                f" ({self.settle_scans}) and {REFINE_SCANS} (the newest scans a candidate is fitted to): with fewer"
+                " kept, no place could ever be called localized"
+            )
+        if not self.log_ratio > 0 or self.drop_log_ratio < self.log_ratio:
+            raise LocalizerError(
+                f"rivals.drop_log_ratio ({self.drop_log_ratio}) must be at least rivals.log_ratio ({self.log_ratio}),"
+                " which must be positive: a rival falls at a wider margin than admits it"
+            )
+
+
+#: The check's fixed choices (ours; each measured, docs/design.md#the-ambiguity-check):
+#: a scan's difference between two places within what a wall this many map cells off would cost its points counts
+#: as none (the map's raster puts walls up to half a cell from where they stand)
+MAP_ERROR_CELLS = 0.5
+CANDIDATES = 2  # new candidates refined per update (the best fits of the newest scans among those offered)
+MAX_RIVALS = 5
+DISTINCT_M, DISTINCT_DEG = 1.0, 10.0  # a candidate closer than this to the estimate or a rival is that place
+REFINE_SCANS = 10  # a candidate is first fitted to the newest scans
+SWITCH_LOG_RATIO = float(np.log(1000.0))  # the lead at which a rival counts as ahead for the switch
+ADMIT_ROUNDS = 3  # rounds of each step a new candidate gets against all the kept scans before it is scored
+ADMIT_SCREEN = 50.0  # ... unless its fit to the newest scans trails the estimate's there by more than this
 
 #: Coordinate steps (x m, y m, heading rad) a candidate is refined by, coarse then fine.
 REFINE_STEPS = (np.array([0.1, 0.1, np.radians(2.0)]), np.array([0.05, 0.05, np.radians(1.0)]))
@@ -72,17 +116,6 @@ class RivalTracker:
         #: the estimate's place as fitted to the kept scans, carried and fitted a touch at every update like a
         #: rival, so that rivals and estimate are scored alike (None: not fitted yet, or the estimate moved)
         self._anchor: np.ndarray | None = None
-
-    @property
-    def touch_steps(self) -> tuple[np.ndarray, ...]:
-        """The steps of the touch a standing rival gets at each update (``RivalConfig.touch_deep``)."""
-        return DEEP_TOUCH if self.config.touch_deep else FINE_STEP
-
-    @property
-    def admit_steps(self) -> tuple[np.ndarray, ...]:
-        """The steps of a new candidate's fit against all the kept scans: the touch's and 1 cm, 0.15 deg finer
-        (``ADMIT_STEPS``; the fine step and that with ``touch_deep`` off)."""
-        return ADMIT_STEPS if self.config.touch_deep else (*FINE_STEP, ADMIT_STEPS[-1])
 
     def reset(self) -> None:
         self._scans.clear()
@@ -145,7 +178,7 @@ class RivalTracker:
         both score on it)."""
         key = (self._added, np.asarray(odom_now, dtype=float).tobytes())
         if self._recent is None or self._recent[0] != key:
-            self._recent = (key, self.stack(odom_now, self.config.refine_scans))
+            self._recent = (key, self.stack(odom_now, REFINE_SCANS))
         return self._recent[1]
 
     def evidence(self, poses: np.ndarray, stack: ScanStack) -> np.ndarray:
@@ -182,7 +215,7 @@ class RivalTracker:
     def scan_allowance(self, stack: ScanStack) -> np.ndarray:
         """Per stacked scan (S,): what a wall ``map_error_cells`` cells off costs each of its points, summed and
         tempered (``RivalConfig.map_error_cells``)."""
-        offset = self.config.map_error_cells * self.field.grid.resolution
+        offset = MAP_ERROR_CELLS * self.field.grid.resolution
         per_point = offset**2 / (2 * self.field.params.sigma_hit**2)
         points = np.bincount(stack.scan_of, minlength=len(stack.motions))
         return self.temperature * per_point * points
@@ -193,8 +226,8 @@ class RivalTracker:
         beyond ``scan_allowance`` (a difference the map's raster alone could make counts as none)."""
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         reference = np.asarray(reference, dtype=float).reshape(1, 3)
-        if self.config.map_error_cells == 0 or not len(poses):
-            return self.evidence(poses, stack) - self.evidence(reference, stack)[0]
+        if not len(poses):
+            return np.zeros(0)
         by_scan = self.evidence_by_scan(np.vstack([reference, poses]), stack)
         difference = by_scan[1:] - by_scan[0]
         beyond = np.maximum(np.abs(difference) - self.scan_allowance(stack), 0.0)
@@ -212,7 +245,7 @@ class RivalTracker:
         best = np.asarray(poses, dtype=float).reshape(-1, 3).copy()
         score = self.evidence(best, stack)
         offsets = np.vstack([np.diag([1.0, 1.0, 1.0]), -np.diag([1.0, 1.0, 1.0])])
-        centre = stack.centre if self.config.turn_about_scans else np.zeros(2)
+        centre = stack.centre
         for step in steps:
             moving = np.arange(len(best))
             for _ in range(rounds):
@@ -234,9 +267,7 @@ class RivalTracker:
         """Places newly offered (K, 3) fitted as the check fits a new candidate: to the ``recent`` scans from
         wherever they were offered, then ``admit_rounds`` of ``admit_steps`` against all the kept scans
         (``history``). ``update`` screens the candidates between the two."""
-        return self.refine(
-            self.refine(poses, recent, rounds=3), history, rounds=self.config.admit_rounds, steps=self.admit_steps
-        )
+        return self.refine(self.refine(poses, recent, rounds=3), history, rounds=ADMIT_ROUNDS, steps=ADMIT_STEPS)
 
     def holds(
         self, held: np.ndarray, new: np.ndarray, odom_now: np.ndarray, wall_points: np.ndarray | None = None
@@ -248,18 +279,18 @@ class RivalTracker:
         is a kidnap's mark), and all of them (``held`` and ``new`` fitted a touch more) favour ``held`` by
         ``drop_log_ratio``. False with fewer than ``settle_scans`` kept."""
         c = self.config
-        if len(self._scans) < max(c.settle_scans, c.refine_scans):
+        if len(self._scans) < max(c.settle_scans, REFINE_SCANS):
             return False
         if wall_points is not None:
             wall_points = np.asarray(wall_points, dtype=float).reshape(-1, 2)
         extra = None if wall_points is None else (np.asarray(odom_now, dtype=float), wall_points)
-        recent = self.stack(odom_now, c.refine_scans, extra)
+        recent = self.stack(odom_now, REFINE_SCANS, extra)
         places = self.refine(np.vstack([held, new]), recent, rounds=2)
         newest = self.evidence(places, recent)
         if newest[1] - newest[0] >= c.log_ratio:
             return False
         # a kidnap: the held place explains the newest scans far worse than the ones before them
-        before = self.evidence(places[:1], self.stack(odom_now, 2 * c.refine_scans, extra))[0] - newest[0]
+        before = self.evidence(places[:1], self.stack(odom_now, 2 * REFINE_SCANS, extra))[0] - newest[0]
         if before - newest[0] >= c.log_ratio:
             return False
         history = self.stack(odom_now, None, extra)
@@ -283,7 +314,7 @@ class RivalTracker:
     def headings(self, positions: np.ndarray, odom_now: np.ndarray) -> np.ndarray:
         """For each position (M, 2), the pose whose heading (every 10 deg) the newest scans fit best."""
         positions = np.asarray(positions, dtype=float).reshape(-1, 2)
-        if not len(positions) or len(self._scans) < self.config.refine_scans:
+        if not len(positions) or len(self._scans) < REFINE_SCANS:
             return np.zeros((0, 3))
         angles = np.radians(np.arange(-180.0, 180.0, 10.0))
         poses = np.column_stack([np.repeat(positions, len(angles), axis=0), np.tile(angles, len(positions))])
@@ -305,7 +336,7 @@ class RivalTracker:
         (``decisive``; off for a held estimate, which no rival may take). Returns how many rivals stand; with
         fewer than ``refine_scans`` scans kept (just after a jump) the kept rivals stand unscored."""
         c = self.config
-        if len(self._scans) < c.refine_scans:
+        if len(self._scans) < REFINE_SCANS:
             return len(self.rivals)
         recent = self.recent(odom_now)
         pool = [p for p in self.rivals]
@@ -317,7 +348,7 @@ class RivalTracker:
         if fresh:  # the ones the newest scans like best
             order = np.argsort(-self.evidence(np.array(fresh), recent), kind="stable")
             for i in order:
-                if len(pool) >= tried + c.candidates:
+                if len(pool) >= tried + CANDIDATES:
                     break
                 if not self._known(fresh[i], pool):
                     pool.append(fresh[i])
@@ -327,30 +358,30 @@ class RivalTracker:
         kept = len(self.rivals)
         history = self.stack(odom_now)
         # the estimate as the filter left it, and (fit_estimate) its place fitted as the rivals are: scored once each
-        places = [estimate, self._fit_estimate(estimate, recent, history)] if c.fit_estimate else [estimate]
+        places = [estimate, self._fit_estimate(estimate, recent, history)]
         # every one by a touch against all the kept scans it is scored on: fitted to the newest alone, a place a
         # degree off in heading would carry back metres off along 15 m of history and lose a rival; a new one
         # (fitted to the newest scans first, from wherever it was offered, and screened on them) by
         # ``admit_rounds`` of it and a finer step
         refined = np.array(pool[:kept], dtype=float).reshape(-1, 3)
         if kept:
-            refined = self.refine(refined, history, rounds=1, steps=self.touch_steps)
+            refined = self.refine(refined, history, rounds=1, steps=DEEP_TOUCH)
         offered = np.array(pool[kept:], dtype=float).reshape(-1, 3)
         if len(offered):
             offered = self.refine(offered, recent, rounds=3)
             newest = self.evidence(np.vstack([*places, offered]), recent)
-            offered = offered[newest[len(places) :] >= newest[: len(places)].max() - c.admit_screen]
+            offered = offered[newest[len(places) :] >= newest[: len(places)].max() - ADMIT_SCREEN]
             if len(offered):
-                offered = self.refine(offered, history, rounds=c.admit_rounds, steps=self.admit_steps)
+                offered = self.refine(offered, history, rounds=ADMIT_ROUNDS, steps=ADMIT_STEPS)
         refined = np.vstack([refined, offered])
         # against the better scored of the estimate's places
         reference = places[int(np.argmax(self.evidence(np.array(places), history)))]
         margins = self.margins_over(refined, reference, history)
-        if c.refit_before_drop:  # a standing rival about to fall is fitted as a newcomer and scored again
-            falling = np.flatnonzero((np.arange(len(refined)) < kept) & (margins <= -c.drop_log_ratio))
-            if len(falling):
-                refined[falling] = self.refine(refined[falling], history, c.admit_rounds, self.admit_steps)
-                margins[falling] = self.margins_over(refined[falling], reference, history)
+        # a standing rival about to fall is fitted as a newcomer and scored again
+        falling = np.flatnonzero((np.arange(len(refined)) < kept) & (margins <= -c.drop_log_ratio))
+        if len(falling):
+            refined[falling] = self.refine(refined[falling], history, ADMIT_ROUNDS, ADMIT_STEPS)
+            margins[falling] = self.margins_over(refined[falling], reference, history)
         unique: list[int] = []
         limits = np.where(np.arange(len(refined)) < kept, c.drop_log_ratio, c.log_ratio)
         for i in np.argsort(-margins):
@@ -358,10 +389,10 @@ class RivalTracker:
                 continue
             if not self._known(refined[i], [refined[j] for j in unique]):
                 unique.append(int(i))
-        unique = unique[: c.max_rivals]
+        unique = unique[:MAX_RIVALS]
         self.rivals = refined[unique].reshape(-1, 3)
         self.margins = margins[unique]
-        if self.config.switch and lead:
+        if lead:
             self._follow_leader(estimate, history)
         elif self._leader is not None:
             self._leader, self._lead = None, 0
@@ -376,7 +407,7 @@ class RivalTracker:
         if self._anchor is None or not self._known(self._anchor, [estimate]):  # a new place: fitted as a new rival
             self._anchor = self.fit_new(estimate[None, :], recent, history)[0]
         else:
-            self._anchor = self.refine(self._anchor[None, :], history, rounds=1, steps=self.touch_steps)[0]
+            self._anchor = self.refine(self._anchor[None, :], history, rounds=1, steps=DEEP_TOUCH)[0]
         return self._anchor
 
     def _follow_leader(self, estimate: np.ndarray, history: ScanStack) -> None:
@@ -386,11 +417,11 @@ class RivalTracker:
         as the filter left it: enough for a status, which errs towards ``ambiguous``, but on a development
         building (gen-970 route 3) the right estimate then trailed its twins by 15-70 nats over 150 scans, and
         by 20-150 nats the other way once both were fitted to convergence."""
-        ahead = np.flatnonzero(np.nan_to_num(self.margins, nan=-np.inf) >= self.config.switch_log_ratio)
+        ahead = np.flatnonzero(np.nan_to_num(self.margins, nan=-np.inf) >= SWITCH_LOG_RATIO)
         best = self.rivals[ahead[np.argmax(self.margins[ahead])]] if len(ahead) else None
         if best is not None:
             fitted = self.refine(np.vstack([estimate, best]), history, rounds=30, steps=DEEP_STEPS)
-            if self.margins_over(fitted[1:], fitted[0], history)[0] < self.config.switch_log_ratio:
+            if self.margins_over(fitted[1:], fitted[0], history)[0] < SWITCH_LOG_RATIO:
                 best = None
         if best is None:
             self._leader, self._lead = None, 0
@@ -409,10 +440,9 @@ class RivalTracker:
         return None
 
     def _known(self, pose: np.ndarray, places: list[np.ndarray]) -> bool:
-        c = self.config
         return any(
-            np.hypot(pose[0] - q[0], pose[1] - q[1]) < c.distinct_m
-            and abs(wrap_angle(pose[2] - q[2])) < np.radians(c.distinct_deg)
+            np.hypot(pose[0] - q[0], pose[1] - q[1]) < DISTINCT_M
+            and abs(wrap_angle(pose[2] - q[2])) < np.radians(DISTINCT_DEG)
             for q in places
         )
 

@@ -1,14 +1,11 @@
 """The map's own look-alikes: places whose walls around them match the walls around a given place.
 
-The rival check (rivals.py) can only rule on the places it is offered. The filter's modes, its best particles and
-the fingerprint suggestions all come from what the robot saw, and a twin place that lost its particles and that
-the fingerprints did not rank is offered by none of them: on a look-alike building (gen-972, route 4) PIMM held
-a place 29 m from the truth as ``localized`` for 5 s while the kept scans fitted the truth better, because nothing
-put the truth in front of the check. The walls of the map say where such twins are, whatever the robot saw: this module
-takes the wall cells within ``radius_m`` of a place, turns them by every ``angle_step_deg`` and slides them over
-the map's walls (one FFT correlation per angle, at ``resolution_m``), and returns the poses where at least
-``min_overlap`` of them land on walls there. A robot at a twin sees what it would see at the place, so the check
-tries them beside its other candidates. Results are kept per ``cell_m`` cell of the map.
+A localizer can only rule out the places it is offered, and a twin place that lost its particles is offered by
+nothing the robot saw. The walls of the map say where such twins are, whatever the robot saw: this module takes
+the wall cells within ``radius_m`` of a place, turns them by every ``angle_step_deg`` and slides them over the
+map's walls (one FFT correlation per angle, at ``resolution_m``), and returns the poses where at least
+``min_overlap`` of them land on walls there. A robot at a twin sees what it would see at the place. Results are
+kept per ``cell_m`` cell of the map. PIMM's ambiguity check, its bounds and its active guide use it.
 """
 
 from __future__ import annotations
@@ -25,32 +22,17 @@ from pimm_env.mapping.occupancy import OccupancyGrid
 
 @dataclass(frozen=True)
 class TwinConfig:
-    """Ours."""
+    """How the map is searched for twins (ours; measured, docs/design.md#the-maps-twins)."""
 
-    enabled: bool = True
-    radius_m: float = 8.0  # the surroundings compared: about what the kept scans span
+    radius_m: float = 8.0  # the surroundings compared: about what the ambiguity check's kept scans span
     resolution_m: float = 0.25  # the map is compared at this cell size; walls count within one cell
     angle_step_deg: float = 10.0  # a divisor of 90, so that a building's own axes are among the turns
     min_overlap: float = 0.6  # share of the place's wall cells that must land on walls at a twin
     max_twins: int = 6  # the best-matching twins offered (at least 1.5 m apart, or turned apart: below)
-    #: two matches less than 1.5 m apart are one twin unless their turns differ by more than this. At 180 (the
-    #: default, as the check was measured) position alone decides, and in a building that looks the same turned
-    #: half round a match facing the other way beside a better one is dropped: on development building gen-977
-    #: (route 3) the place turned half round, which the scans told from the truth only 20 s later, was missing
-    #: from the twins of the truth's cell, beside a match 1 m off facing the truth's way. ``passive-bound`` and
-    #: ``active-bound`` use 30 (docs/benchmarks.md)
+    #: two matches less than 1.5 m apart are one twin unless their turns differ by more than this (180: position
+    #: alone decides, as the ambiguity check was measured; the bounds use 30)
     distinct_turn_deg: float = 180.0
     cell_m: float = 1.0  # twins are worked out once per cell of this size and carried to poses inside it
-    #: the twins are offered when an estimate is about to be called localized, and again at this many updates'
-    #: interval while it is (2 s of 10 Hz scans): a twin the scans had ruled out is not re-offered at once
-    every_updates: int = 20
-    #: a place is called localized only once its twins have been looked for from this many cells: a search
-    #: from one cell can miss a twin that the next cell's finds (in a periodic room the six best matches of one
-    #: cell were shifted near-copies, tests/test_twins.py), so with 2 a robot turning on one spot stays
-    #: ambiguous until it has moved into a second cell (with ``rivals.veto_only``, as by default). 0: no such
-    #: rule, for ``rivals.veto_only`` off, where the 10 updates that confirm a place after its last rival fell
-    #: give the search those cells as the robot drives on
-    looked_from_cells: int = 2
 
     def __post_init__(self) -> None:
         if self.radius_m <= 0 or self.resolution_m <= 0 or self.cell_m <= 0:
@@ -59,10 +41,8 @@ class TwinConfig:
             raise LocalizerError(f"twins: angle_step_deg must divide 90, got {self.angle_step_deg}")
         if not 0 <= self.distinct_turn_deg <= 180:
             raise LocalizerError(f"twins: distinct_turn_deg must lie in [0, 180], got {self.distinct_turn_deg}")
-        if not 0 < self.min_overlap <= 1 or self.max_twins < 0 or self.every_updates < 1:
-            raise LocalizerError("twins: min_overlap must lie in (0, 1], max_twins >= 0, every_updates >= 1")
-        if self.looked_from_cells < 0:
-            raise LocalizerError(f"twins: looked_from_cells must be at least 0, got {self.looked_from_cells}")
+        if not 0 < self.min_overlap <= 1 or self.max_twins < 0:
+            raise LocalizerError("twins: min_overlap must lie in (0, 1], max_twins >= 0")
 
 
 class MapTwins:
@@ -97,7 +77,7 @@ class MapTwins:
         """Twin poses (K, 3) of ``pose`` (x, y, heading), best match first; none where the place sees too few
         walls to compare."""
         c = self.config
-        if not c.enabled or c.max_twins == 0:
+        if c.max_twins == 0:
             return np.zeros((0, 3))
         key = self.cell_of(pose)
         if key not in self._cache:
