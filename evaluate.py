@@ -165,7 +165,8 @@ def map_command(
     """A map_server map from a bag's scans laid at its true poses (it flatters a localizer replaying that bag)."""
     from pimm_env.bags.layout import layouts_from_bag
     from pimm_env.bags.read import BagTopics
-    from pimm_env.mapping.from_scans import SPARSE_SCAN_SPACING_M, ScanMapConfig, map_from_bag, scan_spacing_m
+    from pimm_env.bags.scan_map import map_from_bag
+    from pimm_env.mapping.from_scans import SPARSE_SCAN_SPACING_M, ScanMapConfig, scan_spacing_m
     from pimm_env.mapping.occupancy import save_map_server
 
     topics = BagTopics(odom=odom_topic, scan=scan_topic, points=None, truth=truth_topic, events=None)

@@ -3,13 +3,16 @@
 
 Every localizer has the surface of :class:`pimm_agents.localizer.Localizer`; build one by name with
 :func:`make_localizer`. The names below load on first use, so that importing one submodule (the command line's
-helpers, say) does not import every localizer.
+helpers, say) does not import every localizer. Importing the package registers the task env
+``pimm/ActiveLocalization-v0`` (``pimm_agents.active``).
 """
 
 from __future__ import annotations
 
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
+
+import pimm_agents.active  # noqa: F401  (registers pimm/ActiveLocalization-v0)
 
 if TYPE_CHECKING:
     from pimm_agents.factory import available_localizers, make_localizer

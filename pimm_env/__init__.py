@@ -2,9 +2,9 @@
 robot with a 3D and a 2D LiDAR, as a Gymnasium env.
 
 ``import pimm_env`` registers ``pimm/IILab-v1`` (see ``IILabEnv``'s Version History; v0 is retired: this code
-no longer reproduces its observations, and ``gym.make("pimm/IILab-v0")`` says to use v1) and the task env
-``pimm/ActiveLocalization-v0``, which drives this simulator with a localizer in the loop: it lives with the
-localizers (``pimm_agents.active``) and is imported only when made.
+no longer reproduces its observations, and ``gym.make("pimm/IILab-v0")`` says to use v1). The task env
+``pimm/ActiveLocalization-v0``, which drives this simulator with a localizer in the loop, lives with the
+localizers and is registered by ``import pimm_agents``.
 """
 
 from gymnasium.envs.registration import register
@@ -14,6 +14,5 @@ from pimm_env.errors import PimmError
 from pimm_env.world.semantics import SemanticClass
 
 register(id="pimm/IILab-v1", entry_point="pimm_env.envs.iilab_env:IILabEnv", max_episode_steps=20_000)
-register(id="pimm/ActiveLocalization-v0", entry_point="pimm_agents.active.env:ActiveLocalizationEnv")
 
 __all__ = ["PimmError", "SemanticClass", "SimConfig"]

@@ -10,7 +10,6 @@ localizer: its walls are where that log's scans saw them.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -77,22 +76,3 @@ def scan_spacing_m(poses: np.ndarray) -> float:
         return 0.0
     steps = np.linalg.norm(np.diff(np.asarray(poses)[:, :2], axis=0), axis=1)
     return float(steps.sum() / (len(poses) - 1))
-
-
-def map_from_bag(bag: Path, topics, lidar2d, config: ScanMapConfig | None = None) -> tuple[OccupancyGrid, np.ndarray]:
-    """The map of a bag's scans at its true poses (every step with a fresh scan and a truth), and those poses."""
-    from pimm_env.bags.read import read_steps
-    from pimm_env.envs.sim_config import SimConfig
-    from pimm_env.sim.lidar import beam_bearings_2d
-
-    poses, scans = [], []
-    for step in read_steps(Path(bag), topics, lidar2d, SimConfig().lidar3d):
-        if step.fresh_scan and step.true_pose is not None:
-            poses.append(step.true_pose)
-            scan = np.asarray(step.obs["scan"], dtype=float)
-            scans.append(np.where(scan >= lidar2d.max_range, np.inf, scan))
-    if not poses:
-        raise BagError(f"{bag}: no scan arrived with a true pose ({topics.truth}): nothing to build a map from")
-    taken = np.array(poses)
-    occupancy = map_from_scans(taken, scans, beam_bearings_2d(lidar2d), lidar2d.max_range, config or ScanMapConfig())
-    return occupancy, taken
