@@ -3,9 +3,11 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+import pimm_agents.pimm.kept_scans as kept_scans
 import pimm_agents.pimm.rivals as rivals
 from pimm_agents.particles.likelihood_field import LikelihoodField, LikelihoodFieldParams
-from pimm_agents.pimm.rivals import DEEP_STEPS, RivalConfig, RivalTracker
+from pimm_agents.pimm.kept_scans import DEEP_STEPS
+from pimm_agents.pimm.rivals import RivalConfig, RivalTracker
 from pimm_agents.pimm.scan_stack import turned
 from pimm_env.geometry import relative_motion
 from pimm_env.mapping.occupancy import OccupancyGrid
@@ -70,7 +72,8 @@ def test_a_held_place_stands_until_enough_scans_rule_it_out(monkeypatch):
     # summed as they are (these scans are cast on the map's own raster: nothing to allow for), a place a little
     # worse in every scan (0.4-0.5 nats at 0.1 m cells) is ruled out within the 3 m drive
     monkeypatch.setattr(rivals, "REFINE_SCANS", 5)
-    monkeypatch.setattr(rivals, "MAP_ERROR_CELLS", 0.0)
+    monkeypatch.setattr(kept_scans, "REFINE_SCANS", 5)
+    monkeypatch.setattr(kept_scans, "MAP_ERROR_CELLS", 0.0)
     counts = rivals_along(RivalConfig(), left, truths)
     assert counts[:4] == [1, 1, 1, 1]  # fewer scans than refine_scans: it stands unscored
     assert counts[-1] == 0  # then the scans rule it out
@@ -141,7 +144,7 @@ def test_a_rival_ahead_by_more_than_the_admitting_margin_takes_the_estimate(monk
     truths = np.vstack([west_half_drive(), [[x, 1.0, 0.0] for x in np.arange(15.0, 17.3, 0.1)]])  # block half seen
     now = truths[-1]
     wrong = now - [12.0, 0.0, 0.0]
-    monkeypatch.setattr(rivals, "MAP_ERROR_CELLS", 0.0)  # the lead as summed (the scans are the raster's own)
+    monkeypatch.setattr(kept_scans, "MAP_ERROR_CELLS", 0.0)  # the lead as summed (the scans are the raster's own)
     for ratio, switches in ((np.log(1000.0), True), (np.log(1e6), False), (np.log(1e5), False)):
         monkeypatch.setattr(rivals, "SWITCH_LOG_RATIO", float(ratio))
         occupancy = twin_rooms()
@@ -272,7 +275,7 @@ def test_scan_by_scan_evidence_sums_to_the_summed_evidence(monkeypatch):
     assert by_scan.shape == (len(poses), len(truths))
     np.testing.assert_allclose(by_scan.sum(axis=1), tracker.evidence(poses, stack), rtol=1e-12, atol=1e-9)
     # with no allowance the margins are the summed evidence's differences
-    monkeypatch.setattr(rivals, "MAP_ERROR_CELLS", 0.0)
+    monkeypatch.setattr(kept_scans, "MAP_ERROR_CELLS", 0.0)
     summed = tracker.evidence(poses[1:], stack) - tracker.evidence(poses[:1], stack)[0]
     np.testing.assert_allclose(tracker.margins_over(poses[1:], poses[0], stack), summed, rtol=1e-12, atol=1e-9)
 
@@ -313,7 +316,7 @@ def test_a_wall_drawn_a_cell_off_does_not_rule_the_true_place_out(cells, stands,
     raster's allowance (``map_error_cells``), it stands: no scan tells the places apart."""
     occupancy, scan = room_with_a_wall_off(0.05)
     field = LikelihoodField(occupancy, LikelihoodFieldParams(0.5, 0.5, 0.2, 2.0, 10.0))
-    monkeypatch.setattr(rivals, "MAP_ERROR_CELLS", cells)
+    monkeypatch.setattr(kept_scans, "MAP_ERROR_CELLS", cells)
     tracker = RivalTracker(field, occupancy.free, 0.2, RivalConfig())
     truth = np.array([3.0, 1.5, 0.0])
     tracker.keep(truth)

@@ -3,7 +3,7 @@ import pytest
 from scipy import ndimage
 
 import pimm_agents.pimm.ambiguity as ambiguity
-import pimm_agents.pimm.rivals as rivals
+import pimm_agents.pimm.kept_scans as kept_scans
 from pimm_agents.corners.lookup import NearestCornerGrid
 from pimm_agents.pimm.feature_filter import FeatureFilterConfig
 from pimm_env.errors import LocalizerError, ParamsError
@@ -128,7 +128,7 @@ def test_a_place_is_called_localized_only_once_its_twins_were_looked_for_from_tw
     # injection, whose random particles in the other room the check can also fit there; the margins summed as
     # they are, without the raster's allowance, under which the place is not called localized on that spot at all)
     monkeypatch.setattr(ambiguity, "TWINS_FROM_CELLS", 1)
-    monkeypatch.setattr(rivals, "MAP_ERROR_CELLS", 0.0)
+    monkeypatch.setattr(kept_scans, "MAP_ERROR_CELLS", 0.0)
     one_cell = [status for status, _, pose in started_at_the_truth(injection=0.0) if pose[0] < 15.5]
     assert "localized" in one_cell
 

@@ -22,14 +22,21 @@ the other way round, and the place left stands as a rival until the scans rule i
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from pimm_agents.particles.likelihood_field import LikelihoodField
-from pimm_agents.pimm.scan_evidence import scan_by_scan_evidence, summed_scan_evidence
-from pimm_agents.pimm.scan_stack import ScanStack, points_centre, turned
+from pimm_agents.pimm.kept_scans import (
+    ADMIT_ROUNDS,
+    ADMIT_STEPS,
+    DEEP_STEPS,
+    DEEP_TOUCH,
+    FINE_STEP,
+    REFINE_SCANS,
+    KeptScans,
+)
+from pimm_agents.pimm.scan_stack import ScanStack
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import relative_motion, wrap_angle
 
@@ -54,8 +61,8 @@ class RivalConfig:
         if self.history_scans < max(self.settle_scans, REFINE_SCANS):
             raise LocalizerError(
                 f"rivals.history_scans ({self.history_scans}) must be at least rivals.settle_scans"
-                f" ({self.settle_scans}) and {REFINE_SCANS} (the newest scans a candidate is fitted to): with fewer"
-                " kept, no place could ever be called localized"
+                f" ({self.settle_scans}) and {REFINE_SCANS} (the newest scans a candidate is fitted to): with"
+                " fewer kept, no place could ever be called localized"
             )
         if not self.log_ratio > 0 or self.drop_log_ratio < self.log_ratio:
             raise LocalizerError(
@@ -65,49 +72,20 @@ class RivalConfig:
 
 
 #: The check's fixed choices (ours; each measured, docs/design.md#the-ambiguity-check):
-#: a scan's difference between two places within what a wall this many map cells off would cost its points counts
-#: as none (the map's raster puts walls up to half a cell from where they stand)
-MAP_ERROR_CELLS = 0.5
 CANDIDATES = 2  # new candidates refined per update (the best fits of the newest scans among those offered)
 MAX_RIVALS = 5
 DISTINCT_M, DISTINCT_DEG = 1.0, 10.0  # a candidate closer than this to the estimate or a rival is that place
-REFINE_SCANS = 10  # a candidate is first fitted to the newest scans
 SWITCH_LOG_RATIO = float(np.log(1000.0))  # the lead at which a rival counts as ahead for the switch
-ADMIT_ROUNDS = 3  # rounds of each step a new candidate gets against all the kept scans before it is scored
-ADMIT_SCREEN = 50.0  # ... unless its fit to the newest scans trails the estimate's there by more than this
-
-#: Coordinate steps (x m, y m, heading rad) a candidate is refined by, coarse then fine.
-REFINE_STEPS = (np.array([0.1, 0.1, np.radians(2.0)]), np.array([0.05, 0.05, np.radians(1.0)]))
-#: The fine step alone: the last touch against the whole history.
-FINE_STEP = (REFINE_STEPS[1],)
-#: Down to 2 cm and 0.3 deg: a fit to convergence, before a rival may take the estimate.
-DEEP_STEPS = (*REFINE_STEPS, np.array([0.02, 0.02, np.radians(0.3)]))
-#: The fine step and the deepest: a touch that keeps a place fitted to 2 cm and 0.3 deg as it is carried.
-DEEP_TOUCH = DEEP_STEPS[1:]
-#: The touch and a step of 1 cm and 0.15 deg: a new candidate's (and a new estimate's) fit against all the kept
-#: scans before it is first scored. Left on the touch's 2 cm lattice, a twin offered off it ended 1-2 cm from its
-#: best place, 9 nats below it on noise-free scans (tests/test_rivals.py), more than the ln 1000 that admits it.
-ADMIT_STEPS = (*DEEP_TOUCH, np.array([0.01, 0.01, np.radians(0.15)]))
+ADMIT_SCREEN = 50.0  # a new candidate whose fit to the newest scans trails the estimate's by more is no rival
 
 
-class RivalTracker:
+class RivalTracker(KeptScans):
+    """The rivals of an estimate over the scans it keeps (``KeptScans``): ``update`` re-scores them and the new
+    candidates, ``decisive`` names the one that has led decisively, ``holds`` says whether a held place stays."""
+
     def __init__(self, field: LikelihoodField, free: np.ndarray, temperature: float, config: RivalConfig) -> None:
-        self.field = field
-        self.free = free  # (rows, cols) of the map: a pose outside them is penalized
-        self.temperature = temperature
+        super().__init__(field, free, temperature, config.history_scans, config.settle_scans)
         self.config = config
-        self._scans: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=config.history_scans)
-        self._added = 0  # scans kept so far: with the odometry, says whether the newest-scans stack is current
-        self._recent: tuple[tuple[int, bytes], ScanStack] | None = None
-        p = field.params
-        floor = p.z_rand / p.range_max
-        #: per map cell: log pz of a point there, relative to a point on a wall (so 0 at best)
-        self.log_pz = np.log(p.z_hit * np.exp(-(field.distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(
-            p.z_hit + floor
-        )
-        self.log_pz_off = float(
-            np.log(p.z_hit * np.exp(-(p.max_distance**2) / (2 * p.sigma_hit**2)) + floor) - np.log(p.z_hit + floor)
-        )
         self.rivals = np.zeros((0, 3))
         #: per rival, its summed evidence less the estimate's at the last update (NaN: held, not yet scored)
         self.margins = np.zeros(0)
@@ -118,8 +96,7 @@ class RivalTracker:
         self._anchor: np.ndarray | None = None
 
     def reset(self) -> None:
-        self._scans.clear()
-        self._recent = None
+        self.drop_scans()
         self.forget()
 
     def forget(self) -> None:
@@ -128,26 +105,6 @@ class RivalTracker:
         self.margins = np.zeros(0)
         self._leader, self._lead = None, 0
         self._anchor = None
-
-    @property
-    def settled(self) -> bool:
-        """Whether enough scans are kept (``settle_scans``) for the check to call a place unrivalled."""
-        return len(self._scans) >= self.config.settle_scans
-
-    def add_scan(self, odom: np.ndarray, wall_points: np.ndarray) -> None:
-        """Keep a scan's wall points (M, 2; robot frame) with the odometry at which they were seen."""
-        if len(wall_points):
-            self._scans.append((np.asarray(odom, dtype=float).copy(), np.asarray(wall_points, dtype=float)))
-            self._added += 1
-
-    @property
-    def scans_added(self) -> int:
-        """How many scans have been kept since the tracker was made (a counter that never goes back)."""
-        return self._added
-
-    def newest_scan(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """The newest kept scan: the odometry at which it was seen and its wall points (robot frame)."""
-        return self._scans[-1] if self._scans else None
 
     def move(self, odom_then: np.ndarray, odom_now: np.ndarray) -> None:
         """Carry the rivals by the odometry since ``odom_then``."""
@@ -158,116 +115,6 @@ class RivalTracker:
             self._leader = carried(self._leader[None, :], motion)[0]
         if self._anchor is not None:
             self._anchor = carried(self._anchor[None, :], motion)[0]
-
-    def stack(
-        self, odom_now: np.ndarray, last: int | None = None, extra: tuple[np.ndarray, np.ndarray] | None = None
-    ) -> ScanStack:
-        """The kept scans (the ``last`` newest) as one array of points, each with its scan's motion from now;
-        ``extra`` (odometry, wall points) is taken as one more, newest scan without being kept."""
-        scans = list(self._scans) + ([extra] if extra is not None and len(extra[1]) else [])
-        scans = scans[-last:] if last else scans
-        if not scans:
-            return ScanStack(np.zeros((0, 2)), np.zeros(0, dtype=int), np.zeros((0, 3)), np.zeros(2))
-        points = np.vstack([points for _, points in scans])
-        scan_of = np.repeat(np.arange(len(scans)), [len(points) for _, points in scans])
-        motions = np.array([relative_motion(odom_now, odom) for odom, _ in scans])
-        return ScanStack(points, scan_of, motions, points_centre(points, scan_of, motions))
-
-    def recent(self, odom_now: np.ndarray) -> ScanStack:
-        """``stack`` of the newest ``refine_scans`` scans, built once per update (``headings`` and ``update``
-        both score on it)."""
-        key = (self._added, np.asarray(odom_now, dtype=float).tobytes())
-        if self._recent is None or self._recent[0] != key:
-            self._recent = (key, self.stack(odom_now, REFINE_SCANS))
-        return self._recent[1]
-
-    def evidence(self, poses: np.ndarray, stack: ScanStack) -> np.ndarray:
-        """Summed tempered log-likelihood of the stacked scans for a robot now at each of ``poses`` (K, 3),
-        carried back along the odometry to each scan (a pose off the free space costs ln 0.1 a scan)."""
-        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
-        if len(stack.motions) == 0 or len(poses) == 0:
-            return np.zeros(len(poses))
-        return summed_scan_evidence(poses, *self._kernel_inputs(stack))
-
-    def evidence_by_scan(self, poses: np.ndarray, stack: ScanStack) -> np.ndarray:
-        """``evidence`` kept apart per scan: (K, S), the tempered log-likelihood of each stacked scan for a robot
-        now at each of ``poses``."""
-        return scan_by_scan_evidence(np.asarray(poses, dtype=float).reshape(-1, 3), *self._kernel_inputs(stack))
-
-    def _kernel_inputs(self, stack: ScanStack) -> tuple:
-        """What the compiled evidence loops (scan_evidence.py) take after the poses: the stacked scans, the map's
-        per-cell log-likelihood and free cells, the grid, the temperature and the off-free penalty (ln 0.1)."""
-        grid = self.field.grid
-        return (
-            np.ascontiguousarray(stack.motions, dtype=float),
-            np.ascontiguousarray(stack.scan_of, dtype=np.int64),
-            np.ascontiguousarray(stack.points, dtype=float),
-            self.log_pz,
-            self.log_pz_off,
-            self.free,
-            float(grid.origin[0]),
-            float(grid.origin[1]),
-            float(grid.resolution),
-            float(self.temperature),
-            float(np.log(0.1)),
-        )
-
-    def scan_allowance(self, stack: ScanStack) -> np.ndarray:
-        """Per stacked scan (S,): what a wall ``map_error_cells`` cells off costs each of its points, summed and
-        tempered (``RivalConfig.map_error_cells``)."""
-        offset = MAP_ERROR_CELLS * self.field.grid.resolution
-        per_point = offset**2 / (2 * self.field.params.sigma_hit**2)
-        points = np.bincount(stack.scan_of, minlength=len(stack.motions))
-        return self.temperature * per_point * points
-
-    def margins_over(self, poses: np.ndarray, reference: np.ndarray, stack: ScanStack) -> np.ndarray:
-        """How much better the stacked scans fit each of ``poses`` (K, 3) than ``reference`` (3,): the difference
-        of the summed evidence (``map_error_cells`` 0), or scan by scan with each scan's difference counted only
-        beyond ``scan_allowance`` (a difference the map's raster alone could make counts as none)."""
-        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
-        reference = np.asarray(reference, dtype=float).reshape(1, 3)
-        if not len(poses):
-            return np.zeros(0)
-        by_scan = self.evidence_by_scan(np.vstack([reference, poses]), stack)
-        difference = by_scan[1:] - by_scan[0]
-        beyond = np.maximum(np.abs(difference) - self.scan_allowance(stack), 0.0)
-        return (np.sign(difference) * beyond).sum(axis=1)
-
-    def refine(
-        self, poses: np.ndarray, stack: ScanStack, rounds: int = 4, steps: tuple[np.ndarray, ...] = REFINE_STEPS
-    ) -> np.ndarray:
-        """Each of ``poses`` (K, 3) moved by coordinate ``steps`` (x, y, heading; by default 0.1 m and 2 deg,
-        then half of them), up to ``rounds`` a step size, while the stacked scans fit it better; all poses and
-        their six neighbours scored at once. A heading step turns the pose about the scans' centre
-        (``turn_about_scans``) or about the robot. A pose none of whose neighbours fitted better is not scored
-        again at that step size (its neighbours are the same, and each pose's score does not depend on the
-        others scored with it), so the result is that of scoring every pose every round."""
-        best = np.asarray(poses, dtype=float).reshape(-1, 3).copy()
-        score = self.evidence(best, stack)
-        offsets = np.vstack([np.diag([1.0, 1.0, 1.0]), -np.diag([1.0, 1.0, 1.0])])
-        centre = stack.centre
-        for step in steps:
-            moving = np.arange(len(best))
-            for _ in range(rounds):
-                moved = best[moving, None, :] + offsets[None, :, :] * step
-                for k in (2, 5):  # the heading steps, about the centre
-                    moved[:, k] = turned(best[moving], centre, offsets[k, 2] * step[2])
-                scores = self.evidence(moved.reshape(-1, 3), stack).reshape(len(moving), 6)
-                better = scores.max(axis=1) > score[moving]
-                if not better.any():
-                    break
-                pick = np.argmax(scores, axis=1)
-                best[moving[better]] = moved[better, pick[better]]
-                score[moving[better]] = scores[better, pick[better]]
-                moving = moving[better]
-        best[:, 2] = wrap_angle(best[:, 2])
-        return best
-
-    def fit_new(self, poses: np.ndarray, recent: ScanStack, history: ScanStack) -> np.ndarray:
-        """Places newly offered (K, 3) fitted as the check fits a new candidate: to the ``recent`` scans from
-        wherever they were offered, then ``admit_rounds`` of ``admit_steps`` against all the kept scans
-        (``history``). ``update`` screens the candidates between the two."""
-        return self.refine(self.refine(poses, recent, rounds=3), history, rounds=ADMIT_ROUNDS, steps=ADMIT_STEPS)
 
     def holds(
         self, held: np.ndarray, new: np.ndarray, odom_now: np.ndarray, wall_points: np.ndarray | None = None
