@@ -26,6 +26,16 @@ def carry(pose: np.ndarray, odom_then: np.ndarray, odom_now: np.ndarray) -> np.n
     return compose(pose, relative_motion(odom_then, odom_now))[0]
 
 
+def moved_rigidly(poses: np.ndarray, origin: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Poses (N, 3) moved by the rigid motion that takes the pose ``origin`` to the pose ``target``."""
+    turn = wrap_angle(target[2] - origin[2])
+    c, s = np.cos(turn), np.sin(turn)
+    d = poses[:, :2] - origin[:2]
+    x = target[0] + c * d[:, 0] - s * d[:, 1]
+    y = target[1] + s * d[:, 0] + c * d[:, 1]
+    return np.column_stack([x, y, wrap_angle(poses[:, 2] + turn)])
+
+
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Angle in [-pi, pi)."""
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi

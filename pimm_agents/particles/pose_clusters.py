@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from pimm_agents.particles.kld import bin_indices
+from pimm_env.geometry import wrap_angle
 
 
 @dataclass(frozen=True)
@@ -103,3 +104,31 @@ def cluster_statistics(
 def heaviest_cluster(poses: np.ndarray, weights: np.ndarray, labels: np.ndarray) -> PoseCluster:
     """The cluster with the most weight (``cluster_statistics``' first)."""
     return cluster_statistics(poses, weights, labels, limit=1)[0]
+
+
+def heaviest_mean(poses: np.ndarray, weights: np.ndarray, count: int, bin_xy: float, bin_theta: float) -> np.ndarray:
+    """Weighted mean pose of the ``count`` heaviest ``poses`` (circular mean for theta), over the cluster of them
+    with the most weight (bins of ``bin_xy`` x ``bin_theta`` that touch), or over all of them with ``bin_xy`` 0."""
+    m = min(count, len(poses))
+    best = np.argpartition(-weights, m - 1)[:m]
+    w = weights[best]
+    w = w / w.sum() if w.sum() > 0 else np.full(m, 1.0 / m)
+    p = poses[best]
+    if bin_xy > 0:
+        return heaviest_cluster(p, w, cluster_labels(p, bin_xy, bin_theta)).mean
+    theta = np.arctan2(np.sum(w * np.sin(p[:, 2])), np.sum(w * np.cos(p[:, 2])))
+    return np.array([np.sum(w * p[:, 0]), np.sum(w * p[:, 1]), theta])
+
+
+def weighted_covariance(poses: np.ndarray, weights: np.ndarray, around: np.ndarray) -> np.ndarray:
+    """Weighted covariance of ``poses`` about ``around`` (angles wrapped)."""
+    d = poses - around
+    d[:, 2] = wrap_angle(d[:, 2])
+    return (d * weights[:, None]).T @ d
+
+
+def weight_near(poses: np.ndarray, weights: np.ndarray, pose: np.ndarray, radius: float, max_angle: float) -> float:
+    """Total weight of the ``poses`` within ``radius`` and ``max_angle`` of ``pose``."""
+    d = poses - pose
+    near = (d[:, 0] ** 2 + d[:, 1] ** 2 <= radius**2) & (np.abs(wrap_angle(d[:, 2])) <= max_angle)
+    return float(weights[near].sum())

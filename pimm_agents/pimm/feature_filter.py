@@ -28,11 +28,11 @@ from pimm_agents.particles.free_space import FreeSpace
 from pimm_agents.particles.initial_pose import gaussian_poses
 from pimm_agents.particles.kld import bin_keys, kld_sample_count
 from pimm_agents.particles.likelihood_field import LikelihoodField
-from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_cluster
-from pimm_agents.particles.resampling import residual_resample
-from pimm_agents.pimm.corner_evidence import corner_exponents
+from pimm_agents.particles.pose_clusters import cluster_labels, heaviest_mean, weight_near, weighted_covariance
+from pimm_agents.particles.resampling import mode_draws, residual_resample
+from pimm_agents.pimm.corner_evidence import corner_likelihoods
 from pimm_env.errors import LocalizerError
-from pimm_env.geometry import relative_motion, wrap_angle
+from pimm_env.geometry import moved_rigidly, relative_motion, wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
 
 #: Ours (nav2's values where they are nav2's; each measured in docs/design.md#the-particle-filter):
@@ -43,6 +43,7 @@ ESTIMATE_BIN_XY = 0.5
 #: a converged estimate further than this (m) from the last one, carried by odometry, replaces it only if the
 #: particles within this distance (and 30 deg) of it weigh more than those about the last one
 SWITCH_RADIUS_M = 1.0
+SWITCH_ANGLE = float(np.radians(30.0))
 KLD_ERR, KLD_Z = 0.05, 0.99  # nav2's pf_err and pf_z; KLD's bins are nav2's pose-cluster bins
 MODE_MIN_PARTICLES = 100  # at resampling, a mode weighing MODE_KEEP_RATIO of the heaviest keeps this many
 MODE_KEEP_RATIO = 0.01
@@ -118,6 +119,22 @@ class FeatureFilterConfig:
         return 1 if self.thesis else LOOKUP_ORIENTATION_BINS
 
 
+def injected(
+    suggestions: np.ndarray, count: int, sigma: float, free_space: FreeSpace, rng: np.random.Generator
+) -> np.ndarray:
+    """``count`` new particles (thesis 3.4.4): ``SMART_SHARE`` of them about the suggested positions (Gaussian,
+    ``sigma``, random heading), the rest uniform over free space."""
+    suggestions = np.asarray(suggestions, dtype=float).reshape(-1, 2)
+    smart = round(SMART_SHARE * count) if len(suggestions) else 0
+    new = np.empty((count, 3))
+    if smart:
+        centres = suggestions[rng.integers(0, len(suggestions), smart)]
+        new[:smart, :2] = centres + rng.normal(0, sigma, (smart, 2))
+        new[:smart, 2] = rng.uniform(-np.pi, np.pi, smart)
+    new[smart:] = free_space.sample(count - smart, rng)
+    return new
+
+
 @dataclass(frozen=True)
 class BeliefView:
     """The filter's particles, weights and modes after a measurement, read-only by agreement."""
@@ -147,9 +164,6 @@ class FeatureFilter:
         self.wall_field = wall_field
         self.wall_temperature = wall_temperature  # the tempered product of the points' likelihoods
         self.free_space = FreeSpace(occupancy)
-        grid = occupancy.grid
-        self._grid = grid
-        self._allowed_flat = occupancy.free.ravel().copy()
         self.rng = np.random.default_rng()
         self.particles = np.zeros((config.num_particles, 3))
         self.weights = np.full(config.num_particles, 1.0 / config.num_particles)
@@ -200,32 +214,10 @@ class FeatureFilter:
 
     # ------------------------------------------------------------------ measurement
     def likelihoods(self, features: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
-        """Eq. 3.15 summed as cubes over the features, for every particle (or each of ``poses``): L_total (N,).
-
-        The filter's hot loop (10 000 particles x 5 features per update): float32, the exponents compiled
-        (``corner_evidence``), the nearest corner read straight from the lookup grid's cells.
-        """
+        """Eq. 3.15 summed as cubes over the features, for every particle (or each of ``poses``): L_total (N,)."""
         if self.corners is None:
             raise LocalizerError("the filter has no corner map to weigh corner features with")
-        f = np.asarray(features, dtype=np.float32).reshape(-1, len(FEATURE_COLUMNS))
-        x, y, theta = (self.particles if poses is None else poses).T.astype(np.float32)
-        # L^3 = exp(-3 (d^2 / 2 sigma_pos^2 + da^2 / 2 sigma_theta^2))
-        exponent = corner_exponents(self.corners, f, x, y, theta)
-        # exp(-60) ~ 1e-26 is nothing; lower, float32 goes subnormal (slow)
-        np.maximum(exponent, np.float32(-60.0), out=exponent)
-        np.exp(exponent, out=exponent)
-        return exponent.sum(axis=0, dtype=np.float64)
-
-    def in_free_space(self, poses: np.ndarray | None = None) -> np.ndarray:
-        """Per particle (or pose): whether it lies in a free cell of the map."""
-        grid = self._grid
-        inv = 1.0 / grid.resolution
-        p = self.particles if poses is None else poses
-        col = ((p[:, 0] - grid.origin[0]) * inv).astype(np.int64)
-        row = ((p[:, 1] - grid.origin[1]) * inv).astype(np.int64)
-        inside = (col >= 0) & (col < grid.shape[1]) & (row >= 0) & (row < grid.shape[0])
-        flat = np.where(inside, row * grid.shape[1] + col, 0)
-        return inside & self._allowed_flat[flat]
+        return corner_likelihoods(self.corners, features, self.particles if poses is None else poses)
 
     def measurement_update(
         self, features: np.ndarray, wall_points: np.ndarray | None = None, labels: np.ndarray | None = None
@@ -269,7 +261,7 @@ class FeatureFilter:
             ranges, bearings = np.hypot(points[:, 0], points[:, 1]), np.arctan2(points[:, 1], points[:, 0])
             log_l = self.wall_field.log_likelihoods(poses, ranges, bearings)
             factors = factors * np.exp(self.wall_temperature * (log_l - log_l.max()))
-        return np.where(self.in_free_space(poses), factors, factors * OCCUPIED_PENALTY)
+        return np.where(self.free_space.contains(poses), factors, factors * OCCUPIED_PENALTY)
 
     # ------------------------------------------------------------------ resampling and injection
     def resample_if_degenerate(self) -> bool:
@@ -293,39 +285,10 @@ class FeatureFilter:
                 np.full(n, 1.0 / n),
             )
             return True
-        index, weights = self.mode_draws(n)
+        assert self.belief is not None
+        index, weights = mode_draws(self.weights, self.belief, n, c.mode_min_particles, MODE_KEEP_RATIO, self.rng)
         self.particles, self.weights = self.particles[index], weights
         return True
-
-    def mode_draws(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """``n`` draws (indices, and their weights) that give each kept mode (weighing at least mode_keep_ratio of
-        the heaviest) max(mode_min_particles, its share of n) particles and the rest of the set the remainder;
-        each group's particles share its weight, so the belief's modes weigh what they weighed."""
-        assert self.belief is not None
-        c = self.config
-        modes, of = self.belief.modes, self.belief.particle_mode
-        kept = [k for k, m in enumerate(modes) if m.weight >= MODE_KEEP_RATIO * modes[0].weight and m.weight > 0]
-        mode_weights = np.array([modes[k].weight for k in kept])
-        rest = np.flatnonzero(~np.isin(of, kept))
-        rest_weight = float(self.weights[rest].sum()) if len(rest) else 0.0
-        counts = np.maximum(c.mode_min_particles, np.rint(n * mode_weights)).astype(int)
-        rest_count = int(np.rint(n * rest_weight)) if rest_weight > 0 else 0
-        heaviest = int(np.argmax(mode_weights))
-        counts[heaviest] -= counts.sum() + rest_count - n  # the heaviest mode gives the floors their particles
-        if counts[heaviest] < c.mode_min_particles:  # more kept modes than n can give their floor: share by weight
-            shares = np.append(mode_weights, rest_weight)
-            all_counts = np.maximum(1, np.floor(n * shares / shares.sum())).astype(int)
-            counts, rest_count = all_counts[:-1], int(all_counts[-1]) if rest_weight > 0 else 0
-        groups = [(np.flatnonzero(of == k), counts[i]) for i, k in enumerate(kept)]
-        if rest_count > 0:
-            groups.append((rest, rest_count))
-        index, weights = [], []
-        for members, count in groups:
-            w = self.weights[members]
-            index.append(members[residual_resample(w, self.rng, int(count))])
-            weights.append(np.full(int(count), w.sum() / count))
-        all_weights = np.concatenate(weights)
-        return np.concatenate(index), all_weights / all_weights.sum()
 
     def inject(self, suggestions: np.ndarray) -> np.ndarray:
         """Replace the worst ``replace_worst_fraction`` of the particles: ``smart_share`` of them around the
@@ -346,15 +309,7 @@ class FeatureFilter:
         else:
             count = min(count, n)
             worst = np.argpartition(self.weights, count - 1)[:count]
-        suggestions = np.asarray(suggestions, dtype=float).reshape(-1, 2)
-        smart = round(SMART_SHARE * count) if len(suggestions) else 0
-        new = np.empty((count, 3))
-        if smart:
-            centres = suggestions[self.rng.integers(0, len(suggestions), smart)]
-            new[:smart, :2] = centres + self.rng.normal(0, c.smart_sigma_m, (smart, 2))
-            new[:smart, 2] = self.rng.uniform(-np.pi, np.pi, smart)
-        new[smart:] = self.free_space.sample(count - smart, self.rng)
-        self.particles[worst] = new
+        self.particles[worst] = injected(suggestions, count, c.smart_sigma_m, self.free_space, self.rng)
         self.weights[worst] = 1.0 / n
         self.weights /= self.weights.sum()
         return worst
@@ -375,7 +330,10 @@ class FeatureFilter:
         if estimate is None or previous is None or not self.jumps(previous, estimate):
             return estimate
         r = self.config.switch_radius_m
-        return estimate if self.weight_near(estimate, r) > self.weight_near(previous, r) else None
+        near_new, near_old = (
+            weight_near(self.particles, self.weights, p, r, SWITCH_ANGLE) for p in (estimate, previous)
+        )
+        return estimate if near_new > near_old else None
 
     def jumps(self, previous: np.ndarray, estimate: np.ndarray) -> bool:
         """Whether ``estimate`` lies away from ``previous`` by more than ``switch_radius_m`` (0: never)."""
@@ -393,12 +351,7 @@ class FeatureFilter:
         else:
             d = self.particles - pose
             members = (np.hypot(d[:, 0], d[:, 1]) <= 1.0) & (np.abs(wrap_angle(d[:, 2])) <= np.radians(30.0))
-        turn = wrap_angle(target[2] - pose[2])
-        c, s = np.cos(turn), np.sin(turn)
-        d = self.particles[members, :2] - pose[:2]
-        self.particles[members, 0] = target[0] + c * d[:, 0] - s * d[:, 1]
-        self.particles[members, 1] = target[1] + s * d[:, 0] + c * d[:, 1]
-        self.particles[members, 2] = wrap_angle(self.particles[members, 2] + turn)
+        self.particles[members] = moved_rigidly(self.particles[members], pose, target)
         self.belief = read_belief(self.particles, self.weights)
 
     def resample_and_inject(self, suggestions: np.ndarray) -> None:
@@ -430,33 +383,18 @@ class FeatureFilter:
         cov = covariance_about(self.belief.modes[chosen], pose) if chosen >= 0 else self.covariance(pose)
         return BeliefReading(status, cov, hypotheses, chosen)
 
-    def weight_near(self, pose: np.ndarray, radius: float, max_angle: float = np.radians(30.0)) -> float:
-        """Total weight of the particles within ``radius`` and ``max_angle`` of ``pose``."""
-        d = self.particles - pose
-        near = (d[:, 0] ** 2 + d[:, 1] ** 2 <= radius**2) & (np.abs(wrap_angle(d[:, 2])) <= max_angle)
-        return float(self.weights[near].sum())
-
     def converged(self) -> bool:
         """The thesis's test for the dual-mode estimate: the last measurement left ESS <= tau * N."""
         return self.ess <= self.config.resample_ess_threshold * len(self.particles)
 
     def best_mean(self) -> np.ndarray:
-        """Weighted mean pose of the ``estimate_num_particles`` heaviest particles (circular mean for theta),
-        over the cluster of them with the most weight (bins of ``estimate_bin_xy`` x ``estimate_bin_theta``
-        that touch), or over all of them with ``estimate_bin_xy`` = 0 (the thesis's estimate)."""
-        m = min(self.config.estimate_num_particles, len(self.particles))
-        best = np.argpartition(-self.weights, m - 1)[:m]
-        w = self.weights[best]
-        w = w / w.sum() if w.sum() > 0 else np.full(m, 1.0 / m)
-        p = self.particles[best]
-        if self.config.estimate_bin_xy > 0:
-            labels = cluster_labels(p, self.config.estimate_bin_xy, ESTIMATE_BIN_THETA)
-            return heaviest_cluster(p, w, labels).mean
-        theta = np.arctan2(np.sum(w * np.sin(p[:, 2])), np.sum(w * np.cos(p[:, 2])))
-        return np.array([np.sum(w * p[:, 0]), np.sum(w * p[:, 1]), theta])
+        """The mean of the ``estimate_num_particles`` heaviest particles, over their heaviest cluster
+        (``estimate_bin_xy``; 0: over all of them, the thesis's estimate)."""
+        c = self.config
+        return heaviest_mean(
+            self.particles, self.weights, c.estimate_num_particles, c.estimate_bin_xy, ESTIMATE_BIN_THETA
+        )
 
     def covariance(self, around: np.ndarray) -> np.ndarray:
         """Weighted covariance of all particles about ``around`` (angles wrapped)."""
-        d = self.particles - around
-        d[:, 2] = wrap_angle(d[:, 2])
-        return (d * self.weights[:, None]).T @ d
+        return weighted_covariance(self.particles, self.weights, around)
