@@ -15,25 +15,7 @@ from pimm_env.envs.iilab_env import IILabEnv
 from pimm_env.errors import ObservationError
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
-
-
-def box_room() -> OccupancyGrid:
-    """A 4 m x 3 m room at 5 cm with a pillar, so that the scan pins down position and heading."""
-    grid = GridSpec((0.0, 0.0), 0.05, (60, 80))
-    occupied = grid.empty_mask()
-    occupied[[0, -1], :] = True
-    occupied[:, [0, -1]] = True
-    occupied[10:16, 50:56] = True
-    return OccupancyGrid(grid, occupied, ~occupied)
-
-
-def observation(scan: np.ndarray, odom=(0.0, 0.0, 0.0), t: float = 0.0) -> dict[str, np.ndarray]:
-    return {
-        "odom": np.array(odom, dtype=np.float32),
-        "scan": scan.astype(np.float32),
-        "time": np.array([t]),
-        "scan_time": np.array([t]),
-    }
+from tests.rooms import box_room, observation
 
 
 def test_registered_names_and_unknown_ones():

@@ -20,7 +20,7 @@ from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, non_repetitive_directions
 from pimm_env.sim.sensors import LIDAR_2D, LIDAR_3D, sensor_layouts, write_sensors_file
 from pimm_env.world.files import load_world
-from tests.test_trials import AMCL, ROUTES
+from tests.rooms import AMCL, ROUTES
 
 GEOMETRY_3D = ("layers", "points_per_layer", "vertical_fov_deg")
 GEOMETRY_2D = ("beams", "angle_min_deg", "angle_max_deg", "min_range", "max_range", "rate_hz")

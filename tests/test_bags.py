@@ -17,7 +17,7 @@ from pimm_env.envs.base_env import SimConfig
 from pimm_env.errors import BagError
 from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.world.files import load_world
-from tests.test_trials import AMCL, DEAD, ROUTES
+from tests.rooms import AMCL, DEAD, ROUTES
 
 
 @pytest.fixture

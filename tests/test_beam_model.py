@@ -10,7 +10,7 @@ from pimm_agents.particles.beam_model import BeamModel, BeamModelParams, RangeCa
 from pimm_agents.particles.likelihood_field import BeamSkip, LikelihoodField, LikelihoodFieldParams
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
-from tests.test_amcl import box_room, observation
+from tests.rooms import box_room, observation
 
 
 def room_with_unknown() -> OccupancyGrid:

@@ -65,7 +65,7 @@ def test_run_one_trial_end_to_end_then_score_its_log(tmp_path):
     assert [r["seed"] for r in row["per_trial"]] == [0] and row["ape_m"]["rmse"] >= row["ape_m"]["min"] >= 0
     assert set(data) >= {"version", "commit", "machine"} and len(data["commit"].split("+")[0]) == 40
     assert data["machine"]["cores"] >= 1 and data["machine"]["numpy"] == np.__version__
-    assert row["trials"] == 1 and 0.0 <= row["convergence_rate"] <= 1.0
+    assert row["trials"] == 1 and row["convergence_rate"] == float(row["per_trial"][0]["converged"])
     assert set(row["timings_ms"]) >= {"sensor", "total"} and row["timings_ms"]["sensor"]["max"] > 0
     folder = Path(data["folder"])
     assert json.loads((folder / "summary.json").read_text())["scenarios"]["area_b"]["amcl"] == row
@@ -106,9 +106,10 @@ def test_perception_reports_segmentation_retrieval_and_corners(tmp_path):
     for which in ("true_labels", "predicted_labels"):
         stats = report["corners"][which]
         assert set(stats) == corner_keys
-        assert 0.0 <= stats["precision"] <= 1.0 and 0.0 <= stats["recall"] <= 1.0
-    assert set(report["segmentation"]["iou"]) == {"floor", "ceiling", "wall", "clutter"}
-    assert 0.0 <= report["segmentation"]["miou"] <= 1.0
+    assert report["corners"]["true_labels"]["recall"] > 0  # the iiLab's corners are found from true labels
+    iou = report["segmentation"]["iou"]
+    assert set(iou) == {"floor", "ceiling", "wall", "clutter"}
+    assert report["segmentation"]["miou"] == pytest.approx(np.mean(list(iou.values())))
     retrieval = report["retrieval"]
     assert {"recall_at_3_2m", "mean_error_m", "mean_min_error_m", "mean_max_error_m"} <= set(retrieval)
     assert retrieval["mean_min_error_m"] <= retrieval["mean_error_m"] <= retrieval["mean_max_error_m"]

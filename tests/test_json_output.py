@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_trials import ROUTES
+from tests.rooms import ROUTES
 
 ROOT = Path(__file__).resolve().parents[1]
 

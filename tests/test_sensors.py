@@ -16,7 +16,7 @@ from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.sim.lidar import beam_angles_2d, beam_bearings_2d, mount_rotation, to_robot_frame
 from pimm_env.sim.sensors import LIDAR_2D, sensor_layouts
 from pimm_env.world.files import load_world
-from tests.test_trials import ROUTES
+from tests.rooms import ROUTES
 
 AMCL = {"max_particles": 500, "min_particles": 100}
 

@@ -11,7 +11,7 @@ from pimm_agents.experiments.sweep import read_sweep, rows_of
 from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.world.files import load_world
-from tests.test_trials import DEAD, ROUTES
+from tests.rooms import DEAD, ROUTES
 
 
 @pytest.fixture

@@ -11,21 +11,7 @@ import evaluate
 from pimm_agents.experiments.runner import group_by_simulation, run_shared, run_trials
 from pimm_agents.experiments.trial_store import load_stored, load_trial, save_trial, trial_key
 from pimm_agents.scoring.trial import TrialSpec
-
-ROUTES = """
-format: pimm-scenarios/1
-scenarios:
-  there:
-    start: [1.0, 1.0, 0.0]
-    waypoints: [[1.0, 1.0], [3.5, 1.0], [3.5, 3.0]]
-    speed: 0.5
-  there_kidnap:
-    base: there
-    kidnap_to: [1.0, 3.0, 0.0]
-"""
-AMCL = {"max_particles": 300, "min_particles": 100}
-READER = "tests.plugins.dead_reckoning:make_cloud_reader"
-DEAD = "tests.plugins.dead_reckoning:make"
+from tests.rooms import AMCL, DEAD, READER, ROUTES
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ from pimm_agents.results.video import EVERY_SCANS, chosen_trials, write_video
 from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.world.files import load_world
-from tests.test_trials import AMCL, ROUTES
+from tests.rooms import AMCL, ROUTES
 
 
 def test_a_trial_replays_as_an_animation_with_its_particles(room_file: Path, tmp_path, monkeypatch):
