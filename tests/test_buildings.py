@@ -1,84 +1,50 @@
 import numpy as np
+import pytest
 
 from pimm_env.world.files import world_from_spec
 from pimm_env.world.semantics import SemanticClass
 from training.buildings import (
-    DEVELOPMENT_SEEDS,
     FAMILIES,
     FURNISHED_FAMILIES,
     FURNISHED_HELD_OUT_SEEDS,
     FURNISHED_TRAINING_SEEDS,
-    HELD_OUT_SEEDS,
-    LINTEL_HELD_OUT_SEEDS,
     LINTEL_TRAINING_SEEDS,
-    LOCALIZER_HELD_OUT_SEEDS,
-    LOOKALIKE_ACTIVE_HELD_OUT_SEEDS,
-    LOOKALIKE_CHECK_HELD_OUT_SEEDS,
-    LOOKALIKE_CRITIC_HELD_OUT_SEEDS,
     LOOKALIKE_DEVELOPMENT_SEEDS,
-    LOOKALIKE_DRIVER_HELD_OUT_SEEDS,
     LOOKALIKE_HELD_OUT_SEEDS,
-    LOOKALIKE_MARGIN_HELD_OUT_SEEDS,
-    LOOKALIKE_POLICY_HELD_OUT_SEEDS,
-    LOOKALIKE_REFIT_HELD_OUT_SEEDS,
-    LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS,
-    LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS,
-    LOOKALIKE_SECOND_HELD_OUT_SEEDS,
-    LOOKALIKE_TWIN_HELD_OUT_SEEDS,
     NEVER_TRAIN_SEEDS,
     TRAINING_SEEDS,
     building_spec,
     draw_plan,
 )
+from training.suites import SuiteError, parse_seeds, suite, suites
 
 
-def test_the_generator_is_deterministic_per_seed_and_keeps_held_out_seeds_apart():
+def test_the_generator_is_deterministic_per_seed_and_the_suites_keep_their_buildings_apart():
     assert building_spec(101) == building_spec(101)
-    assert building_spec(101) != building_spec(102)
-    assert not set(TRAINING_SEEDS) & set(HELD_OUT_SEEDS) and not set(TRAINING_SEEDS) & set(DEVELOPMENT_SEEDS)
-    assert not set(HELD_OUT_SEEDS) & set(DEVELOPMENT_SEEDS)
-    looked_at = set(TRAINING_SEEDS) | set(DEVELOPMENT_SEEDS) | set(HELD_OUT_SEEDS) | set(LOOKALIKE_DEVELOPMENT_SEEDS)
-    assert not looked_at & (set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS))
-    assert {draw_plan(seed)[0] for seed in LOOKALIKE_HELD_OUT_SEEDS} <= {"periodic", "mirror"}
-    second = set(LOOKALIKE_SECOND_HELD_OUT_SEEDS)
-    assert {draw_plan(seed)[0] for seed in second} <= {"periodic", "mirror"} and second <= set(NEVER_TRAIN_SEEDS)
-    assert not second & (looked_at | set(LOOKALIKE_HELD_OUT_SEEDS) | set(LOCALIZER_HELD_OUT_SEEDS))
-    third = set(LOOKALIKE_ACTIVE_HELD_OUT_SEEDS)
-    assert {draw_plan(seed)[0] for seed in third} <= {"periodic", "mirror"} and third <= set(NEVER_TRAIN_SEEDS)
-    assert not third & (looked_at | second | set(LOOKALIKE_HELD_OUT_SEEDS) | set(LOCALIZER_HELD_OUT_SEEDS))
-    fourth = set(LOOKALIKE_POLICY_HELD_OUT_SEEDS)
-    assert {draw_plan(seed)[0] for seed in fourth} <= {"periodic", "mirror"} and fourth <= set(NEVER_TRAIN_SEEDS)
-    assert not fourth & (looked_at | second | third | set(LOOKALIKE_HELD_OUT_SEEDS) | set(LOCALIZER_HELD_OUT_SEEDS))
-    fifth = set(LOOKALIKE_CHECK_HELD_OUT_SEEDS)
-    assert {draw_plan(seed)[0] for seed in fifth} <= {"periodic", "mirror"} and fifth <= set(NEVER_TRAIN_SEEDS)
-    assert not fifth & (looked_at | second | third | fourth | set(LOOKALIKE_HELD_OUT_SEEDS))
-    sixth = set(LOOKALIKE_TWIN_HELD_OUT_SEEDS)
-    assert {draw_plan(seed)[0] for seed in sixth} <= {"periodic", "mirror"} and sixth <= set(NEVER_TRAIN_SEEDS)
-    assert not sixth & (looked_at | second | third | fourth | fifth | set(LOOKALIKE_HELD_OUT_SEEDS))
-    seventh = set(LOOKALIKE_MARGIN_HELD_OUT_SEEDS)
-    assert {draw_plan(seed)[0] for seed in seventh} <= {"periodic", "mirror"} and seventh <= set(NEVER_TRAIN_SEEDS)
-    assert not seventh & (looked_at | second | third | fourth | fifth | sixth | set(LOOKALIKE_HELD_OUT_SEEDS))
-    eighth = set(LOOKALIKE_REFIT_HELD_OUT_SEEDS)
-    assert {draw_plan(seed)[0] for seed in eighth} <= {"periodic", "mirror"} and eighth <= set(NEVER_TRAIN_SEEDS)
-    assert not eighth & (looked_at | second | third | fourth | fifth | sixth | seventh | set(LOOKALIKE_HELD_OUT_SEEDS))
-    earlier = second | third | fourth | fifth | sixth | seventh | eighth | set(LOOKALIKE_HELD_OUT_SEEDS)
-    later_sets = (  # the ninth to the twelfth
-        LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS,
-        LOOKALIKE_DRIVER_HELD_OUT_SEEDS,
-        LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS,
-        LOOKALIKE_CRITIC_HELD_OUT_SEEDS,
-    )
-    for later in later_sets:
-        fresh = set(later)
-        assert {draw_plan(seed)[0] for seed in fresh} <= {"periodic", "mirror"} and fresh <= set(NEVER_TRAIN_SEEDS)
-        assert not fresh & (looked_at | earlier | set(LOCALIZER_HELD_OUT_SEEDS))
-        earlier |= fresh
-    seen = looked_at | set(LOCALIZER_HELD_OUT_SEEDS) | set(LOOKALIKE_HELD_OUT_SEEDS) | set(FURNISHED_TRAINING_SEEDS)
-    assert not seen & set(FURNISHED_HELD_OUT_SEEDS) and set(FURNISHED_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS)
-    assert not set(FURNISHED_TRAINING_SEEDS) & (set(TRAINING_SEEDS) | set(NEVER_TRAIN_SEEDS))
-    lintels = set(LINTEL_TRAINING_SEEDS)
-    assert not lintels & (seen | set(FURNISHED_HELD_OUT_SEEDS) | set(NEVER_TRAIN_SEEDS))
-    assert set(LINTEL_HELD_OUT_SEEDS) <= set(NEVER_TRAIN_SEEDS) and not set(LINTEL_HELD_OUT_SEEDS) & (seen | lintels)
+    seeded = [x for x in suites().values() if x.seeds]
+    for i, first in enumerate(seeded):  # no building is in two suites: a held-out one was never looked at
+        for other in seeded[i + 1 :]:
+            assert not set(first.seeds) & set(other.seeds), (first.name, other.name)
+    held = {s for x in seeded if x.kind == "held-out" for s in x.seeds}
+    assert held == set(NEVER_TRAIN_SEEDS) and not held & set(TRAINING_SEEDS + FURNISHED_TRAINING_SEEDS)
+    assert {draw_plan(seed)[0] for seed in LOOKALIKE_HELD_OUT_SEEDS + LOOKALIKE_DEVELOPMENT_SEEDS} <= {
+        "periodic",
+        "mirror",
+    }
+    assert len(suite("lookalike-held-out").seeds) == 96 and set(FURNISHED_HELD_OUT_SEEDS) <= held
+    assert {x.name for x in suites().values() if x.commands} == {
+        "iilab-thesis",
+        "real-plans-development",
+        "real-laser-logs",
+    }
+
+
+def test_suites_name_what_is_wrong():
+    assert parse_seeds(["3-5", "9"]) == (3, 4, 5, 9)
+    with pytest.raises(SuiteError, match="'5-3' runs backwards"):
+        parse_seeds(["5-3"])
+    with pytest.raises(SuiteError, match="no suite 'nope'; suites: training"):
+        suite("nope")
 
 
 def test_generated_buildings_cover_the_families_low_ceilings_and_look_alike_rooms():

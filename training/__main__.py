@@ -298,7 +298,7 @@ def heldout(
     localizers: list[str] = typer.Option(["pimm", "amcl"], "--localizers", help="localizers to run"),
     trials: int = typer.Option(3, min=1, help="trials per route"),
     scans: int = typer.Option(30, min=1, help="fresh scans for the perception figures"),
-    seeds: str = typer.Option("920-929", help="held-out building seeds (the look-alike set: 980-987)"),
+    seeds: str = typer.Option("920-929", help="building seeds (the suites: training/suites/suites.yaml)"),
     workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
     worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
     out: Path = typer.Option(Path("results/heldout"), help="where results and the table go"),
@@ -309,56 +309,59 @@ def heldout(
     Runs in passes, one trial per route more each pass over all buildings, and writes the table after each
     pass; every trial is kept as it finishes, so running the command again continues where it stopped.
     """
-    import json
-
     from pimm_agents.experiments.run_plan import resolve_localizers
-    from pimm_agents.results.markdown import provenance_here
-    from training.buildings import (
-        DEVELOPMENT_SEEDS,
-        FURNISHED_HELD_OUT_SEEDS,
-        HELD_OUT_SEEDS,
-        LOCALIZER_HELD_OUT_SEEDS,
-        LOOKALIKE_ALL_HELD_OUT_SEEDS,
-        LOOKALIKE_DEVELOPMENT_SEEDS,
-    )
-    from training.heldout import building_row, format_table, measure_building, summarize
+    from training.heldout import run_buildings
+    from training.suites import seeds_of, suite
 
     chosen = _seed_list(seeds)
     resolved = resolve_localizers(localizers, None, settings)
-    held_out = LOCALIZER_HELD_OUT_SEEDS + LOOKALIKE_ALL_HELD_OUT_SEEDS + FURNISHED_HELD_OUT_SEEDS
+    held_out = tuple(s for s in seeds_of("held-out") if s not in suite("network-held-out").seeds)
     outside = sorted(set(chosen) - set(held_out))
     if outside:
         typer.echo(f"note: seeds {outside} are not among the held-out buildings {held_out}", err=True)
-    looked_at = DEVELOPMENT_SEEDS + HELD_OUT_SEEDS + LOOKALIKE_DEVELOPMENT_SEEDS
+    looked_at = seeds_of("development") + suite("network-held-out").seeds
     if set(chosen) & set(looked_at):
         typer.echo(
             f"note: seeds {sorted(set(chosen) & set(looked_at))} were looked at while tuning: not a held-out result",
             err=True,
         )
-    out.mkdir(parents=True, exist_ok=True)
-    for seed in chosen:
-        _ready_building(seed, worlds)
-    for done in range(1, trials + 1):
-        results, rows = {}, {}
-        for seed in chosen:
-            typer.echo(f"gen-{seed}: {done} trial(s) per route ...", err=True)
-            world_file = worlds / f"gen-{seed}" / "world.yaml"
-            results[f"gen-{seed}"] = measure_building(world_file, resolved, done, scans, workers, out / f"gen-{seed}")
-            rows[f"gen-{seed}"] = {name: building_row(results[f"gen-{seed}"], name) for name in localizers}
-        summary = {name: summarize(rows, name) for name in localizers}
-        table = format_table({**rows, "all (mean; time: median)": summary}, localizers)
-        record = {
-            "trials_per_route": done,
-            "seeds": chosen,
-            "settings": settings,
-            "rows": rows,
-            "summary": summary,
-            "raw": results,
-        }
-        (out / "heldout.json").write_text(json.dumps(record, indent=1))
-        made = provenance_here("python -m training " + shlex.join(sys.argv[1:]))
-        (out / "heldout.md").write_text(f"{made}\n\n{done} trial(s) per route, seeds {seeds}\n\n{table}\n")
-        typer.echo(f"\n{done} trial(s) per route:\n{table}")
+    made = "python -m training " + shlex.join(sys.argv[1:])
+    run_buildings(chosen, resolved, trials, scans, workers, worlds, out, settings, made, typer.echo)
+
+
+@command_line.command(app)
+def suite(
+    name: str = typer.Argument("", help="the suite (none: list them)"),
+    workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
+    worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
+    out: Path = typer.Option(Path("results/suites"), help="where each suite's results and table go"),
+) -> None:
+    """Run a benchmark suite of training/suites/suites.yaml and write its table (command, commit, machine)."""
+    import subprocess
+
+    from pimm_agents.experiments.run_plan import resolve_localizers
+    from training.heldout import run_buildings
+    from training.suites import suite as named
+    from training.suites import suites
+
+    if not name:
+        for entry in suites().values():
+            typer.echo(f"{entry.name:24} {entry.kind:12} {entry.purpose}")
+        return
+    chosen = named(name)
+    if chosen.seeds:
+        resolved = resolve_localizers(list(chosen.localizers))
+        made = "python -m training " + shlex.join(sys.argv[1:])
+        run_buildings(
+            list(chosen.seeds), resolved, chosen.trials, 30, workers, worlds, out / name, [], made, typer.echo
+        )
+        return
+    root = Path(__file__).resolve().parent.parent
+    for args in chosen.commands:  # the commands it is made of, in order, as a user would type them
+        typer.echo(f"$ python evaluate.py {shlex.join(args)}", err=True)
+        extra = ["--out", str(out / name)] if args[0] in ("run", "sweep", "replay") else []
+        if subprocess.run([sys.executable, str(root / "evaluate.py"), *args, *extra], cwd=root).returncode:
+            raise typer.Exit(1)
 
 
 @command_line.command(app)
@@ -380,25 +383,12 @@ def policy(
     """Train an active-localization policy (pimm/ActiveLocalization-v0) with stable-baselines3."""
     _check_backend(backend, address)
     from training.buildings import POLICY_TRAINING_SEEDS
+    from training.heldout import ready_building
     from training.policy import train_policy
 
-    chosen = list(world) or [str(_ready_building(building, worlds_dir)) for building in POLICY_TRAINING_SEEDS]
+    chosen = list(world) or [str(ready_building(building, worlds_dir)) for building in POLICY_TRAINING_SEEDS]
     path = train_policy(chosen, steps, out, seed, localizer, workers, algo, imitate, dagger, critic, backend, address)
     typer.echo(f"wrote {path} and {path.with_suffix('.json')} (training log: {path.with_suffix('')}_log/)")
-
-
-def _ready_building(seed: int, worlds: Path) -> Path:
-    """The world file of generated building ``seed`` under ``worlds``, written and prepared if need be."""
-    from pimm_agents.preparation.prepare import prepare_world
-    from training.buildings import write_building
-    from training.heldout import needs_preparing
-
-    world_file = worlds / f"gen-{seed}" / "world.yaml"
-    if not world_file.is_file():
-        write_building(seed, worlds)
-    if needs_preparing(world_file):
-        prepare_world(world_file, progress=False)
-    return world_file
 
 
 def _comma_integers(text: str) -> tuple[int, ...]:

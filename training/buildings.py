@@ -39,116 +39,29 @@ import numpy as np
 
 from training.furnished import draw_home, draw_shop, draw_ward, furnish, lintels
 from training.plans import DOOR, RES, Plan, Room
+from training.suites import seeds_of, suite
 
-#: Buildings the shipped network is trained on (with the iilab).
-TRAINING_SEEDS = tuple(range(100, 130))
-#: Buildings no training used, but whose routes were traced while the filter was tuned:
-#: for diagnosis, not for the generalization figures.
-DEVELOPMENT_SEEDS = tuple(range(900, 910))
-#: Buildings no training, tuning or fingerprint choice may use: the network's generalization benchmark (fixed
-#: 2026-11-23, before any run on them). The localizers' status and rival logic was developed while looking at
-#: one trial per route on them (2026-11-25), so the localizers' held-out figures use ``LOCALIZER_HELD_OUT_SEEDS``.
-HELD_OUT_SEEDS = tuple(range(910, 920))
-#: Buildings nothing was trained, tuned or looked at on: the localizers' generalization benchmark (fixed
-#: 2026-11-25, before any run on them).
-LOCALIZER_HELD_OUT_SEEDS = tuple(range(920, 930))
-FAMILIES = ("offices", "hall", "L", "U")
-#: Look-alike buildings for developing and tuning the localizers (no network is trained on them); 960-967 were
-#: held out until the rival logic was developed while looking at one trial per route on them (2026-11-25), and
-#: 970-977 until two of their false spells were traced to design the map-twin candidates (2026-11-25).
-LOOKALIKE_DEVELOPMENT_SEEDS = tuple(range(940, 948)) + tuple(range(960, 968)) + tuple(range(970, 978))
-#: Look-alike buildings no training, tuning or fingerprint choice may use or look at (fixed 2026-11-25, before
-#: any run on them).
-LOOKALIKE_HELD_OUT_SEEDS = tuple(range(980, 988))
-#: A second look-alike held-out set, for changes to the rival check's scoring: fitted estimates were first tried
-#: on 15 trials of 980-987 (2026-11-25), so those no longer judge such a change (fixed 2026-11-26, before any
-#: run on them).
-LOOKALIKE_SECOND_HELD_OUT_SEEDS = tuple(range(1000, 1008))
-#: A third look-alike held-out set, for changes to active-localization policies and their guide: 980-987
-#: judged the guide's far plan and the policy trained with it (2026-11-27), so they no longer judge such a
-#: change (fixed 2026-11-27, before any run on them).
-LOOKALIKE_ACTIVE_HELD_OUT_SEEDS = tuple(range(1020, 1028))
-#: A fourth look-alike held-out set, for later changes to active-localization policies: 1020-1027 judged two
-#: policies trained on the observation with the explorer's memory and without it (2026-11-27), so they no longer
-#: judge a third (fixed 2026-11-27, before any run on them).
-LOOKALIKE_POLICY_HELD_OUT_SEEDS = tuple(range(1040, 1048))
-#: A fifth look-alike held-out set, for changes to the rival check's fitting: a false spell of PIMM's on 1040-1047
-#: (gen-1047, route 4) was traced to design the change (2026-11-27), so they no longer judge the localizer (fixed
-#: 2026-11-27, before any run on them).
-LOOKALIKE_CHECK_HELD_OUT_SEEDS = tuple(range(1060, 1068))
-#: A sixth look-alike held-out set, for changes to the map-twin search: on 1060-1067 the passive bound's routes
-#: were compared with PIMM's, which showed the search leaving out a place's turned twin (2026-11-27), so they no
-#: longer judge such a change (fixed 2026-11-27, before any run on them).
-LOOKALIKE_TWIN_HELD_OUT_SEEDS = tuple(range(1080, 1088))
-#: A seventh look-alike held-out set, for changes to the margin at which the rival check lets a rival go: on
-#: 1080-1087 PIMM's times were compared with the passive bound route by route to find that gap (2026-11-27), so
-#: they no longer judge such a change (fixed 2026-11-27, before any run on them).
-LOOKALIKE_MARGIN_HELD_OUT_SEEDS = tuple(range(1100, 1108))
-#: An eighth look-alike held-out set, for changes to how a standing rival is fitted before it is let go: 1100-1107
-#: judged a narrower margin alone, so they no longer judge one made with it (fixed 2026-11-27, before any run on
-#: them).
-LOOKALIKE_REFIT_HELD_OUT_SEEDS = tuple(range(1120, 1128))
-#: A ninth look-alike held-out set, for active-localization policies trained with the localizer as it is after
-#: the rival check's refit and veto: 1040-1047 judged the policies and `greedy`'s changes before it, and the
-#: eighth set judged the refit itself (fixed 2026-11-28, before any run on them).
-LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS = tuple(range(1140, 1148))
-#: A tenth look-alike held-out set, for changes to how a trained policy is driven: a policy's failure on
-#: 1140-1147 (gen-1145, route 2) was traced to design one (2026-11-28), so they no longer judge it (fixed
-#: 2026-11-28, before any run on them).
-LOOKALIKE_DRIVER_HELD_OUT_SEEDS = tuple(range(1160, 1168))
-#: An eleventh look-alike held-out set, for changes to how the rival check weighs scans that cannot tell two
-#: places apart: a false `localized` spell on generic held-out gen-928 was traced to design one (fixed
-#: 2026-11-28, before any run on them).
-LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS = tuple(range(1180, 1188))
-#: A twelfth look-alike held-out set, for active-localization policies whose critic is fitted during the
-#: imitation: 970-977 validate policies and the earlier sets judged the policies before (fixed 2026-11-29,
-#: before any run on them).
-LOOKALIKE_CRITIC_HELD_OUT_SEEDS = tuple(range(1200, 1208))
-#: Every look-alike held-out set above, in the order they were fixed (a new set is added here alone).
-LOOKALIKE_ALL_HELD_OUT_SEEDS = (
-    LOOKALIKE_HELD_OUT_SEEDS
-    + LOOKALIKE_SECOND_HELD_OUT_SEEDS
-    + LOOKALIKE_ACTIVE_HELD_OUT_SEEDS
-    + LOOKALIKE_POLICY_HELD_OUT_SEEDS
-    + LOOKALIKE_CHECK_HELD_OUT_SEEDS
-    + LOOKALIKE_TWIN_HELD_OUT_SEEDS
-    + LOOKALIKE_MARGIN_HELD_OUT_SEEDS
-    + LOOKALIKE_REFIT_HELD_OUT_SEEDS
-    + LOOKALIKE_RETRAINED_POLICY_HELD_OUT_SEEDS
-    + LOOKALIKE_DRIVER_HELD_OUT_SEEDS
-    + LOOKALIKE_SCAN_MARGIN_HELD_OUT_SEEDS
-    + LOOKALIKE_CRITIC_HELD_OUT_SEEDS
-)
+# The buildings of each suite (training/suites/suites.yaml says what each is for and when it may be used).
+TRAINING_SEEDS = suite("training").seeds
+DEVELOPMENT_SEEDS = suite("generated-development").seeds
+HELD_OUT_SEEDS = suite("network-held-out").seeds
+LOCALIZER_HELD_OUT_SEEDS = suite("generated-held-out").seeds
+LOOKALIKE_DEVELOPMENT_SEEDS = suite("lookalike-development").seeds
+LOOKALIKE_HELD_OUT_SEEDS = suite("lookalike-held-out").seeds
+FURNISHED_TRAINING_SEEDS = suite("furnished-training").seeds
+FURNISHED_HELD_OUT_SEEDS = suite("furnished-held-out").seeds
+LINTEL_TRAINING_SEEDS = suite("lintel-training").seeds
+LINTEL_HELD_OUT_SEEDS = suite("lintel-held-out").seeds
+#: Seeds no training may use: every held-out suite's.
+NEVER_TRAIN_SEEDS = seeds_of("held-out")
 #: where active-localization policies are trained: training buildings and look-alike development buildings
 #: (970-977, the look-alike seeds the localizer was tuned on, stay out so that they can judge a policy too)
 POLICY_TRAINING_SEEDS = TRAINING_SEEDS[:8] + LOOKALIKE_DEVELOPMENT_SEEDS[:16]
-LOOKALIKE_FAMILIES = ("periodic", "mirror")
-#: Furnished buildings (homes, shops, hospital wards: furniture against most walls, a glass partition), drawn
-#: only for their own seeds, so that every building of the seeds above stays as it was (fixed 2026-11-26).
-FURNISHED_TRAINING_SEEDS = tuple(range(130, 160))
-#: Furnished buildings no training, tuning or choice of settings may use or look at (fixed 2026-11-26, before
-#: any run on them).
-FURNISHED_HELD_OUT_SEEDS = tuple(range(990, 998))
-FURNISHED_FAMILIES = ("home", "shop", "ward")
-#: Furnished buildings whose doorways stop short of the ceiling: a strip of wall (a lintel) over most doors,
-#: as in most real buildings, where the seeds above have openings that run to the ceiling (in a public Gazebo
-#: house the walls over its openings were the network's worst-labelled returns, docs/perception.md). Drawn
-#: only for their own seeds, so that every building above stays as it was (fixed 2026-11-26).
-LINTEL_TRAINING_SEEDS = tuple(range(160, 190))
-#: Buildings of the same kind no training, tuning or choice of settings may use or look at (fixed 2026-11-26,
-#: before any run on them).
-LINTEL_HELD_OUT_SEEDS = tuple(range(1010, 1018))
-#: Every furnished building (drawn as ``home``, ``shop`` or ``ward``), and those of them with lintels.
 FURNISHED_SEEDS = FURNISHED_TRAINING_SEEDS + FURNISHED_HELD_OUT_SEEDS + LINTEL_TRAINING_SEEDS + LINTEL_HELD_OUT_SEEDS
 LINTEL_SEEDS = LINTEL_TRAINING_SEEDS + LINTEL_HELD_OUT_SEEDS
-#: Every building no network may be trained on.
-NEVER_TRAIN_SEEDS = (
-    HELD_OUT_SEEDS
-    + LOCALIZER_HELD_OUT_SEEDS
-    + LOOKALIKE_ALL_HELD_OUT_SEEDS
-    + FURNISHED_HELD_OUT_SEEDS
-    + LINTEL_HELD_OUT_SEEDS
-)
+FAMILIES = ("offices", "hall", "L", "U")
+LOOKALIKE_FAMILIES = ("periodic", "mirror")
+FURNISHED_FAMILIES = ("home", "shop", "ward")
 
 
 def _corridor_with_offices(
@@ -259,7 +172,7 @@ def draw_plan(seed: int) -> tuple[str, Plan]:
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
         {"home": draw_home, "shop": draw_shop, "ward": draw_ward}[family](rng, plan, float(rng.uniform(2.4, 3.0)))
         return family, plan
-    if seed in LOOKALIKE_DEVELOPMENT_SEEDS + LOOKALIKE_ALL_HELD_OUT_SEEDS:
+    if seed in LOOKALIKE_DEVELOPMENT_SEEDS + LOOKALIKE_HELD_OUT_SEEDS:
         family = LOOKALIKE_FAMILIES[int(rng.integers(len(LOOKALIKE_FAMILIES)))]
         plan = Plan([], [], float(rng.uniform(0.1, 0.25)))
         (_periodic if family == "periodic" else _mirror)(rng, plan, float(rng.uniform(2.4, 3.0)))

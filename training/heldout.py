@@ -170,3 +170,52 @@ def summarize(rows: dict[str, dict[str, dict[str, float | None]]], localizer: st
     located = [t for t in (r.get("time_to_localized_s") for r in items) if t is not None]
     summary["time_to_localized_s"] = float(np.median(located)) if located else None
     return summary
+
+
+def ready_building(seed: int, worlds: Path) -> Path:
+    """The world file of generated building ``seed`` under ``worlds``, written and prepared if need be."""
+    from pimm_agents.preparation.prepare import prepare_world
+    from training.buildings import write_building
+
+    world_file = worlds / f"gen-{seed}" / "world.yaml"
+    if not world_file.is_file():
+        write_building(seed, worlds)
+    if needs_preparing(world_file):
+        prepare_world(world_file, progress=False)
+    return world_file
+
+
+def run_buildings(
+    seeds: list[int],
+    localizers: dict[str, dict[str, Any]],
+    trials: int,
+    scans: int,
+    workers: int,
+    worlds: Path,
+    out: Path,
+    settings: list[str],
+    made: str,
+    echo: Any,
+) -> None:
+    """Measure ``localizers`` on generated buildings ``seeds`` (written and prepared under ``worlds`` if need be)
+    in passes, one trial per route more each pass, writing ``heldout.json`` and ``heldout.md`` (headed by the
+    command ``made``, the commit and the machine) under ``out`` after each; a stopped run continues."""
+    from pimm_agents.results.markdown import provenance_here
+
+    out.mkdir(parents=True, exist_ok=True)
+    for seed in seeds:
+        ready_building(seed, worlds)
+    names = list(localizers)
+    for done in range(1, trials + 1):
+        results, rows = {}, {}
+        for seed in seeds:
+            echo(f"gen-{seed}: {done} trial(s) per route ...", err=True)
+            world_file = worlds / f"gen-{seed}" / "world.yaml"
+            results[f"gen-{seed}"] = measure_building(world_file, localizers, done, scans, workers, out / f"gen-{seed}")
+            rows[f"gen-{seed}"] = {name: building_row(results[f"gen-{seed}"], name) for name in names}
+        summary = {name: summarize(rows, name) for name in names}
+        table = format_table({**rows, "all (mean; time: median)": summary}, names)
+        record = {"trials_per_route": done, "seeds": seeds, "settings": settings, "rows": rows, "summary": summary}
+        (out / "heldout.json").write_text(json.dumps({**record, "raw": results}, indent=1))
+        (out / "heldout.md").write_text(f"{provenance_here(made)}\n\n{done} trial(s) per route\n\n{table}\n")
+        echo(f"\n{done} trial(s) per route:\n{table}")

@@ -1,0 +1,78 @@
+"""PIMM's benchmark suites, read from ``training/suites/suites.yaml``: named sets of buildings (or commands) with
+what each measures, so that a held-out set is chosen by what it judges, not by the experiment that made it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+
+from pimm_env.errors import PimmError
+from pimm_env.yaml_file import read_yaml_mapping
+
+SUITES_FILE = Path(__file__).parent / "suites" / "suites.yaml"
+KINDS = ("training", "development", "held-out", "reference")
+
+
+class SuiteError(PimmError):
+    """A suite that does not exist or is written wrong."""
+
+
+@dataclass(frozen=True)
+class Suite:
+    name: str
+    kind: str  # one of KINDS
+    purpose: str
+    seeds: tuple[int, ...] = ()  # generated buildings (training/buildings.py)
+    localizers: tuple[str, ...] = ("pimm",)
+    trials: int = 1
+    commands: tuple[tuple[str, ...], ...] = field(default=())  # evaluate.py commands, for suites of other data
+
+
+def parse_seeds(ranges: list[str] | tuple[str, ...], where: str = "seeds") -> tuple[int, ...]:
+    """``["100-129", "140"]`` as the seeds it names, in order."""
+    seeds: list[int] = []
+    for item in ranges:
+        text = str(item).strip()
+        low, _, high = text.partition("-")
+        try:
+            first, last = int(low), int(high or low)
+        except ValueError:
+            raise SuiteError(f"{where}: {item!r} is not a seed or a range A-B") from None
+        if last < first:
+            raise SuiteError(f"{where}: {item!r} runs backwards")
+        seeds += range(first, last + 1)
+    return tuple(seeds)
+
+
+@cache
+def suites(path: Path = SUITES_FILE) -> dict[str, Suite]:
+    """Every suite of the suites file, by name."""
+    data = read_yaml_mapping(path, "suites file", SuiteError)
+    if data.get("format") != "pimm-suites/1" or not isinstance(data.get("suites"), dict):
+        raise SuiteError(f"{path}: expected 'format: pimm-suites/1' and a 'suites' mapping")
+    out = {}
+    for name, body in data["suites"].items():
+        where = f"{path}: suites.{name}"
+        if not isinstance(body, dict) or body.get("kind") not in KINDS or not body.get("purpose"):
+            raise SuiteError(f"{where}: needs a 'purpose' and a 'kind' of {', '.join(KINDS)}")
+        commands = tuple(tuple(str(a) for a in c) for c in body.get("commands", ()))
+        seeds = parse_seeds(body.get("seeds", ()), f"{where}.seeds")
+        if bool(seeds) == bool(commands):
+            raise SuiteError(f"{where}: give either 'seeds' (generated buildings) or 'commands', not both or neither")
+        localizers = tuple(body.get("localizers", ("pimm",)))
+        out[name] = Suite(name, body["kind"], body["purpose"], seeds, localizers, int(body.get("trials", 1)), commands)
+    return out
+
+
+def suite(name: str) -> Suite:
+    """The suite called ``name``; a clear error listing them otherwise."""
+    known = suites()
+    if name not in known:
+        raise SuiteError(f"no suite {name!r}; suites: {', '.join(known)}")
+    return known[name]
+
+
+def seeds_of(kind: str) -> tuple[int, ...]:
+    """The seeds of every suite of ``kind``, in the file's order."""
+    return tuple(s for x in suites().values() if x.kind == kind for s in x.seeds)
