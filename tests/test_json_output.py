@@ -45,7 +45,8 @@ def test_run_score_and_rollout_print_one_json_document(room_world, tmp_path):
 def test_perception_and_bench_print_one_json_document(room_world):
     perception = _one_document(_stdout("perception", "--world", str(room_world), "--scans", "2"))
     assert "retrieval" not in perception  # the room has no fingerprint map yet: left out, not an error
-    assert 0.0 <= perception["segmentation"]["miou"] <= 1.0
+    iou = perception["segmentation"]["iou"]
+    assert perception["segmentation"]["miou"] == pytest.approx(sum(iou.values()) / len(iou))
     bench = _one_document(_stdout("bench", "--repeats", "3"))
     assert bench["pimm_pipeline_ms"] > 0
     assert {"pimm_stage_segmentation_ms", "pimm_stage_corners_ms", "pimm_per_scan_ms"} <= set(

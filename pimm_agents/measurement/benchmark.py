@@ -182,6 +182,7 @@ def pimm_benchmarks(repeats: int) -> dict[str, float]:
     from pimm_agents.factory import make_localizer
     from pimm_agents.particles.likelihood_field import LikelihoodField
     from pimm_agents.pimm.localizer import PimmLocalizer
+    from pimm_agents.pimm.rivals import RivalTracker
     from pimm_env.envs.iilab_env import IILabEnv
     from pimm_env.mapping.derived_maps import load_derived_maps
     from pimm_env.world.files import load_world

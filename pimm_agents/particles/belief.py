@@ -29,7 +29,7 @@ from pimm_env.geometry import wrap_angle
 #: nav2's pose-cluster bins (m, rad): particles in touching bins are one mode
 BIN_XY, BIN_THETA = 0.5, float(np.radians(10.0))
 #: a compact mode with at least this share of the chosen mode's weight keeps the status ambiguous (measured:
-#: docs/design.md#the-belief-and-its-status)
+#: docs/design.md#statuses)
 RIVAL_RATIO = 0.1
 #: a mode is compact (a place, not a cloud still searching) when its largest position standard deviation and its
 #: heading's are under these: nav2's AMCL tracks right with a cluster of 0.4-0.5 m and 13-16 deg
