@@ -68,6 +68,15 @@ class Belief:
         return int(self.particle_mode[int(np.argmin(distance))])
 
 
+@dataclass(frozen=True)
+class BeliefView:
+    """A filter's particles, weights and modes after a measurement, for a reviewer: read-only by agreement."""
+
+    particles: np.ndarray
+    weights: np.ndarray
+    belief: Belief
+
+
 def read_belief(particles: np.ndarray, weights: np.ndarray, labels: np.ndarray | None = None) -> Belief:
     """Cluster the weighted particles into modes (heaviest first, ``modes_examined`` of them); ``labels``: the
     particles' clusters if they are known already (``cluster_labels`` with nav2's bins)."""

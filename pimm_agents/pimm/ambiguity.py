@@ -18,19 +18,16 @@ import functools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
 from pimm_agents.localizer import Hypothesis
-from pimm_agents.particles.belief import BeliefReading
+from pimm_agents.particles.belief import BeliefReading, BeliefView
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.pimm.rivals import CANDIDATES, RivalConfig, RivalTracker
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.mapping.twins import MapTwins, TwinConfig
-
-if TYPE_CHECKING:
-    from pimm_agents.pimm.feature_filter import BeliefView
 
 Result = TypeVar("Result")
 

@@ -17,6 +17,7 @@ from pimm_agents.particles.belief import (
     Belief,
     BeliefConfig,
     BeliefReading,
+    BeliefView,
     belief_status,
     compact_modes,
     covariance_about,
@@ -133,15 +134,6 @@ def injected(
         new[:smart, 2] = rng.uniform(-np.pi, np.pi, smart)
     new[smart:] = free_space.sample(count - smart, rng)
     return new
-
-
-@dataclass(frozen=True)
-class BeliefView:
-    """The filter's particles, weights and modes after a measurement, read-only by agreement."""
-
-    particles: np.ndarray
-    weights: np.ndarray
-    belief: Belief
 
 
 #: Columns of the feature array the filter takes: x, y, theta (robot frame), sigma_pos (m), sigma_theta (rad).
