@@ -5,8 +5,9 @@ import numpy as np
 from pimm_agents.active.explorer import Explorer
 from pimm_agents.active.guide import Guide, distinct_hypotheses
 from pimm_agents.active.policies import FORWARD, LEFT, RIGHT, Greedy
-from pimm_agents.active.views import ViewPredictor, cast_ranges, geodesic_from
+from pimm_agents.active.views import ViewPredictor, cast_ranges
 from pimm_agents.localizer import Hypothesis, PoseEstimate
+from pimm_env.mapping.free_graph import geodesic_from
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
 

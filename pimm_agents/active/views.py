@@ -18,13 +18,13 @@ bearings, about 40 ms on a 2-core AMD EPYC; a far plan, about a second on a 2-co
 
 from __future__ import annotations
 
-import heapq
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
+from pimm_env.mapping.free_graph import geodesic_from
 from pimm_env.mapping.occupancy import OccupancyGrid
 
 
@@ -112,34 +112,6 @@ def cast_ranges(
                 t += 1
             out[i, j] = t * resolution
     return out
-
-
-@njit(cache=True, nogil=True)
-def geodesic_from(passable: np.ndarray, row: int, col: int, limit: float, cost: np.ndarray) -> np.ndarray:
-    """Path cost (8-connected) from (row, col) to every ``passable`` cell within ``limit``; infinity elsewhere. A
-    step costs its length in cells times the mean of ``cost`` at its two cells (all ones: the path length in
-    cells)."""
-    rows, cols = passable.shape
-    dist = np.full((rows, cols), np.inf)
-    dist[row, col] = 0.0
-    heap = [(0.0, row, col)]
-    diagonal = math.sqrt(2.0)
-    while heap:
-        d, r, c = heapq.heappop(heap)
-        if d > dist[r, c] or d > limit:
-            continue
-        for dr in range(-1, 2):
-            for dc in range(-1, 2):
-                if dr == 0 and dc == 0:
-                    continue
-                nr, nc = r + dr, c + dc
-                if not (0 <= nr < rows and 0 <= nc < cols) or not passable[nr, nc]:
-                    continue
-                nd = d + (diagonal if dr != 0 and dc != 0 else 1.0) * 0.5 * (cost[r, c] + cost[nr, nc])
-                if nd < dist[nr, nc]:
-                    dist[nr, nc] = nd
-                    heapq.heappush(heap, (nd, nr, nc))
-    return dist
 
 
 def differing(a: np.ndarray, b: np.ndarray, gap: float) -> np.ndarray:

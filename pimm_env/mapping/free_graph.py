@@ -1,13 +1,16 @@
 """The free space as a graph: nodes on a coarse grid of the places that keep a clearance from every obstacle
 and unknown cell (the largest connected region), 8-connected, each step's cost raised near obstacles so that
 shortest paths keep to the middle of corridors. Routes (``driving/routes.py``) and walking people
-(``sim/movers.py``) plan on it."""
+(``sim/movers.py``) plan on it; ``geodesic_from`` gives path costs over a grid's passable cells."""
 
 from __future__ import annotations
 
+import heapq
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy import ndimage
 from scipy.sparse import coo_matrix
 
@@ -67,3 +70,31 @@ def path_nodes(predecessors: np.ndarray, goal: int) -> list[int]:
     while predecessors[path[-1]] >= 0:
         path.append(int(predecessors[path[-1]]))
     return path[::-1]
+
+
+@njit(cache=True, nogil=True)
+def geodesic_from(passable: np.ndarray, row: int, col: int, limit: float, cost: np.ndarray) -> np.ndarray:
+    """Path cost (8-connected) from (row, col) to every ``passable`` cell within ``limit``; infinity elsewhere. A
+    step costs its length in cells times the mean of ``cost`` at its two cells (all ones: the path length in
+    cells)."""
+    rows, cols = passable.shape
+    dist = np.full((rows, cols), np.inf)
+    dist[row, col] = 0.0
+    heap = [(0.0, row, col)]
+    diagonal = math.sqrt(2.0)
+    while heap:
+        d, r, c = heapq.heappop(heap)
+        if d > dist[r, c] or d > limit:
+            continue
+        for dr in range(-1, 2):
+            for dc in range(-1, 2):
+                if dr == 0 and dc == 0:
+                    continue
+                nr, nc = r + dr, c + dc
+                if not (0 <= nr < rows and 0 <= nc < cols) or not passable[nr, nc]:
+                    continue
+                nd = d + (diagonal if dr != 0 and dc != 0 else 1.0) * 0.5 * (cost[r, c] + cost[nr, nc])
+                if nd < dist[nr, nc]:
+                    dist[nr, nc] = nd
+                    heapq.heappush(heap, (nd, nr, nc))
+    return dist
