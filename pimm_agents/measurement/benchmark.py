@@ -223,7 +223,7 @@ def pimm_benchmarks(repeats: int) -> dict[str, float]:
     figures["pimm_perception_ms"] = float(np.median(perception))
     # where that time goes: each stage's median over the same updates
     figures.update({f"pimm_stage_{stage}_ms": float(np.median(ms)) for stage, ms in sorted(stages.items())})
-    # PIMM perceives a scan only when it weighs with it (pimm.lazy_perception): its cost per scan that arrived
+    # PIMM perceives a scan only when it weighs with it (docs/design.md): its cost per scan that arrived
     figures["pimm_per_scan_ms"] = all_updates_ms / scans
     figures["pimm_scans_perceived_share"] = repeats / scans
     figures.update(rival_evidence_benchmark(tracker, np.asarray(obs["odom"], dtype=float), repeats))

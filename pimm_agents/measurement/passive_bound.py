@@ -4,7 +4,7 @@ Along a trial, a tracker of its own keeps the wall scans PIMM weighs (the newest
 at a jump as PIMM's are) and, once it holds ``settle_scans`` of them, scores the *true* pose against the map's
 twins of it (twins.py; the ``BOUND_TWINS`` best, a place turned about distinct from one beside it facing another
 way), each fitted to the kept scans as the rival check fits its rivals and compared as it compares them
-(``rivals.map_error_cells``). The first time every twin trails the truth
+(``kept_scans.MAP_ERROR_CELLS``). The first time every twin trails the truth
 by ``log_ratio`` (the margin at which the rival check calls a candidate no rival) is the time a perfect rival
 check, offered the right place, could have called it localized: on a route that shows nothing that tells the twins
 apart until late, no passive localizer can be right and sure earlier, and only driving elsewhere (active

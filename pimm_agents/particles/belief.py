@@ -12,7 +12,7 @@ status of an estimate that lies in mode ``chosen``:
   no particles yet, and the next scans rule it out.
 
 ``compact_modes`` and ``weigh_modes`` let a filter weigh each compact mode as one hypothesis (PIMM's
-``filter.mode_evidence: mean``).
+the default preset's ``FeatureFilterConfig.mode_evidence``).
 """
 
 from __future__ import annotations

@@ -140,8 +140,8 @@ class KeptScans:
         )
 
     def scan_allowance(self, stack: ScanStack) -> np.ndarray:
-        """Per stacked scan (S,): what a wall ``map_error_cells`` cells off costs each of its points, summed and
-        tempered (``RivalConfig.map_error_cells``)."""
+        """Per stacked scan (S,): what a wall ``MAP_ERROR_CELLS`` cells off costs each of its points, summed and
+        tempered."""
         offset = MAP_ERROR_CELLS * self.field.grid.resolution
         per_point = offset**2 / (2 * self.field.params.sigma_hit**2)
         points = np.bincount(stack.scan_of, minlength=len(stack.motions))
@@ -149,7 +149,7 @@ class KeptScans:
 
     def margins_over(self, poses: np.ndarray, reference: np.ndarray, stack: ScanStack) -> np.ndarray:
         """How much better the stacked scans fit each of ``poses`` (K, 3) than ``reference`` (3,): the difference
-        of the summed evidence (``map_error_cells`` 0), or scan by scan with each scan's difference counted only
+        of the summed evidence (``MAP_ERROR_CELLS`` 0), or scan by scan with each scan's difference counted only
         beyond ``scan_allowance`` (a difference the map's raster alone could make counts as none)."""
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         reference = np.asarray(reference, dtype=float).reshape(1, 3)
@@ -166,7 +166,7 @@ class KeptScans:
         """Each of ``poses`` (K, 3) moved by coordinate ``steps`` (x, y, heading; by default 0.1 m and 2 deg,
         then half of them), up to ``rounds`` a step size, while the stacked scans fit it better; all poses and
         their six neighbours scored at once. A heading step turns the pose about the scans' centre
-        (``turn_about_scans``) or about the robot. A pose none of whose neighbours fitted better is not scored
+        (not about the robot). A pose none of whose neighbours fitted better is not scored
         again at that step size (its neighbours are the same, and each pose's score does not depend on the
         others scored with it), so the result is that of scoring every pose every round."""
         best = np.asarray(poses, dtype=float).reshape(-1, 3).copy()
@@ -192,6 +192,6 @@ class KeptScans:
 
     def fit_new(self, poses: np.ndarray, recent: ScanStack, history: ScanStack) -> np.ndarray:
         """Places newly offered (K, 3) fitted as the check fits a new candidate: to the ``recent`` scans from
-        wherever they were offered, then ``admit_rounds`` of ``admit_steps`` against all the kept scans
+        wherever they were offered, then ``ADMIT_ROUNDS`` of ``ADMIT_STEPS`` against all the kept scans
         (``history``). ``update`` screens the candidates between the two."""
         return self.refine(self.refine(poses, recent, rounds=3), history, rounds=ADMIT_ROUNDS, steps=ADMIT_STEPS)

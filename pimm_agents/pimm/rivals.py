@@ -11,12 +11,12 @@ the fingerprints suggest) and, for a localized estimate, the map's own look-alik
 cannot miss the way the filter can. A candidate is a *rival* while its summed evidence is within ``log_ratio`` of the
 estimate's; rivals are kept, carried by the odometry and re-scored at every update, until the scans favour the
 estimate over them by ``drop_log_ratio`` (a wider margin, so that a twin does not flicker in and out), fitted as a
-newcomer is before they fall (``refit_before_drop``). While any rival stands, and until ``settle_scans`` scans are
-kept, the status is ``ambiguous`` (a veto: the belief's own confirmation goes on counting, ``veto_only``). The filter
+newcomer is before they fall. While any rival stands, and until ``settle_scans`` scans are
+kept, the status is ``ambiguous`` (a veto: the belief's own confirmation goes on counting). The filter
 is not fed from the check (particles injected at every rival made the estimate wander between twins, docs/design.md),
-with one exception: a rival the scans favour over the estimate by ``switch_log_ratio``, both fitted to them to
+with one exception: a rival the scans favour over the estimate by ``SWITCH_LOG_RATIO``, both fitted to them to
 convergence, at ``switch_updates`` updates in a row takes the mode of an estimate not reported localized since it last
-jumped (``switch``; ambiguity.py moves it): by the check's own rule the estimate would be no rival of it were the two
+jumped (the step moves it): by the check's own rule the estimate would be no rival of it were the two
 the other way round, and the place left stands as a rival until the scans rule it out.
 """
 
@@ -89,7 +89,7 @@ class RivalTracker(KeptScans):
         self.rivals = np.zeros((0, 3))
         #: per rival, its summed evidence less the estimate's at the last update (NaN: held, not yet scored)
         self.margins = np.zeros(0)
-        self._leader: np.ndarray | None = None  # the rival ahead by switch_log_ratio, and for how many updates
+        self._leader: np.ndarray | None = None  # the rival ahead by SWITCH_LOG_RATIO, and for how many updates
         self._lead = 0
         #: the estimate's place as fitted to the kept scans, carried and fitted a touch at every update like a
         #: rival, so that rivals and estimate are scored alike (None: not fitted yet, or the estimate moved)
@@ -179,7 +179,7 @@ class RivalTracker(KeptScans):
         """Re-score the kept rivals and the new ``candidates`` (M, 3) against ``estimate``; keep the new ones within
         ``log_ratio`` and the kept ones within ``drop_log_ratio``. ``first`` (the filter's heaviest other modes)
         are tried whatever the newest scans say of them unrefined; of the other candidates, the ``candidates``
-        the newest scans fit best. With ``lead`` (and ``switch``), follow the rival that leads the estimate
+        the newest scans fit best. With ``lead``, follow the rival that leads the estimate
         (``decisive``; off for a held estimate, which no rival may take). Returns how many rivals stand; with
         fewer than ``refine_scans`` scans kept (just after a jump) the kept rivals stand unscored."""
         c = self.config
@@ -204,12 +204,12 @@ class RivalTracker(KeptScans):
             return 0
         kept = len(self.rivals)
         history = self.stack(odom_now)
-        # the estimate as the filter left it, and (fit_estimate) its place fitted as the rivals are: scored once each
+        # the estimate as the filter left it, and its place fitted as the rivals are: scored once each
         places = [estimate, self._fit_estimate(estimate, recent, history)]
         # every one by a touch against all the kept scans it is scored on: fitted to the newest alone, a place a
         # degree off in heading would carry back metres off along 15 m of history and lose a rival; a new one
         # (fitted to the newest scans first, from wherever it was offered, and screened on them) by
-        # ``admit_rounds`` of it and a finer step
+        # ``ADMIT_ROUNDS`` of it and a finer step
         refined = np.array(pool[:kept], dtype=float).reshape(-1, 3)
         if kept:
             refined = self.refine(refined, history, rounds=1, steps=DEEP_TOUCH)
@@ -248,7 +248,7 @@ class RivalTracker(KeptScans):
     def _fit_estimate(self, estimate: np.ndarray, recent: ScanStack, history: ScanStack) -> np.ndarray:
         """The estimate's place fitted as the rivals are: from where it was fitted last (carried), if the
         estimate is still there, else fitted to the newest scans first; then a touch against all kept scans (a new
-        place, as a new rival, ``admit_rounds`` of it and a finer step).
+        place, as a new rival, ``ADMIT_ROUNDS`` of it and a finer step).
         Scored unfitted against rivals fitted at every update since they stood, a right estimate trailed its
         twins by up to 500 nats on a development building (gen-970 route 2) and stayed ``ambiguous``."""
         if self._anchor is None or not self._known(self._anchor, [estimate]):  # a new place: fitted as a new rival
@@ -259,7 +259,7 @@ class RivalTracker(KeptScans):
 
     def _follow_leader(self, estimate: np.ndarray, history: ScanStack) -> None:
         """Count the updates in a row at which the same rival (within ``distinct_m``, ``distinct_deg``) led the
-        estimate by ``switch_log_ratio``, both fitted to the kept scans to convergence first (``DEEP_STEPS``). The
+        estimate by ``SWITCH_LOG_RATIO``, both fitted to the kept scans to convergence first (``DEEP_STEPS``). The
         margins of the check compare rivals, fitted a touch at every update since they stood, with the estimate
         as the filter left it: enough for a status, which errs towards ``ambiguous``, but on a development
         building (gen-970 route 3) the right estimate then trailed its twins by 15-70 nats over 150 scans, and
@@ -277,7 +277,7 @@ class RivalTracker(KeptScans):
         self._leader, self._lead = best.copy(), self._lead + 1 if same else 1
 
     def decisive(self) -> int | None:
-        """The rival the kept scans have favoured over the estimate by ``switch_log_ratio`` or more at the last
+        """The rival the kept scans have favoured over the estimate by ``SWITCH_LOG_RATIO`` or more at the last
         ``switch_updates`` updates; None if there is none."""
         if self._leader is None or self._lead < self.config.switch_updates or not self.settled:
             return None

@@ -13,7 +13,7 @@ order, so the figures are those of the pose-by-pose loop to the bit; ``rival_evi
 in back-to-back bench runs (docs/benchmarks.md#speed).
 
 ``scan_by_scan_evidence`` is the same arithmetic with each scan's sum kept apart: the rival check compares two
-places scan by scan when it decides whether the scans tell them apart (``rivals.map_error_cells``). Both carry
+places scan by scan when it decides whether the scans tell them apart (``kept_scans.MAP_ERROR_CELLS``). Both carry
 the poses by one helper (``carried_scans``); their point loops stay written out in each: with the lookup as a
 shared inlined function both ran 2-3 times slower (the same values to the bit), so the six lines are kept twice.
 """

@@ -2,7 +2,7 @@
 
 A place is scored against the kept scans by carrying it back along each scan's odometry motion (rivals.py,
 scan_evidence.py). :class:`ScanStack` holds them as one array; its ``centre`` is where a fit turns a pose about
-(``rivals.turn_about_scans``): turned about the robot, a small change of heading swings scans far back sideways, so
+(kept_scans.py): turned about the robot, a small change of heading swings scans far back sideways, so
 heading and sideways offset form one narrow valley for coordinate steps (docs/design.md).
 """
 
