@@ -140,8 +140,7 @@ class MovingCheck:
     """A check that always decides to move the estimate to ``target``: what the step does with such a decision."""
 
     def __init__(self, target: np.ndarray) -> None:
-        self.target, self.spent_ms, self.reported = target, 0.0, []
-        self.tracker = type("Tracker", (), {"config": RivalConfig()})()
+        self.target, self.reported = target, []
 
     def reset(self) -> None: ...
 
@@ -149,7 +148,7 @@ class MovingCheck:
         return False
 
     def review(self, view, odom, pose, reading, reported, walls, left, suggestions) -> Decision:
-        return Decision("ambiguous", (), self.target)
+        return Decision("ambiguous", (), self.target, RivalConfig().switch_updates)
 
     def after(self, status: str, jumped: bool) -> None:
         self.reported.append((status, jumped))

@@ -14,11 +14,7 @@ update's reported status.
 
 from __future__ import annotations
 
-import functools
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TypeVar
 
 import numpy as np
 
@@ -29,28 +25,12 @@ from pimm_agents.pimm.rivals import CANDIDATES, RivalConfig, RivalTracker
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.mapping.twins import MapTwins, TwinConfig
 
-Result = TypeVar("Result")
-
 #: The map's twins are offered when an estimate is about to be called localized, and again at this many updates'
 #: interval while it is (2 s of 10 Hz scans): a twin the scans had ruled out is not re-offered at once (ours).
 TWINS_EVERY_UPDATES = 20
 #: A place is called localized only once its twins have been looked for from this many map cells: a search from
 #: one cell can miss a twin that the next cell's finds (measured: docs/design.md#the-maps-twins).
 TWINS_FROM_CELLS = 2
-
-
-def _timed(method: Callable[..., Result]) -> Callable[..., Result]:
-    """A method of the check whose running time is added to ``spent_ms``."""
-
-    @functools.wraps(method)
-    def timed(self: AmbiguityCheck, *args: Any, **kwargs: Any) -> Result:
-        start = time.perf_counter()
-        try:
-            return method(self, *args, **kwargs)
-        finally:
-            self.spent_ms += 1000 * (time.perf_counter() - start)
-
-    return timed
 
 
 def rival_hypothesis(place: np.ndarray) -> Hypothesis:
@@ -69,6 +49,7 @@ class Decision:
     status: str
     rivals: tuple[Hypothesis, ...] = ()
     move_to: np.ndarray | None = None
+    led: int = 0  # with ``move_to``: the updates in a row the rival led (they count towards its confirmation)
 
 
 class AmbiguityCheck:
@@ -90,8 +71,6 @@ class AmbiguityCheck:
         #: rival check (its margins over 150 scans are not enough to overturn a place the scans confirmed)
         self.held = False
         self._kept = 0  # jumps refused since the held estimate was last reported localized (``holds``)
-        #: ms spent in ``holds`` and ``review`` since the last ``reset`` (the localizer reads one update's share)
-        self.spent_ms = 0.0
 
     def reset(self) -> None:
         self.tracker.reset()
@@ -108,7 +87,6 @@ class AmbiguityCheck:
         if not was or not self.held or jumped or status == "localized":
             self._kept = 0  # counted anew while the held place is not confirmed again
 
-    @_timed
     def holds(self, held: np.ndarray, new: np.ndarray, odom: np.ndarray, wall_points: np.ndarray | None) -> bool:
         """Whether a held estimate at ``held`` stays there instead of jumping to ``new``, the filter's best place
         (``RivalTracker.holds``, with this update's ``wall_points``), at most ``switch_updates`` times before it is
@@ -124,7 +102,6 @@ class AmbiguityCheck:
         self._kept += 1
         return True
 
-    @_timed
     def review(
         self,
         view: BeliefView,
@@ -206,4 +183,4 @@ class AmbiguityCheck:
         target = self.tracker.promote(rival)
         self._twin_cells.clear()
         self.tracker.keep(pose)
-        return Decision("ambiguous", self.standing(), target)
+        return Decision("ambiguous", self.standing(), target, self.tracker.config.switch_updates)

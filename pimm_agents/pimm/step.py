@@ -11,6 +11,8 @@ off) the step is the filter's own, with the belief's status.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from pimm_agents.particles.belief import BeliefReading, Confirmation
@@ -48,11 +50,14 @@ class MeasurementStep:
         ``suggestions``; ``previous`` is the last estimate carried to now, ``odom`` the odometry now. Returns the
         new estimate, or None (the caller carries its last one by odometry)."""
         filt, check = self.filter, self.check
-        spent = 0.0 if check is None else check.spent_ms
+        checking = 0.0  # s spent in the check
         filt.weigh(features, walls)
         estimate = filt.estimate(previous)
         if estimate is not None and previous is not None and check is not None and filt.jumps(previous, estimate):
-            if check.holds(previous, estimate, odom, walls):
+            start = time.perf_counter()
+            holds = check.holds(previous, estimate, odom, walls)
+            checking += time.perf_counter() - start
+            if holds:
                 filt.move_mode(estimate, previous)  # a held place the kept scans favour: its rival's particles
                 estimate = None  # are moved onto it
         pose = estimate if estimate is not None else previous
@@ -62,11 +67,13 @@ class MeasurementStep:
         jumped = previous is None or (pose is not None and np.hypot(*(pose[:2] - previous[:2])) > radius)
         if check is not None:
             left = previous if jumped else None
+            start = time.perf_counter()
             decision = check.review(filt.view(), odom, pose, reading, self.reading.status, walls, left, suggestions)
+            checking += time.perf_counter() - start
             if decision.move_to is not None and pose is not None:  # the check moves only a place it reviewed
                 filt.move_mode(pose, decision.move_to)
                 reading, estimate, jumped = filt.read(decision.move_to), decision.move_to, True
-                earned = check.tracker.config.switch_updates  # the updates the rival led in a row
+                earned = decision.led
             reading = BeliefReading(
                 decision.status, reading.covariance, reading.hypotheses + decision.rivals, reading.chosen
             )
@@ -75,6 +82,6 @@ class MeasurementStep:
         self.reading = BeliefReading(status, reading.covariance, reading.hypotheses)
         if check is not None:
             check.after(status, jumped)
-            self.check_ms = check.spent_ms - spent
+            self.check_ms = 1000 * checking
         filt.resample_and_inject(suggestions)
         return estimate
