@@ -11,7 +11,7 @@ from typing import Any
 import typer
 
 from pimm_agents import command_line
-from pimm_agents.commands import bags, measure, worlds
+from pimm_agents.commands import bags, measure, robot, worlds
 from pimm_agents.commands.options import (
     ADDRESS,
     BACKEND,
@@ -121,7 +121,7 @@ def report(
     typer.echo(markdown_report(folder, thesis) if markdown else text_report(folder), nl=False)
 
 
-for group in (bags, measure):  # their commands are evaluate.py's own
+for group in (bags, measure, robot):  # their commands are evaluate.py's own
     app.registered_commands += group.app.registered_commands
 app.add_typer(worlds.world_app, name="world")
 app.add_typer(bags.convert_app, name="convert")

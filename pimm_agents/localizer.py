@@ -110,3 +110,44 @@ def require(obs: Observation, key: str, shape: tuple[int, ...] | None = None) ->
     if shape is not None and value.shape != shape:
         raise ObservationError(f"observation {key!r} has shape {value.shape}, expected {shape}")
     return value
+
+
+#: The least standard deviation a published covariance carries (m, m, rad): a pose is never certain to the
+#: millimetre, and a zero covariance tells a consumer exactly that (nav2's consumers divide by it).
+PUBLISHED_FLOOR = np.array([0.01, 0.01, 0.005])
+
+
+def published_covariance(estimate: PoseEstimate) -> np.ndarray:
+    """The 3 x 3 covariance a consumer that reads no status should see (``amcl_pose``, a results row's ``pub_*``).
+
+    While ``localized``: the chosen mode's own, floored at ``PUBLISHED_FLOOR``. Otherwise it must cover every live
+    place: the larger (by trace) of the covariance of the mixture of ``hypotheses`` and the spread of the shown
+    ``particles``, both about the published pose, so that a reader of the ellipse alone is never shown a small one
+    around a place the localizer itself doubts. Angles are wrapped before they are squared.
+    """
+    from pimm_env.geometry import wrap_angle
+
+    floor = np.diag(PUBLISHED_FLOOR**2)
+    own = np.asarray(estimate.covariance, dtype=float)
+    own = np.where(np.isfinite(own), own, 0.0)
+    own = own + np.diag(np.maximum(np.diag(floor) - np.diag(own), 0.0))
+    if estimate.status == "localized":
+        return own
+    mean = estimate.pose
+    candidates = [own]
+    if estimate.hypotheses:
+        weights = np.array([max(h.weight, 0.0) for h in estimate.hypotheses], dtype=float)
+        weights = weights / weights.sum() if weights.sum() > 0 else np.full(len(weights), 1 / len(weights))
+        mixture = np.zeros((3, 3))
+        for weight, h in zip(weights, estimate.hypotheses, strict=True):
+            d = np.array([h.x - mean[0], h.y - mean[1], wrap_angle(h.theta - mean[2])])
+            mixture += weight * (np.asarray(h.covariance, dtype=float) + np.outer(d, d))
+        candidates.append(mixture)
+    particles = estimate.inside.get("particles")
+    if particles is not None and len(particles) > 1:
+        d = np.asarray(particles, dtype=float)[:, :3] - mean
+        d[:, 2] = wrap_angle(d[:, 2])
+        candidates.append(d.T @ d / len(d))
+    widest = max(candidates, key=lambda c: float(np.trace(c[:2, :2])))
+    widest = (widest + widest.T) / 2
+    return widest + np.diag(np.maximum(np.diag(floor) - np.diag(widest), 0.0))

@@ -99,3 +99,7 @@ class ResultsError(PimmError, ValueError):
 
 class ExperimentError(PimmError, ValueError):
     """An experiment's definition (run record, sweep file, trial specs, backend) is unusable."""
+
+
+class Ros2Error(PimmError, ValueError):
+    """A ROS 2 / DDS problem: a bad domain id, discovery range, topic, message or node parameter."""
