@@ -35,3 +35,18 @@ def shared_file(*parts: str) -> Path:
     if not path.is_file():
         pytest.skip(f"reference data {path} is not present")
     return path
+
+
+@pytest.fixture
+def ros_domain(monkeypatch: pytest.MonkeyPatch) -> int:
+    """A ROS 2 domain of this test's own on loopback only: ROS_DOMAIN_ID from the process id (tests running side
+    by side do not hear each other) and CYCLONEDDS_URI bound to 127.0.0.1, multicast off, 127.0.0.1 the only
+    peer, for every participant this test or its subprocesses open."""
+    import os
+
+    from pimm_env.ros2.domain import LOCALHOST_CONFIG
+
+    domain = 100 + os.getpid() % 100
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
+    monkeypatch.setenv("CYCLONEDDS_URI", LOCALHOST_CONFIG)
+    return domain
