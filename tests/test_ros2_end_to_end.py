@@ -26,8 +26,13 @@ HALL_A = [-20.0, 5.5, 0.0]
 def start(log: Path, *args: str) -> subprocess.Popen:
     """``evaluate.py ARGS`` in a process of its own, its output in ``log`` (a pipe left unread would stall it)."""
     with open(log, "w") as out:
-        return subprocess.Popen([sys.executable, str(ROOT / "evaluate.py"), *args], cwd=ROOT, env=dict(os.environ),
-                                stdout=out, stderr=subprocess.STDOUT)  # fmt: skip
+        return subprocess.Popen(
+            [sys.executable, str(ROOT / "evaluate.py"), *args],
+            cwd=ROOT,
+            env=dict(os.environ),
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
 
 
 def stop(*processes: subprocess.Popen) -> None:
@@ -82,8 +87,12 @@ class Watcher:
 
 def pose_stamped(pose: list[float]):
     t = ros_types().types
-    return t["geometry_msgs/msg/PoseStamped"](header=header(0.0, "map"), pose=t["geometry_msgs/msg/Pose"](
-        position=t["geometry_msgs/msg/Point"](x=pose[0], y=pose[1], z=0.0), orientation=quaternion(0, 0, pose[2])))  # fmt: skip
+    return t["geometry_msgs/msg/PoseStamped"](
+        header=header(0.0, "map"),
+        pose=t["geometry_msgs/msg/Pose"](
+            position=t["geometry_msgs/msg/Point"](x=pose[0], y=pose[1], z=0.0), orientation=quaternion(0, 0, pose[2])
+        ),
+    )
 
 
 def test_pimm_through_the_node_localizes_and_notices_a_kidnap(ros_domain, tmp_path) -> None:

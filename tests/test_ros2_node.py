@@ -98,8 +98,16 @@ def test_the_mount_comes_from_tf_static_and_waiting_clouds_are_counted(robot) ->
     mount = transform(0.0, "base_link", "lidar", np.array([0.1, 0.0, 0.0]), z=0.7)
     pubs["static"].publish(tf_message([mount]))
     drive(node, pubs, clouds=3)
-    assert made == [{"mount_x": 0.1, "mount_y": 0.0, "height": 0.7, "mount_roll_deg": 0.0, "mount_pitch_deg": 0.0,
-                     "mount_yaw_deg": 0.0}]  # fmt: skip
+    assert made == [
+        {
+            "mount_x": 0.1,
+            "mount_y": 0.0,
+            "height": 0.7,
+            "mount_roll_deg": 0.0,
+            "mount_pitch_deg": 0.0,
+            "mount_yaw_deg": 0.0,
+        }
+    ]
     assert localizer.resets == [(3, None, None)]  # a global start with the node's seed
     assert node.counts["skipped_clouds"] == 2  # the newest of three was used, two counted
     obs = localizer.observations[-1]
@@ -146,10 +154,14 @@ def test_initialpose_restarts_the_localizer_there(robot) -> None:
     t = ros_types().types
     cov = np.zeros(36)
     cov[[0, 7, 35]] = [0.25, 0.25, 0.07]
-    pose = t["geometry_msgs/msg/Pose"](position=t["geometry_msgs/msg/Point"](x=4.0, y=-1.0, z=0.0),
-                                       orientation=quaternion(0.0, 0.0, 1.0))  # fmt: skip
-    pubs["initialpose"].publish(t["geometry_msgs/msg/PoseWithCovarianceStamped"](
-        header=header(1.5, "map"), pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=cov)))  # fmt: skip
+    pose = t["geometry_msgs/msg/Pose"](
+        position=t["geometry_msgs/msg/Point"](x=4.0, y=-1.0, z=0.0), orientation=quaternion(0.0, 0.0, 1.0)
+    )
+    pubs["initialpose"].publish(
+        t["geometry_msgs/msg/PoseWithCovarianceStamped"](
+            header=header(1.5, "map"), pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=cov)
+        )
+    )
     time.sleep(0.2)
     drive(node, pubs, clouds=1, stamp=2.0)
     seed, start, start_cov = localizer.resets[-1]
@@ -159,8 +171,10 @@ def test_initialpose_restarts_the_localizer_there(robot) -> None:
 
 def test_params_file_in_nav2_shape(tmp_path) -> None:
     path = tmp_path / "params.yaml"
-    path.write_text("pimm_localization:\n  ros__parameters:\n    base_frame_id: base_footprint\n"
-                    "    transform_tolerance: 0.5\n    filter:\n      particles: 3000\n")  # fmt: skip
+    path.write_text(
+        "pimm_localization:\n  ros__parameters:\n    base_frame_id: base_footprint\n"
+        "    transform_tolerance: 0.5\n    filter:\n      particles: 3000\n"
+    )
     config, settings = read_node_params(path, "pimm_localization")
     assert (config.base_frame_id, config.transform_tolerance, config.odom_frame_id) == ("base_footprint", 0.5, "odom")
     assert settings == {"filter": {"particles": 3000}}

@@ -13,6 +13,17 @@ from pimm_agents.command_line import command
 from pimm_agents.commands.options import JSON, SENSORS, WORLD
 
 app = typer.Typer(add_completion=False)
+
+
+def _stop_on_sigterm() -> None:
+    """SIGTERM (a launch file or a supervisor stopping the process) ends it as Ctrl-C does: cleanly, with its
+    report printed and its DDS participant closed."""
+    import signal
+
+    def interrupt(signum, frame):  # noqa: ARG001
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, interrupt)
 DISCOVERY = typer.Option(
     "localhost", help="localhost (this computer only, loopback) or subnet (CYCLONEDDS_URI's, or Cyclone's defaults)"
 )
@@ -36,6 +47,7 @@ def node(
         if not json_out:
             typer.echo(f"{name}: {localizer} in {world}, domain listening ({discovery}); Ctrl-C to stop", err=True)
 
+    _stop_on_sigterm()
     report = run_node(world, localizer, params, sensors, discovery, seconds, name, ready)
     typer.echo(json.dumps(report) if json_out else "\n".join(f"{k}: {v}" for k, v in report.items()))
 
@@ -54,5 +66,6 @@ def sim_robot(
     """The simulator as a ROS 2 robot: /clock, /tf, /tf_static, /points, /scan, /odom, /ground_truth."""
     from pimm_env.ros2.sim_robot import run_sim_robot
 
+    _stop_on_sigterm()
     done = run_sim_robot(world, scenario, seed, sensors, speed, seconds, discovery)
     typer.echo(json.dumps(done) if json_out else "\n".join(f"{k}: {v}" for k, v in done.items()))

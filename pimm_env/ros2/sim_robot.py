@@ -171,16 +171,18 @@ def run_sim_robot(
     env = IILabEnv(world=loaded, terminate_on_collision=False, sensors=sensors)
     with Domain(discovery) as domain:
         robot = RobotPublisher(env, domain, speed)
+        done: dict[str, Any] = {"scenario": scenario, "interrupted": False}
         try:
             if on_ready is not None:
                 on_ready(robot)
             if chosen is not None:
                 result = run(chosen, seed=seed, env=robot)
-                done = {"scenario": chosen.name, "completed": result.completed, "collided": result.collided}
+                done.update(completed=result.completed, collided=result.collided)
             else:
                 robot.reset(seed=seed)
                 follow_cmd_vel(robot, seconds)
-                done = {"scenario": None}
+        except KeyboardInterrupt:
+            done["interrupted"] = True
         finally:
             robot.close()
         return {**done, "steps": robot.steps, "sim_seconds": round(float(env.sim_time), 3)}
