@@ -57,6 +57,8 @@ def test_perception_and_bench_print_one_json_document(room_world):
     assert 0 < bench["pimm_perception_ms"] < bench["pimm_pipeline_ms"]
     ratio = bench["thesis_pointnet_ms"] / bench["pimm_perception_ms"]
     assert bench["thesis_pointnet_over_perception"] == pytest.approx(ratio)
+    # PIMM as a ROS 2 node beside sim-robot: a cloud's arrival to its pose's publication
+    assert 0 < bench["node_latency_ms"] <= bench["node_latency_p99_ms"] <= bench["node_latency_max_ms"]
 
 
 def test_a_missing_world_is_one_line_naming_it(tmp_path):

@@ -20,7 +20,7 @@ def _stop_on_sigterm() -> None:
     report printed and its DDS participant closed."""
     import signal
 
-    def interrupt(signum, frame):  # noqa: ARG001
+    def interrupt(signum, frame):
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGTERM, interrupt)

@@ -7,7 +7,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from pimm_agents.localizer import STATUSES, Localizer, PoseEstimate
+from pimm_agents.localizer import STATUSES, Localizer, PoseEstimate, published_covariance
 from pimm_agents.scoring.trial_log import TrialLog
 from pimm_env.errors import ExperimentError
 
@@ -33,7 +33,7 @@ class LocalizationRecorder(gym.Wrapper):
         #: observations passed over before the localizer started (a replay's known start waits for the first
         #: true pose): counted with what its guard set aside, as ``before_start``
         self.passed_over = 0
-        self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray, float, int]] = []
+        self._rows: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray, float, int, np.ndarray]] = []
         self._timings: list[dict[str, float]] = []
         self._kidnap_rows: list[int] = []  # the first row after each kidnap; metrics count from the last
         self._corners: list[np.ndarray] = []  # (k, 3): row, x, y
@@ -79,15 +79,18 @@ class LocalizationRecorder(gym.Wrapper):
             time = float(np.asarray(obs["time"]).reshape(-1)[0])
             true = np.asarray(info["true_pose"], float)
             status = STATUSES.index(estimate.status)
+            shown = published_covariance(estimate)
+            published = np.array([shown[0, 0], shown[1, 1], shown[2, 2], shown[0, 1]])
             self._rows.append(
-                (time, float(estimate.stamp), true, estimate.pose, np.diag(covariance), covariance[0, 1], status)
-            )
+                (time, float(estimate.stamp), true, estimate.pose, np.diag(covariance), covariance[0, 1], status,
+                 published)
+            )  # fmt: skip
 
     def trial_log(self) -> TrialLog:
         if not self._rows:
             empty = np.zeros((0, 3))
             return TrialLog(np.zeros(0), np.zeros(0), empty, empty, empty, None, [])
-        times, stamps, true, est, cov, cov_xy, status = zip(*self._rows, strict=True)
+        times, stamps, true, est, cov, cov_xy, status, published = zip(*self._rows, strict=True)
         return TrialLog(
             np.array(times),
             np.array(stamps),
@@ -101,6 +104,7 @@ class LocalizationRecorder(gym.Wrapper):
             np.array(status, dtype=np.int8),
             np.array(cov_xy),
             *guard_counts(self._last, self.passed_over),
+            np.array(published),
         )
 
 

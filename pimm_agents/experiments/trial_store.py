@@ -98,6 +98,7 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
             corners=log.corners,
             status=np.asarray(log.status, dtype=np.int8),
             cov_xy=np.asarray(log.cov_xy, dtype=float),
+            **({} if log.published is None else {"published": np.asarray(log.published, dtype=float)}),
         )
     os.replace(partial, target)
     return target
@@ -126,6 +127,7 @@ def load_trial(path: Path) -> TrialResult:
                 data["cov_xy"] if "cov_xy" in data.files else None,
                 {str(k): int(v) for k, v in meta.get("set_aside", {}).items()},
                 int(meta.get("rebased", 0)),
+                data["published"] if "published" in data.files else None,  # older files: none
             )
         spec = TrialSpec(**meta["spec"])
     except (OSError, KeyError, ValueError, TypeError) as error:

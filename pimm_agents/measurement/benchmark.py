@@ -90,7 +90,23 @@ def run_benchmarks(repeats: int = 30) -> dict[str, float]:
     figures["thesis_pointnet_over_segmentation"] = figures["thesis_pointnet_ms"] / figures["segmentation_ms"]
     figures["thesis_pointnet_over_perception"] = figures["thesis_pointnet_ms"] / figures["pimm_perception_ms"]
     figures.update(registration_benchmarks(repeats))
+    figures.update(node_benchmarks())
     return figures
+
+
+def node_benchmarks(seconds: float = 30.0) -> dict[str, float]:
+    """PIMM as a ROS 2 node beside ``sim-robot`` (area_a at real time, loopback): from a cloud's arrival to the
+    publication of the pose made with it (median, p99, max over ``seconds``), and the clouds it skipped."""
+    from pimm_agents.ros2.latency import node_latency
+
+    report = node_latency("pimm", "area_a", seconds)
+    latency = report["latency_ms"] or {"median": float("nan"), "p99": float("nan"), "max": float("nan")}
+    return {
+        "node_latency_ms": latency["median"],
+        "node_latency_p99_ms": latency["p99"],
+        "node_latency_max_ms": latency["max"],
+        "node_skipped_clouds": float(report["skipped_clouds"]),
+    }
 
 
 def thesis_pointnet_benchmark(repeats: int) -> float:

@@ -28,6 +28,8 @@ CSV_COLUMNS = (
     "cov_y",
     "cov_theta",
 )
+#: Beside them, where the log has it: the covariance a consumer without the status was shown (amcl_pose's).
+PUBLISHED_COLUMNS = ("pub_cov_x", "pub_cov_y", "pub_cov_theta")
 
 
 def read_csv(path: Path) -> TrialLog:
@@ -48,7 +50,8 @@ def _read_rows(path: Path) -> TrialLog:
         missing = [c for c in CSV_COLUMNS if c not in header]
         if missing:
             raise ResultsError(f"{path}: line 1: header lacks column(s) {missing}; expected {', '.join(CSV_COLUMNS)}")
-        index = [header.index(c) for c in CSV_COLUMNS]
+        columns = CSV_COLUMNS + (PUBLISHED_COLUMNS if all(c in header for c in PUBLISHED_COLUMNS) else ())
+        index = [header.index(c) for c in columns]
         rows = []
         for line_no, row in enumerate(reader, start=2):
             if not row or all(not cell.strip() for cell in row):
@@ -56,7 +59,7 @@ def _read_rows(path: Path) -> TrialLog:
             if len(row) != len(header):
                 raise ResultsError(f"{path}: line {line_no}: {len(row)} fields, the header has {len(header)}")
             values = []
-            for column, i in zip(CSV_COLUMNS, index, strict=True):
+            for column, i in zip(columns, index, strict=True):
                 try:
                     value = float(row[i])
                 except ValueError:
@@ -75,7 +78,10 @@ def _read_rows(path: Path) -> TrialLog:
             f"{path}: line {line}: timestamp_real goes back ({table[back[0] + 1, 0]} after {table[back[0], 0]}); "
             f"{len(back)} row(s) out of time order: sort the log by time first"
         )
-    return TrialLog(table[:, 0], table[:, 1], table[:, 2:5], table[:, 5:8], table[:, 8:11])
+    published = None
+    if table.shape[1] > len(CSV_COLUMNS):  # the published variances, with no x-y term in the file
+        published = np.column_stack([table[:, 11:14], np.zeros(len(table))])
+    return TrialLog(table[:, 0], table[:, 1], table[:, 2:5], table[:, 5:8], table[:, 8:11], published=published)
 
 
 def read_sidecar(csv_path: Path) -> dict[str, Any]:
@@ -117,11 +123,15 @@ def write_sidecar(path: Path, result: TrialResult) -> Path:
 
 
 def write_csv(log: TrialLog, path: Path) -> Path:
-    """Write ``log`` in the thesis's 11-column format (six decimals)."""
+    """Write ``log`` in the thesis's 11-column format (six decimals), and beside them the published variances
+    where the log has them (a reader of the thesis's columns finds them where they were)."""
     table = np.column_stack([log.time, log.estimate_time, log.true, log.estimate, log.cov])
+    header = CSV_COLUMNS
+    if log.published is not None and len(log.published) == len(table):
+        table, header = np.column_stack([table, np.asarray(log.published)[:, :3]]), CSV_COLUMNS + PUBLISHED_COLUMNS
     with Path(path).open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(CSV_COLUMNS)
+        writer.writerow(header)
         writer.writerows([[f"{v:.6f}" for v in row] for row in table])
     return Path(path)
 

@@ -23,10 +23,12 @@ def run_node(
     name: str = NODE_NAME,
     on_ready: Any = None,
     should_stop: Any = None,
+    domain: int | None = None,
 ) -> dict[str, Any]:
     """Run ``localizer`` for ``world`` as the node ``name`` (its parameters and the localizer's settings from the
     ``name`` section of the nav2 params file ``params``) for ``seconds`` of wall time (None: until Ctrl-C);
-    returns what the node did (``LocalizationNode.report``). ``on_ready(node)`` is called once it listens."""
+    returns what the node did (``LocalizationNode.report``). ``on_ready(node)`` is called once it listens;
+    ``domain`` is the ROS 2 domain (None: ``ROS_DOMAIN_ID``)."""
     from pimm_agents.factory import make_localizer
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.ros2.domain import Domain
@@ -48,8 +50,8 @@ def run_node(
                 )
             return make_localizer(localizer, loaded, params=settings, sensors=chosen)
 
-        with Domain(discovery) as domain:
-            node = LocalizationNode(make, lidar3d, lidar2d, domain, config, name, occupancy)
+        with Domain(discovery, domain) as dds:
+            node = LocalizationNode(make, lidar3d, lidar2d, dds, config, name, occupancy)
             if on_ready is not None:
                 on_ready(node)
             try:

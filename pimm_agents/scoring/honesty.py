@@ -22,6 +22,9 @@ RIGHT_ANGLE_DEG = 10.0
 KIDNAP_NOTICE_S = 2.0
 #: Mahalanobis distance of the 3-sigma ellipse (2-D position: 98.9 % of a consistent estimate's errors).
 SIGMAS = 3.0
+#: A row is *overconfident* when the position is more than ``RIGHT_POSITION_M`` off while the covariance shows a
+#: position sigma (its larger axis) under this (m): a consumer reading only the ellipse is misled.
+CONFIDENT_SIGMA_M = 0.5
 
 
 @dataclass(frozen=True)
@@ -36,6 +39,11 @@ class HonestyMetrics:
     nees: float | None  # mean normalized estimation error squared of the position there (2 when consistent)
     #: a log that starts at a kidnap: seconds until the status first left localized (inf: it never did)
     kidnap_noticed_s: float | None = None
+    rows: int = 0
+    #: rows more than ``RIGHT_POSITION_M`` off with a position sigma under ``CONFIDENT_SIGMA_M``: by the chosen
+    #: mode's covariance, and by the published one (None: the log has none)
+    overconfident_rows: int = 0
+    published_overconfident_rows: int | None = None
 
 
 def row_durations(time: np.ndarray) -> np.ndarray:
@@ -62,6 +70,13 @@ def position_nees(log: TrialLog) -> np.ndarray:
         d2 = (cyy * error[:, 0] ** 2 - 2 * cxy * error[:, 0] * error[:, 1] + cxx * error[:, 1] ** 2) / det
     exact = np.all(error == 0, axis=1)
     return np.where(det > 0, d2, np.where(exact, 0.0, np.inf))
+
+
+def overconfident(log: TrialLog, variances: np.ndarray, xy: np.ndarray) -> int:
+    """Rows more than ``RIGHT_POSITION_M`` off whose x-y covariance's larger axis is under ``CONFIDENT_SIGMA_M``."""
+    cxx, cyy = variances[:, 0], variances[:, 1]
+    larger = (cxx + cyy) / 2 + np.sqrt(((cxx - cyy) / 2) ** 2 + xy**2)
+    return int(np.count_nonzero((position_errors(log) > RIGHT_POSITION_M) & (larger < CONFIDENT_SIGMA_M**2)))
 
 
 def honesty_metrics(log: TrialLog, convergence_time_s: float | None, kidnapped: bool = False) -> HonestyMetrics:
@@ -100,4 +115,7 @@ def honesty_metrics(log: TrialLog, convergence_time_s: float | None, kidnapped: 
         within,
         nees,
         noticed,
+        len(log),
+        overconfident(log, log.cov, np.asarray(log.cov_xy, dtype=float)),
+        None if log.published is None else overconfident(log, log.published[:, :3], log.published[:, 3]),
     )

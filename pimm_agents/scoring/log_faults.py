@@ -62,7 +62,7 @@ def _rows(log: TrialLog, keep: np.ndarray) -> TrialLog:
     status, cov_xy = np.asarray(log.status)[keep], np.asarray(log.cov_xy)[keep]
     return TrialLog(log.time[keep], log.estimate_time[keep], log.true[keep], log.estimate[keep], log.cov[keep],
                     kidnap, timings, status=status, cov_xy=cov_xy, set_aside=log.set_aside,
-                    rebased=log.rebased)  # fmt: skip
+                    rebased=log.rebased, published=None if log.published is None else log.published[keep])  # fmt: skip
 
 
 def cleaned(log: TrialLog, drop_repeated: bool = False, drop_uninitialised: bool = False) -> TrialLog:

@@ -93,8 +93,8 @@ def _spread(rows: list[dict[str, Any]]) -> dict[str, dict[str, float] | None]:
 def honesty_summary(trials: list[HonestyMetrics]) -> dict[str, float | None]:
     """Over a scenario's trials: the median time to localized (of the trials that got there), the mean and
     longest false-localized time, the false-localized rate over all localized time, the share of trials with no
-    false-localized time at all, the mean 3-sigma share and the median NEES, and after kidnaps the longest time
-    to notice one."""
+    false-localized time at all, the mean 3-sigma share and the median NEES, after kidnaps the longest time to
+    notice one, and the share of rows whose covariance (chosen or published) was overconfident."""
 
     def finite(values: list[float | None]) -> list[float]:
         return [v for v in values if v is not None and np.isfinite(v)]
@@ -103,6 +103,8 @@ def honesty_summary(trials: list[HonestyMetrics]) -> dict[str, float | None]:
     localized = sum(t.localized_s for t in trials)
     within, nees = finite([t.within_3sigma for t in trials]), finite([t.nees for t in trials])
     noticed = [t.kidnap_noticed_s for t in trials if t.kidnap_noticed_s is not None]
+    rows = sum(t.rows for t in trials)
+    published = [t.published_overconfident_rows for t in trials]
     return {
         "time_to_localized_s": float(np.median(times)) if times else None,
         "false_localized_s": float(np.mean([t.false_localized_s for t in trials])) if trials else None,
@@ -112,4 +114,9 @@ def honesty_summary(trials: list[HonestyMetrics]) -> dict[str, float | None]:
         "within_3sigma": float(np.mean(within)) if within else None,
         "nees": float(np.median(nees)) if nees else None,
         "kidnap_noticed_s": max(noticed) if noticed else None,
+        # rows > 1 m off with a position sigma < 0.5 m, by the chosen mode's covariance and by the published one
+        "overconfident_share": sum(t.overconfident_rows for t in trials) / rows if rows else None,
+        "published_overconfident_share": (
+            sum(p for p in published if p is not None) / rows if rows and None not in published else None
+        ),
     }

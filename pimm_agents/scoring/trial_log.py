@@ -34,6 +34,9 @@ class TrialLog:
     #: odometry base (observation_guard.py): nothing it drops goes uncounted
     set_aside: dict[str, int] = field(default_factory=dict)
     rebased: int = 0
+    #: (N, 4): the covariance a consumer without the status was shown (``localizer.published_covariance``): x, y
+    #: and theta variances and the x-y covariance; None for logs made elsewhere
+    published: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.kidnap_index is not None and not self.kidnap_rows:
@@ -67,6 +70,7 @@ class TrialLog:
             (),
             None if self.status is None else self.status[start:],
             None if self.cov_xy is None else self.cov_xy[start:],
+            published=None if self.published is None else self.published[start:],
         )
 
     def until(self, seconds: float) -> TrialLog:
@@ -84,4 +88,5 @@ class TrialLog:
             (),
             None if self.status is None else self.status[:end],
             None if self.cov_xy is None else self.cov_xy[:end],
+            published=None if self.published is None else self.published[:end],
         )

@@ -158,9 +158,11 @@ def run_sim_robot(
     seconds: float | None = None,
     discovery: str = "localhost",
     on_ready: Any = None,
+    domain: int | None = None,
 ) -> dict[str, Any]:
     """Publish a simulated robot in ``world``: drive ``scenario`` (its waypoints, and its kidnap if it has one)
-    or, without one, follow ``/cmd_vel`` for ``seconds`` of sim time. Returns what was done."""
+    or, without one, follow ``/cmd_vel`` for ``seconds`` of sim time, in the ROS 2 ``domain`` (None:
+    ``ROS_DOMAIN_ID``). Returns what was done."""
     from pimm_env.driving.rollout import run
     from pimm_env.driving.scenarios import get_scenario
     from pimm_env.envs.iilab_env import IILabEnv
@@ -169,8 +171,8 @@ def run_sim_robot(
     loaded = load_world(world)
     chosen = get_scenario(scenario, loaded) if scenario else None
     env = IILabEnv(world=loaded, terminate_on_collision=False, sensors=sensors)
-    with Domain(discovery) as domain:
-        robot = RobotPublisher(env, domain, speed)
+    with Domain(discovery, domain) as dds:
+        robot = RobotPublisher(env, dds, speed)
         done: dict[str, Any] = {"scenario": scenario, "interrupted": False}
         try:
             if on_ready is not None:
