@@ -168,7 +168,7 @@ def test_the_node_agrees_with_a_replay_of_the_same_drive(ros_domain, tmp_path) -
             watcher = Watcher(domain)
             end = time.monotonic() + 150
             while robot.poll() is None and time.monotonic() < end:
-                for arrival, msg in watcher.subs["pose"].take():
+                for _, msg in watcher.subs["pose"].take():
                     stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
                     status = watcher.statuses[-1][1] if watcher.statuses else "lost"
                     poses.append((stamp, *planar_pose(msg)[:2], status == "localized"))

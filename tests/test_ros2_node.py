@@ -169,6 +169,29 @@ def test_initialpose_restarts_the_localizer_there(robot) -> None:
     assert np.diag(start_cov) == pytest.approx([0.25, 0.25, 0.07])
 
 
+def test_the_node_is_in_the_ros2_graph(robot) -> None:
+    """``ros2 node list`` reads ``ros_discovery_info``: the node's name and the GIDs of its readers and writers."""
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    from pimm_env.ros2.graph import DISCOVERY_TOPIC, ENTITIES_TYPE
+    from pimm_env.ros2.messages import dds_type, from_wire
+
+    node = robot[0]
+    participant = node.domain.participant
+    topic = Topic(participant, DISCOVERY_TOPIC, dds_type(ENTITIES_TYPE))
+    reader = DataReader(participant, topic, qos=qos.LATCHED.policies())
+    entries: list = []
+    until(lambda: entries.extend(from_wire(s, ENTITIES_TYPE) for s in reader.take(N=10)) or bool(entries))
+    (info,) = [e for e in entries if e.node_entities_info_seq[0].node_name == "pimm_localization"]
+    entry = info.node_entities_info_seq[0]
+    assert entry.node_namespace == "/"
+    writers = {bytes(g.data) for g in entry.writer_gid_seq}
+    assert node.pubs["pose"].gid[:16] in writers and len(writers) == len(node.pubs)
+    assert {bytes(g.data) for g in entry.reader_gid_seq} == {s.gid[:16] for s in node.subs.values()}
+    assert bytes(info.gid.data) == participant.guid.bytes[:16]
+
+
 def test_params_file_in_nav2_shape(tmp_path) -> None:
     path = tmp_path / "params.yaml"
     path.write_text(

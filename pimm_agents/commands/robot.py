@@ -24,6 +24,8 @@ def _stop_on_sigterm() -> None:
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGTERM, interrupt)
+
+
 DISCOVERY = typer.Option(
     "localhost", help="localhost (this computer only, loopback) or subnet (CYCLONEDDS_URI's, or Cyclone's defaults)"
 )

@@ -12,6 +12,7 @@ import hashlib
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -86,6 +87,7 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
     }
     partial = target.with_name(target.name + ".part")
     with partial.open("wb") as handle:
+        published: dict[str, Any] = {} if log.published is None else {"published": np.asarray(log.published, float)}
         np.savez_compressed(
             handle,
             meta=np.array(json.dumps(meta)),
@@ -98,7 +100,7 @@ def save_trial(folder: Path, result: TrialResult) -> Path:
             corners=log.corners,
             status=np.asarray(log.status, dtype=np.int8),
             cov_xy=np.asarray(log.cov_xy, dtype=float),
-            **({} if log.published is None else {"published": np.asarray(log.published, dtype=float)}),
+            **published,
         )
     os.replace(partial, target)
     return target

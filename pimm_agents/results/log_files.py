@@ -126,7 +126,7 @@ def write_csv(log: TrialLog, path: Path) -> Path:
     """Write ``log`` in the thesis's 11-column format (six decimals), and beside them the published variances
     where the log has them (a reader of the thesis's columns finds them where they were)."""
     table = np.column_stack([log.time, log.estimate_time, log.true, log.estimate, log.cov])
-    header = CSV_COLUMNS
+    header: tuple[str, ...] = CSV_COLUMNS
     if log.published is not None and len(log.published) == len(table):
         table, header = np.column_stack([table, np.asarray(log.published)[:, :3]]), CSV_COLUMNS + PUBLISHED_COLUMNS
     with Path(path).open("w", newline="") as handle:

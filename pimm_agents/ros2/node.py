@@ -130,7 +130,7 @@ class LocalizationNode:
         self._cloud_frame: str | None = None
         self._cloud_arrival: float | None = None
         self._static: dict[str, dict[str, float]] = {}  # the mounts on /tf_static, by child frame
-        self._reset_to: tuple[np.ndarray, np.ndarray] | None = None
+        self._reset_to: tuple[np.ndarray, np.ndarray | None] | None = None
         self.sim_time: float | None = None
         self.estimate: PoseEstimate | None = None
         if "map" in self.pubs:
@@ -219,7 +219,7 @@ class LocalizationNode:
         self._reset()
         return True
 
-    def _reset(self, to: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    def _reset(self, to: tuple[np.ndarray, np.ndarray | None] | None = None) -> None:
         c = self.config
         if to is None and c.set_initial_pose:
             p = c.initial_pose
@@ -308,8 +308,6 @@ class LocalizationNode:
     # -- outputs ----------------------------------------------------------------------------------------------
     def _publish(self, estimate: PoseEstimate, stamp: float, odom: np.ndarray) -> None:
         t, c = ros_types().types, self.config
-        out_stamp = self.sim_time if (c.use_sim_time and self.sim_time is not None) else stamp
-        out_stamp = max(out_stamp, stamp)
         pose = pose_message(estimate.x, estimate.y, estimate.theta)
         cov = published_covariance(estimate)
         self.pubs["pose"].publish(
@@ -365,7 +363,14 @@ class LocalizationNode:
             hardware_id=self.name,
             values=[t["diagnostic_msgs/msg/KeyValue"](key=k, value=str(v)) for k, v in values.items()],
         )
-        return t["diagnostic_msgs/msg/DiagnosticArray"](header=header(stamp, ""), status=[status])
+        return t["diagnostic_msgs/msg/DiagnosticArray"](header=header(self.now(), ""), status=[status])
+
+    def now(self) -> float:
+        """The node's clock, as ROS 2's ``now()``: ``/clock`` with ``use_sim_time`` (once heard), else the wall
+        clock. Poses and transforms are stamped with the sensors' stamps instead, as nav2 AMCL stamps them."""
+        if self.config.use_sim_time:
+            return self.sim_time if self.sim_time is not None else 0.0
+        return time.time()
 
     def _map_message(self) -> Any:
         t, grid = ros_types().types, self.occupancy.grid

@@ -45,9 +45,8 @@ def run_node(
             chosen = sensors
             if mount is not None:  # the mount the robot publishes, over the preset's
                 note = f"{sensors} with the LiDAR mount read from /tf_static"
-                chosen = str(
-                    write_sensors_file(Path(folder) / "sensors.yaml", replace(lidar3d, **mount), lidar2d, note)
-                )
+                mounted = replace(lidar3d, **mount)  # type: ignore[arg-type]
+                chosen = str(write_sensors_file(Path(folder) / "sensors.yaml", mounted, lidar2d, note))
             return make_localizer(localizer, loaded, params=settings, sensors=chosen)
 
         with Domain(discovery, domain) as dds:

@@ -30,7 +30,6 @@ class GraphEntry:
     """One node's entry in the ROS 2 graph, for a ``Domain`` whose endpoints it lists."""
 
     def __init__(self, domain: Domain, name: str, namespace: str = "/") -> None:
-        from cyclonedds.core import Policy, Qos
         from cyclonedds.pub import DataWriter
         from cyclonedds.topic import Topic
 
@@ -38,9 +37,7 @@ class GraphEntry:
             raise ValueError(f"node name {name!r}: ROS 2 names are letters, digits and _, not starting with a digit")
         self.domain, self.name, self.namespace = domain, name, namespace
         topic = Topic(domain.participant, DISCOVERY_TOPIC, dds_type(ENTITIES_TYPE))
-        qos = QosProfile(transient_local=True, depth=1).policies()
-        qos += Qos(Policy.DataRepresentation(use_cdrv0_representation=True))
-        self._writer = DataWriter(domain.participant, topic, qos=qos)
+        self._writer = DataWriter(domain.participant, topic, qos=QosProfile(transient_local=True, depth=1).policies())
 
     def announce(self, endpoints: list[Publisher | Subscription]) -> None:
         t = ros_types().types

@@ -72,14 +72,14 @@ def _member(node: tuple, nodetype: Any) -> Any:
     kind, spec = node
     if kind == nodetype.BASE:
         name, bound = spec
-        return types.bounded_str[bound] if name == "string" and bound else base[name]
+        return types.bounded_str[bound] if name == "string" and bound else base[name]  # type: ignore[misc]
     if kind == nodetype.NAME:
         return dds_type(spec)
     element, length = spec
     if kind == nodetype.ARRAY:
-        return types.array[_member(element, nodetype), length]
+        return types.array[_member(element, nodetype), length]  # type: ignore[misc]
     inner = _member(element, nodetype)
-    return types.sequence[inner, length] if length else types.sequence[inner]
+    return types.sequence[inner, length] if length else types.sequence[inner]  # type: ignore[misc]
 
 
 def to_wire(msg: Any, ros_type: str) -> Any:

@@ -144,8 +144,8 @@ def follow_cmd_vel(robot: RobotPublisher, seconds: float | None) -> int:
             command, heard = np.array([twist.linear.x, twist.angular.z], dtype=np.float32), time.monotonic()
         if time.monotonic() - heard > CMD_VEL_TIMEOUT:
             command = np.zeros(2, dtype=np.float32)
-        low, high = robot.action_space.low, robot.action_space.high
-        robot.step(np.clip(command, low, high))
+        space: Any = robot.action_space
+        robot.step(np.clip(command, space.low, space.high))
     return robot.steps
 
 
