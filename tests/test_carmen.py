@@ -26,7 +26,7 @@ def test_a_carmen_log_converts_to_a_bag_that_rosbags_reads_back(tmp_path):
     with gzip.open(log, "wt") as handle:
         handle.write(SNIPPET)
     counts = convert_carmen(log, tmp_path / "bag")
-    assert counts == {"odom": 4, "scan": 1, "truth": 1, "resets": 1}
+    assert counts == {"odom": 4, "scan": 1, "truth": 1, "resets": 1, "non_finite": 0, "kind": "corrected"}
     got: dict[str, list] = {}
     with AnyReader([tmp_path / "bag"], default_typestore=typestore()) as reader:
         for connection, received, raw in reader.messages():
@@ -77,3 +77,42 @@ def test_robot_laser_lines_give_their_own_angles_in_the_robots_frame(tmp_path):
     assert np.allclose(front.ranges, [1.0, np.inf, 2.0]) and np.allclose(rear.ranges, [4.0, 5.0, 6.0])
     # the truth is the robot's pose (the second line had 3 remissions before its poses)
     assert np.allclose([planar_pose(m) for m in got["/ground_truth"]], [[2.0, 3.0, 0.5], [1.2, 3.0, 0.5]])
+
+
+RAW = """ODOM 0 0 0 0 0 0 10.0 pippo 10.0
+FLASER 4 1.0 2.0 3.0 4.0 0.05 0 0 0 0 0 10.05 pippo 10.05
+ODOM 0.1 0 0 0 0 0 10.1 pippo 10.1
+FLASER 4 1.0 2.0 3.0 4.0 0.15 0 0 0.1 0 0 10.15 pippo 10.15
+ODOM 0.2 0 0 0 0 0 10.2 pippo 10.2
+ODOM nan 0 0 0 0 0 10.25 pippo 10.25
+ODOM 0.3 0 0 0 0 0 10.3 pippo 10.3
+"""
+
+
+def test_a_raw_log_keeps_every_odometry_line_and_sets_a_nan_aside(tmp_path):
+    log = tmp_path / "raw.log"
+    log.write_text(RAW)
+    counts = convert_carmen(log, tmp_path / "bag")
+    assert counts == {"odom": 4, "scan": 2, "truth": 2, "resets": 0, "non_finite": 1, "kind": "raw"}
+    with AnyReader([tmp_path / "bag"], default_typestore=typestore()) as reader:
+        odom = [
+            planar_pose(reader.deserialize(raw, c.msgtype)) for c, _, raw in reader.messages() if c.topic == "/odom"
+        ]
+    assert np.allclose(np.array(odom)[:, 0], [0.0, 0.1, 0.2, 0.3])  # every motion, none NaN
+
+
+def test_a_failed_conversion_leaves_nothing_and_a_bag_name_is_refused(tmp_path):
+    bad = tmp_path / "bad.log"
+    bad.write_text("ODOM 0 0 0 0 0 0 1.0 pippo 1.0\nFLASER 0 0 0 0 0 0 0 1.0 h 1.0\n")
+    with pytest.raises(BagError, match=r"bad.log:2: not a CARMEN FLASER line \(0 readings\)"):
+        convert_carmen(bad, tmp_path / "out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.log"]
+    good = tmp_path / "good.log"
+    good.write_text(RAW)
+    with pytest.raises(BagError, match=r"intel.bag: a name ending in .bag is read as a ROS 1 bag.*--out .*intel"):
+        convert_carmen(good, tmp_path / "intel.bag")
+    fake = tmp_path / "fake.log.gz"
+    fake.write_text(RAW)  # not gzip
+    with pytest.raises(BagError, match="fake.log.gz: not a readable CARMEN log"):
+        convert_carmen(fake, tmp_path / "out")
+    assert not (tmp_path / "out").exists() and not (tmp_path / "intel.bag").exists()

@@ -42,9 +42,11 @@ def convert_carmen(
     from pimm_env.bags import carmen
 
     counts = carmen.convert_carmen(log, out, max_range)
+    resets = f"{counts['resets']} odometry resets left out" if counts["kind"] == "corrected" else "no reset lines"
+    aside = f"; {counts['non_finite']} line(s) with a value not finite set aside" if counts["non_finite"] else ""
     typer.echo(
         f"wrote {out}: {counts['odom']} odometry, {counts['scan']} scans, {counts['truth']} true poses"
-        f" ({counts['resets']} odometry resets of the corrected log left out); then: python evaluate.py map"
+        f" (a {counts['kind']} log: {resets}{aside}); then: python evaluate.py map"
         f" --from-bag {out} --out MAP.yaml; python evaluate.py replay {out} --map MAP.yaml --localizers amcl"
     )
 

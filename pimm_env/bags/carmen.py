@@ -8,8 +8,10 @@ rest (PARAM, NEFF, RLASER, ...) is skipped. A log with FLASER lines takes its sc
 its ROBOTLASER1 lines. What is written:
 
 - ``/odom``: the wheel odometry as a chain of the relative motions between ODOM lines. In the benchmarks'
-  "corrected" logs the ODOM line after each FLASER resets the odometry to the corrected pose (its stamp is 0):
-  that line is not written and the step into it is left out of the chain;
+  "corrected" logs the ODOM line after each FLASER resets the odometry to the corrected pose (its stamps are 0
+  and its pose is the FLASER's): that line is not written and the step into it is left out of the chain. A raw
+  log has no such lines, and every ODOM line is a motion; the conversion says which kind it found;
+- a line with a value that is not finite (NaN, inf) is set aside and counted, never written;
 - ``/scan``: each FLASER's ranges, ``n`` beams over 180 deg from -90 deg (an odd ``n`` with both ends included,
   as 181 beams at 1 deg; an even one without the last, as 360 at 0.5 deg); readings at or beyond ``max_range``
   (the SICK's 81.9 m "no return") become +inf;
@@ -52,6 +54,8 @@ def _robot_laser(words: list[str]) -> CarmenLine:
     """One ROBOTLASER1 line (split), with or without remissions."""
     start, _, step, max_range = (float(w) for w in words[2:6])
     n = int(words[8])
+    if n < 1:
+        raise ValueError(f"{n} readings")
     ranges = np.array(words[9 : 9 + n], dtype=float)
     rest = words[9 + n :]
     if rest and rest[0].lstrip("-").isdigit():  # a count: the remissions come first
@@ -72,6 +76,13 @@ def read_carmen(path: Path) -> Iterator[CarmenLine]:
     if not path.is_file():
         raise MissingFileError(f"{path}: no such CARMEN log")
     opener = gzip.open if path.suffix == ".gz" else open
+    try:
+        yield from _lines(path, opener)
+    except (OSError, EOFError, UnicodeDecodeError) as error:  # a .gz that is not gzip, a truncated one, binary
+        raise BagError(f"{path}: not a readable CARMEN log ({error})") from None
+
+
+def _lines(path: Path, opener) -> Iterator[CarmenLine]:
     with opener(path, "rt") as handle:
         for number, line in enumerate(handle, start=1):
             words = line.split()
@@ -84,6 +95,8 @@ def read_carmen(path: Path) -> Iterator[CarmenLine]:
                     yield _robot_laser(words)
                 else:
                     n = int(words[1])
+                    if n < 1:
+                        raise ValueError(f"{n} readings")
                     ranges = np.array(words[2 : 2 + n], dtype=float)
                     pose = np.array(words[2 + n : 5 + n], dtype=float)
                     if len(ranges) != n or len(pose) != 3:
@@ -113,25 +126,63 @@ def robot_laser_layout(beams: int, angles: tuple[float, float, float]) -> Lidar2
     )
 
 
-def convert_carmen(log: Path, out: Path, max_range: float = 80.0) -> dict[str, int]:
-    """Write ``log`` as the rosbag2 folder ``out`` (which must not exist); returns how many messages of each
-    topic were written and how many odometry resets were left out."""
-    from rosbags.rosbag2 import Writer
+def finite(line: CarmenLine) -> bool:
+    """Its stamp and pose finite, and no range NaN (a range at or beyond the maximum is "no return", kept)."""
+    nan_range = line.ranges is not None and bool(np.isnan(line.ranges).any())
+    return bool(np.all(np.isfinite([line.stamp, *line.pose]))) and not nan_range
 
-    from pimm_env.sim.lidar import beam_bearings_2d
+
+def is_reset(line: CarmenLine, laser: CarmenLine | None) -> bool:
+    """An ODOM line that resets the odometry to the corrected pose of the laser line just before it (a
+    corrected log's): its stamp 0 or its pose the laser's."""
+    if laser is None or line.kind != "odom":
+        return False
+    return line.stamp == 0.0 or bool(np.allclose(line.pose, laser.pose, atol=1e-6))
+
+
+def convert_carmen(log: Path, out: Path, max_range: float = 80.0) -> dict[str, int | str]:
+    """Write ``log`` as the rosbag2 folder ``out`` (which must not exist; written under a temporary name and
+    moved into place when complete, so a failure leaves nothing); returns how many messages of each topic were
+    written, how many odometry resets were left out, how many lines were set aside (a value not finite) and
+    which kind of log it was (``corrected`` when it has reset lines, else ``raw``)."""
+    import shutil
 
     out = Path(out)
     if out.exists():
         raise BagError(f"{out} already exists: give a new folder")
+    if out.suffix == ".bag":
+        raise BagError(f"{out}: a name ending in .bag is read as a ROS 1 bag; convert writes a rosbag2 folder: "
+                       f"give --out {out.with_suffix('')}")  # fmt: skip
+    lines = list(read_carmen(log))  # the whole log read (and checked) before anything is written
+    partial = out.with_name(f".{out.name}.partial")  # the bag is written inside, under its own name
+    shutil.rmtree(partial, ignore_errors=True)
+    try:
+        partial.mkdir(parents=True)
+        counts = _write_bag(lines, partial / out.name, max_range)
+        (partial / out.name).rename(out)
+    finally:
+        shutil.rmtree(partial, ignore_errors=True)
+    return counts
+
+
+def _write_bag(lines: list[CarmenLine], out: Path, max_range: float) -> dict[str, int | str]:
+    from rosbags.rosbag2 import Writer
+
+    from pimm_env.sim.lidar import beam_bearings_2d
+
     store = typestore()
-    counts = {"odom": 0, "scan": 0, "truth": 0, "resets": 0}
+    counts: dict[str, int | str] = {"odom": 0, "scan": 0, "truth": 0, "resets": 0, "non_finite": 0}
     received = -1
     chain: np.ndarray | None = None  # the odometry written, and the raw ODOM pose it stands for
     last_raw: np.ndarray | None = None
-    after_laser = False
+    laser: CarmenLine | None = None  # the laser line just before, while no ODOM line has followed it
+    set_aside = [line for line in lines if not finite(line)]
+    lines = [line for line in lines if finite(line)]
+    counts["non_finite"] = len(set_aside)
     # the scans come from the FLASER lines where there are any, else from the ROBOTLASER1 lines
-    scans_from = "laser" if any(line.kind == "laser" for line in read_carmen(log)) else "robotlaser"
-    lines = read_carmen(log)
+    scans_from = "laser" if any(line.kind == "laser" for line in lines) else "robotlaser"
+    resets = sum(is_reset(b, a if a.kind == scans_from else None) for a, b in zip(lines, lines[1:]))
+    counts["kind"] = "corrected" if resets else "raw"
     with Writer(out, version=9) as writer:
         topics = {
             name: writer.add_connection(TOPICS[name], kind, typestore=store)
@@ -146,7 +197,7 @@ def convert_carmen(log: Path, out: Path, max_range: float = 80.0) -> dict[str, i
             nonlocal received
             received = max(round(stamp * 1e9), received + 1)
             writer.write(topics[name], received, store.serialize_cdr(msg, kind))
-            counts[name] += 1
+            counts[name] = int(counts[name]) + 1
 
         for line in lines:
             if line.kind in ("laser", "robotlaser"):
@@ -161,16 +212,16 @@ def convert_carmen(log: Path, out: Path, max_range: float = 80.0) -> dict[str, i
                 msg = laser_scan(store, line.stamp, ranges, beam_bearings_2d(lidar), lidar)
                 write("scan", line.stamp, msg, "sensor_msgs/msg/LaserScan")
                 write("truth", line.stamp, odometry(store, line.stamp, line.pose, "map"), "nav_msgs/msg/Odometry")
-                after_laser = True
+                laser = line
                 continue
             if chain is None or last_raw is None:
                 chain = line.pose.copy()
-            elif after_laser:  # the corrected log's reset line: not a motion
-                counts["resets"] += 1
-                last_raw, after_laser = line.pose, False
+            elif is_reset(line, laser):  # the corrected log's reset line: not a motion
+                counts["resets"] = int(counts["resets"]) + 1
+                last_raw, laser = line.pose, None
                 continue
             else:
                 chain = compose(chain, relative_motion(last_raw, line.pose))[0]
-            last_raw, after_laser = line.pose, False
+            last_raw, laser = line.pose, None
             write("odom", line.stamp, odometry(store, line.stamp, chain, "odom"), "nav_msgs/msg/Odometry")
     return counts
