@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import gzip
 from collections.abc import Iterator
+from itertools import pairwise
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -181,7 +182,7 @@ def _write_bag(lines: list[CarmenLine], out: Path, max_range: float) -> dict[str
     counts["non_finite"] = len(set_aside)
     # the scans come from the FLASER lines where there are any, else from the ROBOTLASER1 lines
     scans_from = "laser" if any(line.kind == "laser" for line in lines) else "robotlaser"
-    resets = sum(is_reset(b, a if a.kind == scans_from else None) for a, b in zip(lines, lines[1:]))
+    resets = sum(is_reset(b, a if a.kind == scans_from else None) for a, b in pairwise(lines))
     counts["kind"] = "corrected" if resets else "raw"
     with Writer(out, version=9) as writer:
         topics = {
