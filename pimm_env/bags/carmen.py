@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import gzip
 from collections.abc import Iterator
-from itertools import pairwise
 from dataclasses import dataclass
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
