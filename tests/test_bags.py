@@ -398,3 +398,37 @@ def test_a_bag_with_tf_truth_gives_true_poses(tmp_path):
     config = SimConfig()
     steps = list(read_steps(bag, BagTopics(points=None, truth="/tf"), config.lidar2d, config.lidar3d))
     assert np.allclose([s.true_pose for s in steps], [[1.0, 2.0, 0.0], [2.0, 2.0, 0.0], [3.0, 2.0, 0.0]])
+
+
+def test_a_message_with_a_nan_is_set_aside_counted_and_the_replay_goes_on(tmp_path):
+    def nan_at_12(i: int, pose: np.ndarray) -> np.ndarray:
+        return np.array([np.nan if i == 12 else 0.05 * i, 0.0, 0.0])
+
+    bag = drive_bag(tmp_path / "nan_odom", nan_at_12)
+    spec = TrialSpec("nan", "amcl", 0, 0, "iilab", AMCL)
+    (result,), _ = replay_bag(bag, [spec], map_path=Path("maps/iilab/occupancy.yaml"))
+    assert result.log.set_aside == {"non_finite_odometry": 1}
+    assert len(result.log) == 29 and np.all(np.isfinite(result.log.estimate))  # every other step replayed
+
+
+def test_what_is_not_a_bag_is_one_clear_error(tmp_path):
+    from pimm_env.bags.read import bag_topics
+
+    folder = tmp_path / "no_metadata"
+    folder.mkdir()
+    (folder / "x.db3").write_bytes(b"not sqlite")
+    garbage = tmp_path / "garbage.bag"
+    garbage.write_bytes(b"\x00\x01 this is no ROS 1 bag" * 10)
+    named = tmp_path / "intel.bag"
+    named.mkdir()
+    (named / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    for path, said in ((folder, "holds a metadata.yaml"), (garbage, "not a readable bag"), (named, "rename it to")):
+        with pytest.raises(BagError, match=said) as raised:
+            bag_topics(path)
+        assert str(path) in str(raised.value)
+    bag = drive_bag(tmp_path / "truncated", lambda i, pose: pose)
+    db3 = next(bag.glob("*.db3"))
+    db3.write_bytes(db3.read_bytes()[:2000])  # cut short
+    config = SimConfig()
+    with pytest.raises(BagError, match="truncated.*not a readable bag"):
+        list(read_steps(bag, BagTopics(), config.lidar2d, config.lidar3d))

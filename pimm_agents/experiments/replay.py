@@ -22,7 +22,8 @@ def replay_bag(
     """Every spec's localizer (built for ``spec.world``, or from ``map_path`` alone) on the bag, each reset
     with its spec's seed; returns the results and whether the bag had ground truth (without it the logs'
     truth is NaN and the metrics mean nothing). Rows without a true pose (before the bag's first, or while its
-    truth topic was silent) are left out of the scoring and counted in ``set_aside`` as ``no_truth_rows``."""
+    truth topic was silent) are left out of the scoring and counted in ``set_aside`` as ``no_truth_rows``; the
+    messages the reader set aside (``non_finite_odometry``, ``non_finite_truth``) are counted there too."""
     from pimm_agents.experiments.recorder import LocalizationRecorder
     from pimm_agents.factory import make_localizer
     from pimm_env.bags.read import BagTopics, read_steps
@@ -42,7 +43,9 @@ def replay_bag(
         else make_localizer(s.localizer, s.world, params=s.params, sensors=s.sensors)
         for s in specs
     ]
-    bag_env = BagEnv(read_steps(Path(bag), topics or BagTopics(), config.lidar2d, config.lidar3d), config)
+    read_aside: dict[str, int] = {}  # messages the reader set aside (a value not finite), by kind
+    steps = read_steps(Path(bag), topics or BagTopics(), config.lidar2d, config.lidar3d, read_aside)
+    bag_env = BagEnv(steps, config)
     env: Any = bag_env
     recorders = []
     for spec, localizer in zip(specs, localizers, strict=True):
@@ -65,6 +68,8 @@ def replay_bag(
     results = []
     for spec, recorder in zip(specs, recorders, strict=True):
         log = recorder.trial_log()
+        for kind, count in read_aside.items():  # counted with what each localizer's guard set aside
+            log.set_aside[kind] = log.set_aside.get(kind, 0) + count
         if bag_env.has_truth:  # scored on the rows with a true pose; the others are counted, not dropped whole
             log, untrue = with_truth(log)
             if untrue:

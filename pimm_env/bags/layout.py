@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from pimm_env.bags.messages import cloud_points, expect_type, field_of, point_rows, stamp_seconds, typestore
+from pimm_env.bags.bag_file import open_bag
+from pimm_env.bags.messages import cloud_points, expect_type, field_of, point_rows, stamp_seconds
 from pimm_env.errors import BagError
 from pimm_env.sim.lidar import Lidar2DConfig, Lidar3DConfig, elevations_3d
 
@@ -156,9 +157,7 @@ def _ring_layout(medians: np.ndarray, columns: int, returned: np.ndarray, where:
 
 def layouts_from_bag(path: Path, scan_topic: str | None, points_topic: str | None) -> tuple[Any, Any]:
     """(Lidar3DConfig or None, Lidar2DConfig or None) from the first messages on those topics."""
-    from rosbags.highlevel import AnyReader
-
-    with AnyReader([Path(path)], default_typestore=typestore()) as reader:
+    with open_bag(Path(path)) as reader:
         have = {c.topic: c for c in reader.connections}
         lidar2d = lidar3d = None
         if scan_topic in have:

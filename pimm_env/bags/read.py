@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from pimm_env.bags.bag_file import open_bag
 from pimm_env.bags.layout import organize
 from pimm_env.bags.messages import (
     KIDNAP,
@@ -30,10 +31,8 @@ from pimm_env.bags.messages import (
     planar_pose,
     scan_ranges,
     stamp_seconds,
-    typestore,
 )
 from pimm_env.bags.tf_truth import TfTruth
-from pimm_env.errors import MissingFileError
 
 
 @dataclass(frozen=True)
@@ -66,20 +65,19 @@ class Step:
 
 def bag_topics(path: Path) -> dict[str, str]:
     """Topic -> message type of every connection in the bag at ``path``."""
-    from rosbags.highlevel import AnyReader
-
-    with AnyReader([Path(path)], default_typestore=typestore()) as reader:
+    with open_bag(path) as reader:
         return {c.topic: c.msgtype for c in reader.connections}
 
 
-def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step]:
-    """The bag's observations, one per odometry message, laid out as the env with these LiDARs gives them."""
-    from rosbags.highlevel import AnyReader
-
+def read_steps(
+    path: Path, topics: BagTopics, lidar2d, lidar3d, set_aside: dict[str, int] | None = None
+) -> Iterator[Step]:
+    """The bag's observations, one per odometry message, laid out as the env with these LiDARs gives them. A
+    message with a value that is not finite (an odometry or true pose, a stamp) is set aside and counted in
+    ``set_aside`` by kind (``non_finite_odometry``, ``non_finite_truth``), and the replay goes on."""
     path = Path(path)
-    if not path.exists():
-        raise MissingFileError(f"{path}: no such bag")
-    with AnyReader([path], default_typestore=typestore()) as reader:
+    aside = set_aside if set_aside is not None else {}
+    with open_bag(path) as reader:
         have = {c.topic: c for c in reader.connections}
         wanted = {t for t in (topics.odom, topics.scan, topics.points, topics.truth, topics.events) if t}
         if topics.odom not in have:
@@ -107,9 +105,12 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
             elif topic == topics.truth:
                 if connection.msgtype.endswith("TFMessage"):  # /tf: the base in the map, when a message says it
                     pose = tf_truth.update(msg, where)
-                    truth = truth if pose is None else pose
                 else:
-                    truth = planar_pose(msg, where)
+                    pose = planar_pose(msg, where)
+                if pose is not None and not np.all(np.isfinite(pose)):
+                    aside["non_finite_truth"] = aside.get("non_finite_truth", 0) + 1
+                    pose = None
+                truth = truth if pose is None else pose
             elif topic == topics.scan:
                 scan = scan_ranges(msg, lidar2d.beams, lidar2d.max_range, where)
                 scan_time, fresh_scan = received * 1e-9 if by_receipt else stamp_seconds(msg), True
@@ -120,8 +121,12 @@ def read_steps(path: Path, topics: BagTopics, lidar2d, lidar3d) -> Iterator[Step
                 # a header stamp that goes back is served as it is: the localizers' guard sets that observation
                 # aside and counts it (the bag's receive order is the order)
                 t = received * 1e-9 if by_receipt else stamp_seconds(msg)
+                odom = planar_pose(msg, where)
+                if not (np.all(np.isfinite(odom)) and np.isfinite(t)):  # set aside: the next one closes the step
+                    aside["non_finite_odometry"] = aside.get("non_finite_odometry", 0) + 1
+                    continue
                 obs = {
-                    "odom": planar_pose(msg, where).astype(np.float32),
+                    "odom": odom.astype(np.float32),
                     "cloud": cloud.copy(),
                     "cloud_mask": mask.copy(),
                     "scan": scan.copy(),
