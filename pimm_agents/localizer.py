@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from collections.abc import Mapping
 from typing import Protocol
 
 import numpy as np
@@ -104,9 +105,14 @@ def particle_sample(particles: np.ndarray, max_particles: int) -> np.ndarray:
 
 def require(obs: Observation, key: str, shape: tuple[int, ...] | None = None) -> np.ndarray:
     """``obs[key]`` as a float array, with a clear error if it is missing or has the wrong shape."""
+    if not isinstance(obs, Mapping):
+        raise ObservationError(f"an observation is a dict of arrays (the env's), got {type(obs).__name__}")
     if key not in obs:
         raise ObservationError(f"observation has no {key!r} (keys: {sorted(obs)})")
-    value = np.asarray(obs[key], dtype=float)
+    try:
+        value = np.asarray(obs[key], dtype=float)
+    except (TypeError, ValueError):
+        raise ObservationError(f"observation {key!r} is not an array of numbers: {type(obs[key]).__name__}") from None
     if shape is not None and value.shape != shape:
         raise ObservationError(f"observation {key!r} has shape {value.shape}, expected {shape}")
     return value

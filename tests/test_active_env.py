@@ -103,8 +103,12 @@ def test_the_env_passes_both_checkers_and_repeats_per_seed():
         runs.append(trace)
     for a, b in zip(*runs, strict=True):
         np.testing.assert_array_equal(a, b)
-    with pytest.raises(EnvError, match="action must be one of 0..2"):
-        env.step(5)
+    for bad in (5, 1.7, -1, "1"):  # 1.7 is not primitive 1; a string is no action
+        with pytest.raises(EnvError, match=r"action .*: must be one of 0..2"):
+            env.step(bad)
+    env.step(np.int64(1))  # whole numbers of any type are actions
+    with pytest.raises(EnvError, match="reset option 'kidnap' is True or False, got 'false'"):
+        env.reset(options={"kidnap": "false"})
     env.close()
 
 

@@ -123,6 +123,22 @@ def test_bad_maps_are_named(tmp_path):
         import_world(source, "x", tmp_path / "maps")
 
 
+@pytest.mark.parametrize("name", ["../x", "", ".", "a/b", "-x", "x" * 101])
+def test_a_name_that_is_not_one_folder_under_maps_is_refused_before_anything_is_written(tmp_path, name):
+    source, _ = write_map(tmp_path / "src", 0.0)
+    with pytest.raises(MapFileError, match="a world's name is one folder under maps/"):
+        import_world(source, name, tmp_path / "maps")
+    assert not (tmp_path / "maps").exists() and not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("height", [float("nan"), float("inf"), -1.0, 0.0])
+def test_a_ceiling_height_that_is_not_a_positive_number_is_refused(tmp_path, height):
+    source, _ = write_map(tmp_path / "src", 0.0)
+    with pytest.raises(MapFileError, match="--ceiling-height: expected a positive height"):
+        import_world(source, "x", tmp_path / "maps", ceiling_height=height)
+    assert not (tmp_path / "maps" / "x").exists()
+
+
 def _box_mesh(lo, hi):
     import trimesh
 

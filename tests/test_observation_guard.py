@@ -78,3 +78,18 @@ def test_odometry_logged_in_bursts_is_taken(monkeypatch):
     monkeypatch.setattr(observation_guard, "STAMP_JITTER_S", 0.0)  # no allowance: the bursts are too fast
     tight = ObservationGuard()
     assert sum(tight.take(_obs(t, [0.1 * k, 0.0, 0.0])) is None for k, t in enumerate(stamps)) > 0
+
+
+@pytest.mark.parametrize(
+    "obs,said",
+    [
+        (None, "a dict of arrays.*NoneType"),
+        ([1, 2, 3], "a dict of arrays.*list"),
+        ({"odom": "east"}, "'odom' is not an array of numbers: str"),
+    ],  # fmt: skip
+)
+def test_what_is_not_an_observation_is_an_observation_error_naming_it(obs, said):
+    from pimm_agents.localizer import require
+
+    with pytest.raises(ObservationError, match=said):
+        require(obs, "odom", (3,))

@@ -253,7 +253,9 @@ class ActiveLocalizationEnv(gym.Env):
             raise EnvError(f"unknown reset option(s) {sorted(unknown)}; valid: ['kidnap', 'pose']")
         sim_seed = int(self.np_random.integers(2**31))
         obs, info = self.sim.reset(seed=sim_seed, options={"pose": options["pose"]} if "pose" in options else None)
-        kidnap = bool(options.get("kidnap", self.config.kidnap))
+        kidnap = options.get("kidnap", self.config.kidnap)
+        if not isinstance(kidnap, (bool, np.bool_)):  # "false" is a truthy string: refused, not taken as yes
+            raise EnvError(f"reset option 'kidnap' is True or False, got {kidnap!r}")
         if kidnap:  # the localizer holds the start pose, then the robot is carried elsewhere
             self.localizer.reset(seed=sim_seed, initial_pose=np.asarray(info["true_pose"], dtype=float))
             for _ in range(max(1, round(self.config.hold_s / self.sim.config.robot.control_dt))):
@@ -275,9 +277,13 @@ class ActiveLocalizationEnv(gym.Env):
         return self._observation(np.zeros(3)), self._info(info)
 
     def step(self, action: Any):
-        if not self.action_space.contains(int(np.asarray(action).item()) if np.size(action) == 1 else action):
-            raise EnvError(f"action must be one of 0..{len(PRIMITIVES) - 1} ({', '.join(p.name for p in PRIMITIVES)})")
-        self._last_action = int(np.asarray(action).item())
+        value = np.asarray(action).item() if np.size(action) == 1 else None
+        whole = isinstance(value, (int, np.integer)) or (isinstance(value, float) and value.is_integer())
+        if not whole or not self.action_space.contains(int(value)):  # 1.7 is no primitive, not primitive 1
+            raise EnvError(
+                f"action {action!r}: must be one of 0..{len(PRIMITIVES) - 1} ({', '.join(p.name for p in PRIMITIVES)})"
+            )
+        self._last_action = int(value)
         primitive = PRIMITIVES[self._last_action]
         c, dt = self.config, self.sim.config.robot.control_dt
         odom_start = np.asarray(self._obs["odom"], dtype=float).copy()

@@ -9,6 +9,8 @@ closed doors) are classed wall (:mod:`pimm_env.importers.wall_line`), and the im
 
 from __future__ import annotations
 
+import math
+import re
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
@@ -37,6 +39,19 @@ DEFAULT_MESH_RULES = [
 PLAN_CEILING_HEIGHT = 3.0
 
 
+#: A world's name: a folder under maps/ of its own (letters, digits, _ . -; not starting with . or -).
+WORLD_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}")
+
+
+def check_world_name(name: str) -> None:
+    """A ``MapFileError`` unless ``name`` makes one folder under maps/ (no path, no ``..``, not empty)."""
+    if not WORLD_NAME.fullmatch(name or ""):
+        raise MapFileError(
+            f"--name {name!r}: a world's name is one folder under maps/: letters, digits, _ . - (not starting "
+            "with . or -), at most 100 characters"
+        )
+
+
 def import_world(
     source: Path,
     name: str,
@@ -57,9 +72,10 @@ def import_world(
     high above the floor (none is added when not given). ``rules`` are added after the defaults and win. With
     ``wall_line``, a mesh's objects standing in a wall's line are classed wall (:mod:`wall_line`)."""
     source = Path(source)
+    check_world_name(name)
     if not source.is_file():
         raise MapFileError(f"{source}: no such file")
-    if ceiling_height is not None and ceiling_height <= 0:
+    if ceiling_height is not None and not (math.isfinite(ceiling_height) and ceiling_height > 0):
         raise MapFileError(f"--ceiling-height: expected a positive height (m), got {ceiling_height}")
     folder = Path(maps_dir) / name
     existed = folder.exists()
