@@ -86,7 +86,7 @@ def test_odometry_logged_in_bursts_is_taken(monkeypatch):
         (None, "a dict of arrays.*NoneType"),
         ([1, 2, 3], "a dict of arrays.*list"),
         ({"odom": "east"}, "'odom' is not an array of numbers: str"),
-    ],  # fmt: skip
+    ],
 )
 def test_what_is_not_an_observation_is_an_observation_error_naming_it(obs, said):
     from pimm_agents.localizer import require

@@ -277,7 +277,7 @@ class ActiveLocalizationEnv(gym.Env):
         return self._observation(np.zeros(3)), self._info(info)
 
     def step(self, action: Any):
-        value = np.asarray(action).item() if np.size(action) == 1 else None
+        value: Any = np.asarray(action).item() if np.size(action) == 1 else None
         whole = isinstance(value, (int, np.integer)) or (isinstance(value, float) and value.is_integer())
         if not whole or not self.action_space.contains(int(value)):  # 1.7 is no primitive, not primitive 1
             raise EnvError(
