@@ -121,6 +121,10 @@ def require(obs: Observation, key: str, shape: tuple[int, ...] | None = None) ->
 #: The least standard deviation a published covariance carries (m, m, rad): a pose is never certain to the
 #: millimetre, and a zero covariance tells a consumer exactly that (nav2's consumers divide by it).
 PUBLISHED_FLOOR = np.array([0.01, 0.01, 0.005])
+#: ... and while the status is not ``localized``: a localizer that does not say it is localized does not claim
+#: its pose right (within 1 m and 10 deg, the metrics' rightness, scoring/honesty.py), so its ellipse is never
+#: smaller than that, even when its particles have collapsed onto one place it still doubts.
+UNSURE_FLOOR = np.array([1.0, 1.0, np.radians(10.0)])
 
 
 def published_covariance(estimate: PoseEstimate) -> np.ndarray:
@@ -128,8 +132,9 @@ def published_covariance(estimate: PoseEstimate) -> np.ndarray:
 
     While ``localized``: the chosen mode's own, floored at ``PUBLISHED_FLOOR``. Otherwise it must cover every live
     place: the larger (by trace) of the covariance of the mixture of ``hypotheses`` and the spread of the shown
-    ``particles``, both about the published pose, so that a reader of the ellipse alone is never shown a small one
-    around a place the localizer itself doubts. Angles are wrapped before they are squared.
+    ``particles``, both about the published pose, floored at ``UNSURE_FLOOR``, so that a reader of the ellipse
+    alone is never shown a small one around a place the localizer itself doubts. Angles are wrapped before they
+    are squared.
     """
     from pimm_env.geometry import wrap_angle
 
@@ -156,4 +161,4 @@ def published_covariance(estimate: PoseEstimate) -> np.ndarray:
         candidates.append(d.T @ d / len(d))
     widest = max(candidates, key=lambda c: float(np.trace(c[:2, :2])))
     widest = (widest + widest.T) / 2
-    return widest + np.diag(np.maximum(np.diag(floor) - np.diag(widest), 0.0))
+    return widest + np.diag(np.maximum(UNSURE_FLOOR**2 - np.diag(widest), 0.0))

@@ -202,3 +202,15 @@ def test_a_100_m_odometry_glitch_and_a_nan_leave_the_estimate_where_it_was():
         amcl.update({**obs, "odom": np.array([np.nan, 0.0, 0.0], np.float32), "time": np.array([0.064])})
     after = amcl.update({**obs, "time": np.array([0.096])})
     assert np.allclose(after.pose, before) and np.all(np.isfinite(after.covariance))
+
+
+def test_a_single_particle_cluster_is_not_certainty():
+    """nav2 reports the heaviest cluster's covariance; one of one particle is zero: reported with a floor."""
+    from pimm_agents.factory import make_localizer
+    from pimm_agents.localizer import PUBLISHED_FLOOR
+
+    amcl = make_localizer("amcl")
+    amcl.reset(seed=0, initial_pose=np.array([-10.0, 4.2, 0.0]), initial_cov=np.zeros((3, 3)))
+    amcl.particles[:] = amcl.particles[0]  # every particle on one pose: a degenerate cluster
+    _, covariance, _, _ = amcl._read_clusters(update=True)
+    assert np.all(np.diag(covariance) >= PUBLISHED_FLOOR**2 - 1e-15)

@@ -4,7 +4,7 @@ every live place otherwise, never zero."""
 import numpy as np
 import pytest
 
-from pimm_agents.localizer import PUBLISHED_FLOOR, Hypothesis, PoseEstimate, published_covariance
+from pimm_agents.localizer import PUBLISHED_FLOOR, UNSURE_FLOOR, Hypothesis, PoseEstimate, published_covariance
 from pimm_agents.scoring.honesty import honesty_metrics
 from pimm_agents.scoring.trial_log import TrialLog
 
@@ -27,8 +27,14 @@ def test_ambiguous_covers_the_twin() -> None:
     twin = Hypothesis(2.0, 9.0, 0.1 + 2 * np.pi - 0.2, 0.3, TIGHT)  # 6 m north, its heading wrapped
     cov = published_covariance(estimate("ambiguous", (here, twin)))
     assert cov[1, 1] == pytest.approx(0.3 * 36 + 0.0004)  # the mixture about the published pose
-    assert cov[2, 2] == pytest.approx(0.3 * 0.2**2 + 0.0001)  # not (2 pi - 0.2)^2
+    assert cov[2, 2] == pytest.approx(UNSURE_FLOOR[2] ** 2)  # 0.3 * 0.2^2 (not (2 pi - 0.2)^2), under 10 deg
     assert np.all(np.linalg.eigvalsh(cov) > 0)
+
+
+def test_a_doubted_place_is_never_shown_a_small_ellipse() -> None:
+    """Particles collapsed onto one place the localizer does not yet call localized: at least 1 m, 10 deg."""
+    cov = published_covariance(estimate("ambiguous", (Hypothesis(2.0, 3.0, 0.1, 1.0, TIGHT),), np.tile([2.0, 3.0, 0.1], (50, 1))))
+    assert np.all(np.sqrt(np.diag(cov)) >= UNSURE_FLOOR - 1e-12)
 
 
 def test_lost_covers_the_particles_when_they_spread_wider() -> None:

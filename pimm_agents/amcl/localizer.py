@@ -13,7 +13,15 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from pimm_agents.localizer import INSIDE_PARTICLES, Hypothesis, Observation, PoseEstimate, particle_sample, require
+from pimm_agents.localizer import (
+    INSIDE_PARTICLES,
+    PUBLISHED_FLOOR,
+    Hypothesis,
+    Observation,
+    PoseEstimate,
+    particle_sample,
+    require,
+)
 from pimm_agents.observation_guard import GuardConfig, ObservationGuard
 from pimm_agents.particles.beam_model import BeamModel, BeamModelParams
 from pimm_agents.particles.belief import BeliefConfig, Confirmation, belief_status, hypotheses_of, read_belief
@@ -317,7 +325,10 @@ class Amcl:
             status = self.confirmation(status, bool(moved))
         else:
             status = "lost"  # no scan weighed yet
-        return best.mean, best.covariance, status, hypotheses_of(belief, self.config.belief.hypotheses)
+        # nav2 reports the heaviest cluster's covariance; one of a single particle is zero, which is not certainty
+        floor = np.diag(PUBLISHED_FLOOR**2)
+        covariance = best.covariance + np.diag(np.maximum(np.diag(floor) - np.diag(best.covariance), 0.0))
+        return best.mean, covariance, status, hypotheses_of(belief, self.config.belief.hypotheses)
 
     def _report(self, odom: np.ndarray, stamp: float, timings: dict[str, float]) -> PoseEstimate:
         """The last filter pose carried forward by the odometry since that update."""
