@@ -105,7 +105,7 @@ def test_bad_files_are_named_with_what_is_wrong(tmp_path, points):
     assert len(dropped.points) == 2 and dropped.left_out == 1 and dropped.rows.tolist() == [0, 2]
     with pytest.raises(CloudFileError, match=r"empty.pcd: the cloud has no points"):
         read_cloud(_ascii_pcd(tmp_path / "empty.pcd", []))
-    with pytest.raises(CloudFileError, match=r"rows.pcd: 1 data rows, the header says POINTS 2"):
+    with pytest.raises(CloudFileError, match=r"rows.pcd: 6 bytes of ASCII data cannot hold POINTS 2 x 3 values \(cut short"):
         path = _ascii_pcd(tmp_path / "rows.pcd", [[1, 2, 3], [4, 5, 6]])
         path.write_text(path.read_text().rsplit("\n", 2)[0] + "\n")
         read_cloud(path)
@@ -134,3 +134,23 @@ def test_lzf_back_references_that_overlap_repeat_what_was_just_written():
     assert lzf_decompress(packed, 8) == b"abababab"
     with pytest.raises(CloudFileError, match="damaged"):
         lzf_decompress(packed[:-1], 8)
+
+
+def test_a_header_that_promises_more_than_the_file_holds_is_refused_before_allocating(tmp_path):
+    """A 300-byte file must not ask for gigabytes: the sizes are checked against the file first."""
+    import struct
+
+    head = (
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\nPOINTS {n}\nDATA {kind}\n"
+    )
+    points = 300_000_000  # 3.6 GB of rows
+    bomb = tmp_path / "bomb.pcd"
+    bomb.write_bytes(
+        head.format(n=points, kind="binary_compressed").encode() + struct.pack("<II", 4, points * 12) + b"\0" * 4
+    )
+    with pytest.raises(CloudFileError, match=r"bomb.pcd: 4 compressed bytes cannot unpack to the 3600000000"):
+        read_cloud(bomb)
+    text = tmp_path / "text.pcd"
+    text.write_bytes(head.format(n=points, kind="ascii").encode() + b"1 2 3\n")
+    with pytest.raises(CloudFileError, match=r"text.pcd: 6 bytes of ASCII data cannot hold POINTS 300000000 x 3"):
+        read_cloud(text)

@@ -126,10 +126,15 @@ def _integer(path: Path, key: str, text: str) -> int:
 
 
 def _ascii_rows(path: Path, header: PcdHeader, data: bytes) -> np.ndarray:
+    columns = sum(header.counts)
+    if header.points * columns * 2 > len(data):  # every value takes a digit and a separator: checked before
+        raise CloudFileError(  # anything is allocated
+            f"{path}: {len(data)} bytes of ASCII data cannot hold POINTS {header.points} x {columns} values "
+            "(cut short, or a damaged header)"
+        )
     lines = [line for line in data.decode("ascii", errors="replace").splitlines() if line.strip()]
     if len(lines) != header.points:
         raise CloudFileError(f"{path}: {len(lines)} data rows, the header says POINTS {header.points} (cut short?)")
-    columns = sum(header.counts)
     values = np.empty((len(lines), columns))
     for i, line in enumerate(lines):
         parts = line.split()
@@ -174,6 +179,11 @@ def _compressed_rows(path: Path, header: PcdHeader, data: bytes) -> np.ndarray:
         raise CloudFileError(
             f"{path}: {len(data) - 8} bytes of compressed data, its size word says {packed} (cut short)"
         )
+    if size > LZF_MAX_RATIO * packed + LZF_MAX_RATIO:  # before anything is allocated
+        raise CloudFileError(
+            f"{path}: {packed} compressed bytes cannot unpack to the {size} its size word says (LZF unpacks at most "
+            f"{LZF_MAX_RATIO} times); the data is damaged"
+        )
     raw = lzf_decompress(data[8 : 8 + packed], size, path)
     rows = np.empty(header.points, dtype=dtype)
     offset = 0
@@ -183,6 +193,10 @@ def _compressed_rows(path: Path, header: PcdHeader, data: bytes) -> np.ndarray:
         rows[name] = np.frombuffer(raw[offset : offset + nbytes], dtype=field.base).reshape(rows[name].shape)
         offset += nbytes
     return rows
+
+
+#: The most LZF can expand: a 3-byte back-reference writes at most 264 bytes (liblzf's format).
+LZF_MAX_RATIO = 88
 
 
 def lzf_decompress(packed: bytes, size: int, path: Path | str = "data") -> bytes:
