@@ -105,7 +105,7 @@ def test_bad_files_are_named_with_what_is_wrong(tmp_path, points):
     assert len(dropped.points) == 2 and dropped.left_out == 1 and dropped.rows.tolist() == [0, 2]
     with pytest.raises(CloudFileError, match=r"empty.pcd: the cloud has no points"):
         read_cloud(_ascii_pcd(tmp_path / "empty.pcd", []))
-    with pytest.raises(CloudFileError, match=r"rows.pcd: 6 bytes of ASCII data cannot hold POINTS 2 x 3 values \(cut short"):
+    with pytest.raises(CloudFileError, match=r"rows.pcd: 6 bytes of ASCII data cannot hold POINTS 2 x 3 values"):
         path = _ascii_pcd(tmp_path / "rows.pcd", [[1, 2, 3], [4, 5, 6]])
         path.write_text(path.read_text().rsplit("\n", 2)[0] + "\n")
         read_cloud(path)

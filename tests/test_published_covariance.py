@@ -33,7 +33,8 @@ def test_ambiguous_covers_the_twin() -> None:
 
 def test_a_doubted_place_is_never_shown_a_small_ellipse() -> None:
     """Particles collapsed onto one place the localizer does not yet call localized: at least 1 m, 10 deg."""
-    cov = published_covariance(estimate("ambiguous", (Hypothesis(2.0, 3.0, 0.1, 1.0, TIGHT),), np.tile([2.0, 3.0, 0.1], (50, 1))))
+    collapsed = np.tile([2.0, 3.0, 0.1], (50, 1))
+    cov = published_covariance(estimate("ambiguous", (Hypothesis(2.0, 3.0, 0.1, 1.0, TIGHT),), collapsed))
     assert np.all(np.sqrt(np.diag(cov)) >= UNSURE_FLOOR - 1e-12)
 
 
