@@ -67,6 +67,24 @@ def test_an_unorganized_scan_gets_the_classes_of_an_organized_one(weights):
         assert _accuracy(result.labels, truth[order]) > 0.8, lidar.layers
 
 
+@pytest.mark.parametrize("stray", [[100.0, 0.0, 0.0], [0.0, 0.0, -2.0e5]])
+def test_a_stray_return_far_off_is_set_aside_and_changes_nothing_else(stray):
+    """One return 100 m (or 200 km) away must not set the floor's bins or the height features' scale."""
+    from pimm_agents.perception.files import SHIPPED_CLOUD_WEIGHTS
+    from pimm_agents.perception.segmenter import load_segmenter
+    from pimm_agents.scans.segment import segment_cloud
+    from pimm_env.world.semantics import SemanticClass
+
+    segmenter = load_segmenter(SHIPPED_CLOUD_WEIGHTS)
+    points, _ = simulated_scan(Lidar3DConfig(), seed=2)
+    clean = segment_cloud(points, segmenter)
+    strayed = segment_cloud(np.vstack([points, [stray]]), segmenter)
+    assert (clean.far_outliers, strayed.far_outliers) == (0, 1)
+    np.testing.assert_array_equal(strayed.labels[:-1], clean.labels)
+    assert strayed.labels[-1] == int(SemanticClass.CLUTTER)
+    assert strayed.sensor_height == clean.sensor_height and len(strayed.corners) == len(clean.corners)
+
+
 def test_segment_writes_labels_corners_and_pictures(tmp_path):
     import open3d as o3d
     from typer.testing import CliRunner

@@ -53,6 +53,7 @@ def segment_file(
         "points": cloud.total,
         "returns": len(cloud.points),
         "left_out": cloud.left_out,
+        "far_outliers": result.far_outliers,  # stray returns set aside (labelled clutter): scans/segment.py
         "organized": list(cloud.organized) if cloud.organized else None,
         "sensor_height_m": round(result.sensor_height, 3),
         "height_measured": result.height_measured,

@@ -16,7 +16,7 @@ from any LiDAR, and gives every point a class, the scan's descriptor and its cor
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,6 +38,14 @@ class CloudSegmentation:
     tilt_deg: float  # how far the sensor leaned from level (0 when no floor was found and a height was given)
     corners: FeatureList
     in_view: float  # share of the returns inside the network's vertical field
+    leveling: np.ndarray = field(default_factory=lambda: np.eye(3))  # sensor frame -> level frame
+    far_outliers: int = 0  # returns set aside as stray (``FAR_OUTLIER``), labelled clutter
+
+
+#: A return farther than this many times the 99th percentile of the scan's ranges is a stray (a multipath echo, a
+#: glitch, a wrong unit): it is set aside from the levelling, the features and the corners, labelled clutter and
+#: counted. A room's walls lie within its scan's range spread; one return 100 m off must not set the scale.
+FAR_OUTLIER = 3.0
 
 
 def mount_leveling(roll_deg: float, pitch_deg: float) -> np.ndarray:
@@ -77,6 +85,16 @@ def segment_cloud(
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if len(points) == 0 or not np.isfinite(points).all():
         raise PerceptionError("segment_cloud takes the scan's returns: a non-empty (N, 3) array of finite points")
+    ranges = np.linalg.norm(points, axis=1)
+    kept = ranges <= FAR_OUTLIER * max(float(np.percentile(ranges, 99)), 1e-6)
+    if not kept.all():
+        inner = segment_cloud(points[kept], segmenter, sensor_height, roll_pitch_deg, corners, floor, seed)
+        labels = np.full(len(points), int(SemanticClass.CLUTTER), dtype=inner.labels.dtype)
+        labels[kept] = inner.labels
+        level = np.empty_like(points)
+        level[kept] = inner.level_points
+        level[~kept] = points[~kept] @ inner.leveling.T
+        return replace(inner, labels=labels, level_points=level, far_outliers=int(np.count_nonzero(~kept)))
     found: Floor | None
     try:
         found = estimate_floor(points, floor, seed)
@@ -108,6 +126,7 @@ def segment_cloud(
         tilt_deg=float(np.degrees(np.arccos(np.clip(leveling[2, 2], -1.0, 1.0)))),
         corners=features,
         in_view=in_view,
+        leveling=leveling,
     )
 
 
