@@ -432,3 +432,27 @@ def test_what_is_not_a_bag_is_one_clear_error(tmp_path):
     config = SimConfig()
     with pytest.raises(BagError, match="truncated.*not a readable bag"):
         list(read_steps(bag, BagTopics(), config.lidar2d, config.lidar3d))
+
+
+def test_a_clock_that_never_advances_says_to_replay_by_receive_time_and_stale_scans_are_counted(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    store = typestore()
+    lidar = SimConfig().lidar2d
+    angles = np.linspace(-np.pi, np.pi, lidar.beams, endpoint=False)
+    bag = tmp_path / "zero"
+    with Writer(bag, version=9) as writer:
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        for i in range(30):  # every header stamp 0, received 0.1 s apart; the scans' stamps stuck too
+            msg = laser_scan(store, 0.0, np.full(lidar.beams, 3.0), angles, lidar)
+            writer.write(scan, 1_000_000_000 + i * 100_000_000, store.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
+            raw = store.serialize_cdr(odometry(store, 0.0, np.array([0.01 * i, 0, 0]), "odom"), "nav_msgs/msg/Odometry")
+            writer.write(odom, 1_000_000_000 + i * 100_000_000, raw)
+    config = SimConfig()
+    aside: dict[str, int] = {}
+    with pytest.raises(BagError, match=r"/odom: the first 20 header stamps are all 0.0.*--stamps receive"):
+        list(read_steps(bag, BagTopics(), config.lidar2d, config.lidar3d, aside))
+    assert aside == {"scan_stamp_not_newer": 19}  # counted up to where it stopped
+    steps = list(read_steps(bag, BagTopics(stamps="receive"), config.lidar2d, config.lidar3d))
+    assert len(steps) == 30 and steps[-1].obs["time"][0] == pytest.approx(3.9)

@@ -34,6 +34,9 @@ from pimm_env.bags.messages import (
 )
 from pimm_env.bags.tf_truth import TfTruth
 
+#: Odometry messages whose times all agree from the start: a clock that does not advance (all zero, never set).
+STALLED_STAMPS = 20
+
 
 @dataclass(frozen=True)
 class BagTopics:
@@ -74,7 +77,10 @@ def read_steps(
 ) -> Iterator[Step]:
     """The bag's observations, one per odometry message, laid out as the env with these LiDARs gives them. A
     message with a value that is not finite (an odometry or true pose, a stamp) is set aside and counted in
-    ``set_aside`` by kind (``non_finite_odometry``, ``non_finite_truth``), and the replay goes on."""
+    ``set_aside`` by kind (``non_finite_odometry``, ``non_finite_truth``), and the replay goes on; a scan or cloud
+    whose stamp is not newer than the last one's (a localizer takes it for the one it has) is counted
+    (``scan_stamp_not_newer``, ``cloud_stamp_not_newer``); odometry whose first ``STALLED_STAMPS`` times all agree
+    is a ``BagError`` saying to replay by receive time."""
     path = Path(path)
     aside = set_aside if set_aside is not None else {}
     with open_bag(path) as reader:
@@ -94,6 +100,7 @@ def read_steps(
         tf_truth = TfTruth()
         fresh_scan = fresh_cloud = kidnapped = False
         counts: dict[str, int] = {}
+        first_stamps: list[float] = []  # the first odometry times, to tell a clock that never advances
         by_receipt = topics.stamps == "receive"
         for connection, received, raw in in_step_order(reader.messages(connections=connections), priority):
             topic = connection.topic
@@ -112,11 +119,17 @@ def read_steps(
                     pose = None
                 truth = truth if pose is None else pose
             elif topic == topics.scan:
+                stamp = received * 1e-9 if by_receipt else stamp_seconds(msg)
+                if index and stamp <= scan_time:  # a localizer would take it for the scan it already has
+                    aside["scan_stamp_not_newer"] = aside.get("scan_stamp_not_newer", 0) + 1
                 scan = scan_ranges(msg, lidar2d.beams, lidar2d.max_range, where)
-                scan_time, fresh_scan = received * 1e-9 if by_receipt else stamp_seconds(msg), True
+                scan_time, fresh_scan = stamp, True
             elif topic == topics.points:
+                stamp = received * 1e-9 if by_receipt else stamp_seconds(msg)
+                if index and stamp <= cloud_time:
+                    aside["cloud_stamp_not_newer"] = aside.get("cloud_stamp_not_newer", 0) + 1
                 cloud, mask = organize(cloud_points(msg, where), lidar3d, where)
-                cloud_time, fresh_cloud = received * 1e-9 if by_receipt else stamp_seconds(msg), True
+                cloud_time, fresh_cloud = stamp, True
             elif topic == topics.odom:
                 # a header stamp that goes back is served as it is: the localizers' guard sets that observation
                 # aside and counts it (the bag's receive order is the order)
@@ -125,6 +138,18 @@ def read_steps(
                 if not (np.all(np.isfinite(odom)) and np.isfinite(t)):  # set aside: the next one closes the step
                     aside["non_finite_odometry"] = aside.get("non_finite_odometry", 0) + 1
                     continue
+                first_stamps.append(t)
+                if len(first_stamps) == STALLED_STAMPS and max(first_stamps) == min(first_stamps):
+                    kind = "receive times" if by_receipt else "header stamps"
+                    fix = (
+                        "neither the stamps nor the receive times tell the messages apart"
+                        if by_receipt
+                        else "the recorder's clock was not set: replay with --stamps receive (the bag's receive times)"
+                    )
+                    raise BagError(
+                        f"{path}: {topic}: the first {STALLED_STAMPS} {kind} are all {t}: time does not advance, "
+                        f"so no localizer could move; {fix}"
+                    )
                 obs = {
                     "odom": odom.astype(np.float32),
                     "cloud": cloud.copy(),
