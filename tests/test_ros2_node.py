@@ -169,6 +169,49 @@ def test_initialpose_restarts_the_localizer_there(robot) -> None:
     assert np.diag(start_cov) == pytest.approx([0.25, 0.25, 0.07])
 
 
+def test_nav2s_services_as_cyclone_carries_them(robot) -> None:
+    """``reinitialize_global_localization`` and ``set_initial_pose``, called as a Cyclone ROS 2 client calls them;
+    each reply carries its request's id, and the next update restarts the localizer as asked."""
+    import threading
+
+    from pimm_env.ros2.services import call, service_type
+
+    node, localizer, _, pubs, _ = robot
+    drive(node, pubs, clouds=1)
+    stop = threading.Event()
+    spinner = threading.Thread(target=lambda: node.spin(should_stop=stop.is_set), daemon=True)
+    spinner.start()
+    try:
+        reply = call(node.domain, "reinitialize_global_localization", "std_srvs/srv/Empty", {}, client=77, sequence=5)
+        assert (reply.client_guid, reply.sequence) == (77, 5)
+        t = ros_types().types
+        pose = t["geometry_msgs/msg/Pose"](position=t["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=0.0),
+                                           orientation=quaternion(0.0, 0.0, 0.5))  # fmt: skip
+        cov = np.zeros(36)
+        cov[[0, 7, 35]] = [0.25, 0.25, 0.07]
+        stamped = t["geometry_msgs/msg/PoseWithCovarianceStamped"](
+            header=header(1.0, "map"), pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=cov)
+        )
+        from pimm_env.ros2.messages import to_wire
+
+        request = {"pose": to_wire(stamped, "geometry_msgs/msg/PoseWithCovarianceStamped")}
+        reply = call(node.domain, "set_initial_pose", "nav2_msgs/srv/SetInitialPose", request, client=77, sequence=6)
+        assert reply.sequence == 6
+    finally:
+        stop.set()
+        spinner.join(timeout=5)
+    resets = len(localizer.resets)
+    drive(node, pubs, clouds=1, stamp=3.0)
+    assert len(localizer.resets) == resets + 1 and localizer.resets[-1][1] == pytest.approx([1.0, 2.0, 0.5])
+    raw = service_type("std_srvs/srv/Empty", "Request")(
+        client_guid=1, sequence=2, structure_needs_at_least_one_member=0
+    )
+    assert raw.serialize() == b"\x00\x01\x00\x00" + (1).to_bytes(8, "little") + (2).to_bytes(8, "little") + b"\x00"
+    assert service_type("nav2_msgs/srv/SetInitialPose", "Request").__idl_typename__ == (
+        "nav2_msgs::srv::dds_::SetInitialPose_Request_"
+    )
+
+
 def test_the_node_is_in_the_ros2_graph(robot) -> None:
     """``ros2 node list`` reads ``ros_discovery_info``: the node's name and the GIDs of its readers and writers."""
     from cyclonedds.sub import DataReader
@@ -187,8 +230,9 @@ def test_the_node_is_in_the_ros2_graph(robot) -> None:
     entry = info.node_entities_info_seq[0]
     assert entry.node_namespace == "/"
     writers = {bytes(g.data) for g in entry.writer_gid_seq}
-    assert node.pubs["pose"].gid[:16] in writers and len(writers) == len(node.pubs)
-    assert {bytes(g.data) for g in entry.reader_gid_seq} == {s.gid[:16] for s in node.subs.values()}
+    assert node.pubs["pose"].gid[:16] in writers and len(writers) == len(node.pubs) + len(node.services)
+    readers = {s.gid[:16] for s in node.subs.values()} | {server.gids[0][:16] for server in node.services}
+    assert {bytes(g.data) for g in entry.reader_gid_seq} == readers
     assert bytes(info.gid.data) == participant.guid.bytes[:16]
 
 

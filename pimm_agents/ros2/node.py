@@ -11,7 +11,8 @@ Published after every update: the pose on ``amcl_pose`` (reliable, transient loc
 (``nav2_msgs/ParticleCloud``, best effort), the hypotheses as a ``geometry_msgs/PoseArray`` on
 ``hypotheses``, and the status on ``/diagnostics`` (``diagnostic_msgs/DiagnosticArray``: ``lost`` /
 ``ambiguous`` / ``localized``, what the guard set aside, the clouds skipped, the update's time). With
-``publish_map``: the world's occupancy grid on ``/map`` (transient local).
+``publish_map``: the world's occupancy grid on ``/map`` (transient local). nav2 AMCL's services,
+``reinitialize_global_localization`` and ``set_initial_pose``, as ``rmw_cyclonedds_cpp`` carries them.
 
 Real time: each spin takes everything that arrived; when several clouds (or scans) wait, the newest is used and
 the others are counted as skipped, never dropped silently. Every odometry message closes a step, as in a
@@ -35,6 +36,7 @@ from pimm_env.ros2.domain import Domain
 from pimm_env.ros2.frames import header, mount, planar, quaternion, seconds_of, tf_message, transform
 from pimm_env.ros2.graph import GraphEntry
 from pimm_env.ros2.messages import ros_types
+from pimm_env.ros2.services import ServiceServer
 
 #: diagnostic_msgs/DiagnosticStatus levels by status
 LEVELS = {"localized": 0, "ambiguous": 1, "lost": 2}  # OK, WARN, ERROR
@@ -102,8 +104,14 @@ class LocalizationNode:
         }
         if c.publish_map and occupancy is not None:
             self.pubs["map"] = domain.publisher("/map", "nav_msgs/msg/OccupancyGrid", qos.LATCHED)
+        self.services = [  # nav2 AMCL's, as rmw_cyclonedds_cpp carries services (pimm_env/ros2/services.py)
+            ServiceServer(domain, "reinitialize_global_localization", "std_srvs/srv/Empty", self._reinitialize),
+            ServiceServer(
+                domain, "set_initial_pose", "nav2_msgs/srv/SetInitialPose", lambda r: self._set_initial_pose(r.pose)
+            ),
+        ]
         self.graph = GraphEntry(domain, name)
-        self.graph.announce([*self.subs.values(), *self.pubs.values()])
+        self.graph.announce([*self.subs.values(), *self.pubs.values()], tuple(self.services))
         self.name = name
         self.localizer: Any = None
         self.mount: dict[str, float] | None = None
@@ -130,7 +138,7 @@ class LocalizationNode:
         self._cloud_frame: str | None = None
         self._cloud_arrival: float | None = None
         self._static: dict[str, dict[str, float]] = {}  # the mounts on /tf_static, by child frame
-        self._reset_to: tuple[np.ndarray, np.ndarray | None] | None = None
+        self._reset_to: tuple[np.ndarray, np.ndarray | None] | str | None = None  # "global": forget the pose
         self.sim_time: float | None = None
         self.estimate: PoseEstimate | None = None
         if "map" in self.pubs:
@@ -155,13 +163,10 @@ class LocalizationNode:
         if "clock" in self.subs:
             for _, msg in self.subs["clock"].take():
                 self.sim_time = seconds_of(msg.clock)
+        for server in self.services:
+            server.spin_once()
         for _, msg in self.subs["initialpose"].take():
-            pose = np.array([msg.pose.pose.position.x, msg.pose.pose.position.y, planar_yaw(msg.pose.pose)])
-            cov = covariance_3x3(msg.pose.covariance)
-            if np.all(np.isfinite(pose)) and np.all(np.isfinite(cov)):
-                self._reset_to = (pose, cov)
-            else:
-                self._note("an /initialpose with non-finite values was set aside")
+            self._set_initial_pose(msg)
         for kind in ("points", "scan"):
             taken = self.subs[kind].take()
             if not taken:
@@ -199,6 +204,22 @@ class LocalizationNode:
             self._note("an odometry message with non-finite values was set aside")
             return None
         return newest
+
+    def _set_initial_pose(self, msg: Any) -> dict[str, Any]:
+        """A ``PoseWithCovarianceStamped`` on ``/initialpose`` or in ``set_initial_pose``: restart the localizer
+        there at its next update."""
+        pose = np.array([msg.pose.pose.position.x, msg.pose.pose.position.y, planar_yaw(msg.pose.pose)])
+        cov = covariance_3x3(msg.pose.covariance)
+        if np.all(np.isfinite(pose)) and np.all(np.isfinite(cov)):
+            self._reset_to = (pose, cov)
+        else:
+            self._note("an initial pose with non-finite values was set aside")
+        return {}
+
+    def _reinitialize(self, request: Any) -> dict[str, Any]:
+        """``reinitialize_global_localization``: forget the pose, a global start at the next update."""
+        self._reset_to = "global"
+        return {}
 
     def _ready(self, now: float) -> bool:
         """Build the localizer once a sensor spoke and the LiDAR's mount is known, or ``mount_wait`` has passed
@@ -274,9 +295,11 @@ class LocalizationNode:
         now = time.monotonic()
         if odometry is None or not self._ready(now):
             return None
-        if self._reset_to is not None:
+        if self._reset_to == "global":
+            self.localizer.reset(seed=self.config.seed)
+        elif isinstance(self._reset_to, tuple):
             self._reset(self._reset_to)
-            self._reset_to = None
+        self._reset_to = None
         _, stamp, odom = odometry
         obs = self._observation(stamp)
         obs["odom"] = odom.astype(np.float32)

@@ -39,10 +39,11 @@ class GraphEntry:
         topic = Topic(domain.participant, DISCOVERY_TOPIC, dds_type(ENTITIES_TYPE))
         self._writer = DataWriter(domain.participant, topic, qos=QosProfile(transient_local=True, depth=1).policies())
 
-    def announce(self, endpoints: list[Publisher | Subscription]) -> None:
+    def announce(self, endpoints: list[Publisher | Subscription], services: tuple = ()) -> None:
+        """Say the node's readers and writers: its ``endpoints`` and each service server's (reader, writer)."""
         t = ros_types().types
-        readers = [gid(e.gid) for e in endpoints if isinstance(e, Subscription)]
-        writers = [gid(e.gid) for e in endpoints if isinstance(e, Publisher)]
+        readers = [gid(e.gid) for e in endpoints if isinstance(e, Subscription)] + [gid(s.gids[0]) for s in services]
+        writers = [gid(e.gid) for e in endpoints if isinstance(e, Publisher)] + [gid(s.gids[1]) for s in services]
         node = t["rmw_dds_common/msg/NodeEntitiesInfo"](
             node_namespace=self.namespace, node_name=self.name, reader_gid_seq=readers, writer_gid_seq=writers
         )
