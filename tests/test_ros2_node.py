@@ -109,7 +109,7 @@ def test_the_mount_comes_from_tf_static_and_waiting_clouds_are_counted(robot) ->
         }
     ]
     assert localizer.resets == [(3, None, None)]  # a global start with the node's seed
-    assert node.counts["skipped_clouds"] == 2  # the newest of three was used, two counted
+    assert node.inputs.counts["skipped_clouds"] == 2  # the newest of three was used, two counted
     obs = localizer.observations[-1]
     assert int(obs["cloud_mask"].sum()) == LIDAR3D.num_points  # every return placed into the layout's grid
     assert obs["odom"].tolist() == pytest.approx([1.0, 0.0, 0.2])
@@ -231,7 +231,8 @@ def test_the_node_is_in_the_ros2_graph(robot) -> None:
     assert entry.node_namespace == "/"
     writers = {bytes(g.data) for g in entry.writer_gid_seq}
     assert node.pubs["pose"].gid[:16] in writers and len(writers) == len(node.pubs) + len(node.services)
-    readers = {s.gid[:16] for s in node.subs.values()} | {server.gids[0][:16] for server in node.services}
+    subs = [*node.inputs.subs.values(), node.initialpose]
+    readers = {s.gid[:16] for s in subs} | {server.gids[0][:16] for server in node.services}
     assert {bytes(g.data) for g in entry.reader_gid_seq} == readers
     assert bytes(info.gid.data) == participant.guid.bytes[:16]
 
