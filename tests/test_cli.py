@@ -60,7 +60,7 @@ def test_run_one_trial_end_to_end_then_score_its_log(tmp_path):
         "trials", "convergence_rate", "convergence_time_s", "position_error_m", "angle_error_deg", "timings_ms",
         "per_trial", "spread", "ape_m", "rpe_m", "time_to_localized_s", "false_localized_s", "false_localized_rate",
         "max_false_localized_s", "false_free_share", "within_3sigma", "nees", "kidnap_noticed_s", "time_to_fix_s",
-        "localized_share", "fixed_share", "collisions",
+        "localized_share", "fixed_share", "collisions", "overconfident_share", "published_overconfident_share",
     }  # fmt: skip
     assert [r["seed"] for r in row["per_trial"]] == [0] and row["ape_m"]["rmse"] >= row["ape_m"]["min"] >= 0
     assert set(data) >= {"version", "commit", "machine"} and len(data["commit"].split("+")[0]) == 40
