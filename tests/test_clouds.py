@@ -154,3 +154,15 @@ def test_a_header_that_promises_more_than_the_file_holds_is_refused_before_alloc
     text.write_bytes(head.format(n=points, kind="ascii").encode() + b"1 2 3\n")
     with pytest.raises(CloudFileError, match=r"text.pcd: 6 bytes of ASCII data cannot hold POINTS 300000000 x 3"):
         read_cloud(text)
+
+
+def test_odd_arrays_and_georeferenced_files(tmp_path):
+    """A (3, N) array is not 3 points; a survey's UTM coordinates keep their centimetres (moved by an offset)."""
+    np.save(tmp_path / "rows.npy", np.zeros((3, 50)) + 1.0)
+    with pytest.raises(CloudFileError, match=r"rows.npy: array of shape \(3, 50\) looks like x, y, z as rows"):
+        read_cloud(tmp_path / "rows.npy")
+    rng = np.random.default_rng(0)
+    utm = np.array([651_234.0, 5_123_456.0, 310.0]) + rng.uniform(-20, 20, (500, 3))
+    np.save(tmp_path / "utm.npy", utm)
+    cloud = read_cloud(tmp_path / "utm.npy")
+    assert np.allclose(cloud.points.astype(np.float64) + cloud.offset, utm, atol=1e-5)  # float32 alone: 0.5 m

@@ -34,9 +34,13 @@ def segment_file(
     from pimm_agents.results.cloud_figures import draw_labelled_cloud
     from pimm_agents.scans.segment import segment_cloud
     from pimm_env.clouds.read import read_cloud
+    from pimm_env.errors import PerceptionError
 
     cloud = read_cloud(path, drop_invalid)
-    result = segment_cloud(cloud.points, load_segmenter(weights), sensor_height, roll_pitch_deg, seed=seed)
+    try:
+        result = segment_cloud(cloud.points, load_segmenter(weights), sensor_height, roll_pitch_deg, seed=seed)
+    except PerceptionError as error:  # said of the user's file
+        raise PerceptionError(f"{path}: {error}") from None
     out = new_folder(out, f"segment_{Path(path).stem}")  # only once the scan was read and segmented
     labels = np.full(cloud.total, -1, dtype=np.int8)
     labels[cloud.rows] = result.labels
@@ -53,7 +57,8 @@ def segment_file(
         "points": cloud.total,
         "returns": len(cloud.points),
         "left_out": cloud.left_out,
-        "far_outliers": result.far_outliers,  # stray returns set aside (labelled clutter): scans/segment.py
+        "far_outliers": result.far_outliers,  # stray returns set aside, labelled clutter (scans/segment.py)
+        "offset": [float(v) for v in cloud.offset],  # taken off a georeferenced file's coordinates
         "organized": list(cloud.organized) if cloud.organized else None,
         "sensor_height_m": round(result.sensor_height, 3),
         "height_measured": result.height_measured,

@@ -109,7 +109,15 @@ def segment_cloud(
     level = points @ leveling.T
     height = float(sensor_height if sensor_height is not None else found.height)  # type: ignore[union-attr]
     if not 0.0 < height < 10.0:
-        raise PerceptionError(f"sensor height {height:.3f} m: give the sensor's height above the floor in metres")
+        scale = float(np.percentile(np.linalg.norm(points, axis=1), 50))
+        units = (
+            f"; the scan's median range is {scale:.0f}: is it in millimetres (scale it by 0.001)?"
+            if scale > 100
+            else ""
+        )
+        raise PerceptionError(
+            f"sensor height {height:.3f} m: give the sensor's height above the floor in metres{units}"
+        )
     if isinstance(segmenter, CloudSegmenter):
         labels, descriptor = segmenter.segment_points(level, height)
         in_view = 1.0

@@ -20,7 +20,7 @@ row) is kept. Nothing else about the layout is assumed: the points may come from
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +41,13 @@ class CloudFile:
     rows: np.ndarray  # (N,) each return's row in the file
     total: int  # points in the file, returns or not
     left_out: int  # points that were no return (NaN, infinite or at the origin)
+    #: (3,) what was taken off the file's coordinates to keep them exact in float32 (georeferenced files)
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+#: Coordinates beyond this (m) lose centimetres in float32 (a georeferenced survey, UTM): the cloud is then moved
+#: by its rounded median (``CloudFile.offset``) before it is stored, and says so.
+FLOAT32_EXACT_M = 1.0e4
 
 
 def read_cloud(path: Path | str, drop_invalid: bool = False) -> CloudFile:
@@ -72,8 +79,12 @@ def _returns(
         )
     if not good.any():
         raise CloudFileError(f"{path}: none of its {len(xyz)} points is a return (all NaN, infinite or at the origin)")
+    offset = np.zeros(3)
+    if np.abs(xyz[good]).max() > FLOAT32_EXACT_M:  # georeferenced: float32 would round to decimetres
+        offset = np.round(np.median(xyz[good], axis=0))
     return CloudFile(
-        points=xyz[good].astype(np.float32),
+        offset=offset,
+        points=(xyz[good] - offset).astype(np.float32),
         source=str(path),
         organized=organized,
         ring=None if ring is None else np.asarray(ring)[good].astype(np.int32),
@@ -165,6 +176,10 @@ def _npy(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | N
     if array.ndim != 2 or array.shape[1] < 3:
         raise CloudFileError(
             f"{path}: array of shape {array.shape}; give (N, 3+) points or an organized (rows, columns, 3+) scan"
+        )
+    if array.shape[0] in (3, 4) and array.shape[1] > 4:  # (3, N): its rows would be read as 3 points
+        raise CloudFileError(
+            f"{path}: array of shape {array.shape} looks like x, y, z as rows; save it as (N, 3) points (array.T)"
         )
     return array[:, :3], None, None
 
