@@ -108,6 +108,13 @@ def test_a_cloud_without_z_is_refused():
     )  # fmt: skip
     with pytest.raises(BagError, match=r"/points message 3: PointCloud2 has no field\(s\) \['z'\]"):
         cloud_points(msg, "/points message 3")
+    fields.append(t["sensor_msgs/msg/PointField"](name="z", offset=8, datatype=7, count=1))  # past point_step 8
+    msg = t["sensor_msgs/msg/PointCloud2"](
+        header=header, height=1, width=2, fields=fields, is_bigendian=False, point_step=8, row_step=16,
+        data=np.zeros(16, np.uint8), is_dense=True,
+    )  # fmt: skip
+    with pytest.raises(BagError, match=r"message 3: PointCloud2 field\(s\) \['z'\] at offset\(s\) \[8\] do not fit"):
+        cloud_points(msg, "/points message 3")
 
 
 def test_a_cloud_with_ring_and_intensity_fields_reads_its_xyz():

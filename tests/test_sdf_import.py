@@ -169,3 +169,17 @@ def test_name_rules_match_whole_words_and_the_last_specific_rule_wins():
     assert classify("Cealing_004", [("Cealing*", SemanticClass.CEILING), ("*", SemanticClass.CLUTTER)]) == (
         SemanticClass.CEILING
     )
+
+
+def test_a_loop_of_includes_is_one_error_naming_it(tmp_path):
+    models = tmp_path / "models"
+    for name, other in (("a", "b"), ("b", "a")):  # a includes b, b includes a
+        (models / name).mkdir(parents=True)
+        (models / name / "model.config").write_text(f"<model><name>{name}</name><sdf>model.sdf</sdf></model>")
+        (models / name / "model.sdf").write_text(
+            f"<sdf version='1.6'><model name='{name}'><include><uri>model://{other}</uri></include></model></sdf>"
+        )
+    world = tmp_path / "loop.world"
+    world.write_text("<sdf version='1.6'><world name='w'><include><uri>model://a</uri></include></world></sdf>")
+    with pytest.raises(MapFileError, match=r"<include> model://a is a loop of includes \(.*a/model.sdf -> .*b/model"):
+        read_sdf_world(world, model_paths=[models])

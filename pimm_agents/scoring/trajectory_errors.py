@@ -21,7 +21,7 @@ def trajectory_errors(log: TrialLog) -> dict[str, dict[str, float] | None]:
     """APE (translation, m) of the estimate against the truth, and RPE (translation, m) per ``RPE_DELTA_M`` of
     true path, each as evo's statistics (rmse, mean, median, std, min, max), over the log's rows (no
     alignment: both are in the map frame). RPE is None when the true path is shorter than one step."""
-    from evo.core import metrics
+    from evo.core import filters, metrics
     from evo.core.metrics import PoseRelation, Unit
 
     if len(log) < 2:
@@ -39,7 +39,8 @@ def trajectory_errors(log: TrialLog) -> dict[str, dict[str, float] | None]:
     rpe = metrics.RPE(PoseRelation.translation_part, delta=RPE_DELTA_M, delta_unit=Unit.meters, all_pairs=False)
     try:
         rpe.process_data((truth, estimate))
-    except metrics.MetricsException:  # no pair of poses 1 m apart along the path
+    except (metrics.MetricsException, filters.FilterException):  # no pair 1 m apart along the path, or times
+        # that do not advance (a log whose stamps go back): no RPE, the other metrics stand
         out["rpe"] = None
         return out
     out["rpe"] = {k: float(v) for k, v in rpe.get_all_statistics().items() if k in keys}

@@ -194,6 +194,12 @@ def cloud_points(msg: Any, where: str) -> np.ndarray:
         raise BagError(f"{where}: PointCloud2 has no field(s) {missing} (fields: {sorted(offsets)})")
     if any(offsets[n].datatype != _FLOAT32 for n in "xyz"):
         raise BagError(f"{where}: PointCloud2 x/y/z must be float32")
+    beyond = [n for n in "xyz" if offsets[n].offset + 4 > msg.point_step]
+    if beyond:
+        raise BagError(
+            f"{where}: PointCloud2 field(s) {beyond} at offset(s) {[offsets[n].offset for n in beyond]} do not fit "
+            f"its point_step {msg.point_step}"
+        )
     rows = point_rows(msg, where)
     columns: list[np.ndarray] = []
     for name in "xyz":

@@ -40,6 +40,7 @@ class _Context:
     meshes: dict[str, Any] = field(default_factory=dict)  # name -> trimesh.Trimesh in the map frame
     cache: dict[tuple[Path, tuple[float, float, float]], Any] = field(default_factory=dict)
     left_out: list[str] = field(default_factory=list)
+    including: list[Path] = field(default_factory=list)  # the chain of model files being included, outermost first
 
 
 def model_path(extra: Sequence[Path] = ()) -> list[Path]:
@@ -184,7 +185,15 @@ def _include(include: ET.Element, parent: np.ndarray, prefix: str, path: Path, c
         model.set("name", new_name)
     pose_element = include.find("pose")
     pose = pose_matrix(pose_element, path) if pose_element is not None else None
-    _model(model, parent, prefix, sdf_file, context, pose)
+    here = Path(sdf_file).resolve()
+    if here in context.including:  # a model that includes itself, directly or round a loop
+        chain = " -> ".join(str(p) for p in [*context.including[context.including.index(here) :], here])
+        raise MapFileError(f"{path}: <include> {uri} is a loop of includes ({chain})")
+    context.including.append(here)
+    try:
+        _model(model, parent, prefix, sdf_file, context, pose)
+    finally:
+        context.including.pop()
 
 
 def _resolve(uri: str, path: Path, context: _Context, element: str) -> Path | None:
