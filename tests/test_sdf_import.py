@@ -149,7 +149,7 @@ def test_a_world_without_a_ceiling_gets_one_from_ceiling_height(tmp_path):
 def test_bad_worlds_are_named_and_leave_nothing_behind(tmp_path, crate_uri, scale, message):
     source = _world(tmp_path, crate_uri=crate_uri, scale=scale)
     with pytest.raises(MapFileError, match=message):
-        import_world(source, "bad", tmp_path / "maps")
+        import_world(source, "bad", tmp_path / "maps", strict=True)
     assert not (tmp_path / "maps" / "bad").exists()
 
 
@@ -169,6 +169,11 @@ def test_name_rules_match_whole_words_and_the_last_specific_rule_wins():
     assert classify("Cealing_004", [("Cealing*", SemanticClass.CEILING), ("*", SemanticClass.CLUTTER)]) == (
         SemanticClass.CEILING
     )
+    from pimm_env.importers.world_import import DEFAULT_MESH_RULES
+
+    shipped = [(r["match"], SemanticClass[r["class"].upper()]) for r in DEFAULT_MESH_RULES]
+    assert classify("hospital_floor_01_ceiling_1", shipped) == SemanticClass.CEILING  # the more specific wins
+    assert classify("hospital_floor_01_walls_1", shipped) == SemanticClass.WALL
 
 
 def test_a_loop_of_includes_is_one_error_naming_it(tmp_path):
@@ -183,3 +188,19 @@ def test_a_loop_of_includes_is_one_error_naming_it(tmp_path):
     world.write_text("<sdf version='1.6'><world name='w'><include><uri>model://a</uri></include></world></sdf>")
     with pytest.raises(MapFileError, match=r"<include> model://a is a loop of includes \(.*a/model.sdf -> .*b/model"):
         read_sdf_world(world, model_paths=[models])
+
+
+def test_missing_models_are_left_out_and_counted_and_uris_resolve_as_gazebo_resolves_them(tmp_path, monkeypatch):
+    """A model not found is left out with a warning (Gazebo loads the rest); a mesh named in another case is
+    found and said; ``file://models/...`` resolves against the world's folder from anywhere."""
+    source = _world(tmp_path, crate_uri="model://no_such_model")
+    with pytest.warns(UserWarning, match=r"1 model\(s\) or mesh\(es\) not found, left out .*model://no_such_model"):
+        meshes = read_sdf_world(source)
+    assert not any("crate" in name for name in meshes) and any("column" in name for name in meshes)
+    source = _world(tmp_path)
+    sdf = tmp_path / "models" / "crate" / "model.sdf"
+    sdf.write_text(sdf.read_text().replace("model://crate/meshes/crate.dae", "file://models/crate/meshes/Crate.DAE"))
+    monkeypatch.chdir(tmp_path.parent)  # not the world's folder
+    with pytest.warns(UserWarning, match=r"differing in case: file://models/crate/meshes/Crate.DAE: .*crate.dae"):
+        meshes = read_sdf_world(source)
+    assert any("crate" in name for name in meshes)

@@ -34,6 +34,7 @@ def world_import(
     wall_line: bool = typer.Option(
         True, help="class objects standing in a wall's line (windows, closed doors) wall, whatever their names say"
     ),
+    strict: bool = typer.Option(False, help="a Gazebo model or mesh not found stops the import (default: left out)"),
     routes: int = typer.Option(4, min=1, help="routes to generate"),
     maps_dir: Path | None = typer.Option(None, help="where worlds live (default: the project's maps/)"),
     prepare: bool = typer.Option(True, help="also prepare the world (maps, fingerprints, routes)"),
@@ -60,6 +61,7 @@ def world_import(
         model_paths=model_path,
         geometry="visual" if visual else "collision",
         wall_line=wall_line,
+        strict=strict,
     )
     typer.echo(f"wrote {path}\n{describe_world(load_world(path))}")
     if prepare:

@@ -41,6 +41,10 @@ class _Context:
     cache: dict[tuple[Path, tuple[float, float, float]], Any] = field(default_factory=dict)
     left_out: list[str] = field(default_factory=list)
     including: list[Path] = field(default_factory=list)  # the chain of model files being included, outermost first
+    strict: bool = False  # a model or mesh not found stops the import (else: left out, warned and counted)
+    world_folder: Path | None = None
+    missing: list[str] = field(default_factory=list)  # models and meshes not found, left out
+    case_fixed: list[str] = field(default_factory=list)  # files found only by a name differing in case
 
 
 def model_path(extra: Sequence[Path] = ()) -> list[Path]:
@@ -49,14 +53,19 @@ def model_path(extra: Sequence[Path] = ()) -> list[Path]:
     return [Path(p) for p in extra] + env
 
 
-def read_sdf_world(path: Path, model_paths: Sequence[Path] = (), geometry: str = "collision") -> dict[str, Any]:
-    """Every collision (or visual) piece of an SDF world or model file, as trimesh meshes keyed by scoped name."""
+def read_sdf_world(
+    path: Path, model_paths: Sequence[Path] = (), geometry: str = "collision", strict: bool = False
+) -> dict[str, Any]:
+    """Every collision (or visual) piece of an SDF world or model file, as trimesh meshes keyed by scoped name.
+
+    URIs resolve as Gazebo resolves them (``_resolve``). A model or mesh that cannot be found is left out with a
+    warning naming each and their count, as Gazebo loads the rest; with ``strict`` it stops the import."""
     path = Path(path)
     if geometry not in ("collision", "visual"):
         raise MapFileError(f"geometry: expected 'collision' or 'visual', got {geometry!r}")
     root = _parse(path)
     folders = [path.parent / "models", path.parent.parent / "models", *model_path(model_paths)]
-    context = _Context([f for f in folders if f.is_dir()], geometry)
+    context = _Context([f for f in folders if f.is_dir()], geometry, strict=strict, world_folder=path.parent)
     world = root.find("world")
     if world is None:
         models = root.findall("model")
@@ -74,6 +83,14 @@ def read_sdf_world(path: Path, model_paths: Sequence[Path] = (), geometry: str =
             _include(include, np.eye(4), "", path, context)
     if context.left_out:
         warnings.warn(f"{path}: left out {', '.join(context.left_out)}", stacklevel=2)
+    if context.missing:
+        warnings.warn(
+            f"{path}: {len(context.missing)} model(s) or mesh(es) not found, left out (--strict stops instead): "
+            + "; ".join(context.missing),
+            stacklevel=2,
+        )
+    if context.case_fixed:
+        warnings.warn(f"{path}: found by a name differing in case: {'; '.join(context.case_fixed)}", stacklevel=2)
     if not context.meshes:
         raise MapFileError(f"{path}: no {geometry} geometry found in the world")
     return context.meshes
@@ -170,7 +187,7 @@ def _include(include: ET.Element, parent: np.ndarray, prefix: str, path: Path, c
     builtin = uri.removeprefix("model://").strip("/")
     folder = _resolve(uri, path, context, "<include>")
     if folder is None:
-        if BUILTIN_MODELS[builtin]:
+        if BUILTIN_MODELS.get(builtin):
             context.left_out.append(f"{uri} ({BUILTIN_MODELS[builtin]})")
         return
     sdf_file = _model_file(folder) if folder.is_dir() else folder
@@ -197,29 +214,73 @@ def _include(include: ET.Element, parent: np.ndarray, prefix: str, path: Path, c
 
 
 def _resolve(uri: str, path: Path, context: _Context, element: str) -> Path | None:
-    """The file or model folder a URI names; None for a built-in model that holds no building."""
+    """The file or model folder a URI names, as Gazebo finds it: ``model://NAME/...`` in the model paths;
+    ``file://`` and plain paths as they are, else against the model paths and their parents, the world's folder and
+    its parents, and ``GAZEBO_RESOURCE_PATH``; a name differing only in case is taken, and said. None: a built-in
+    model that holds no building, or (not ``strict``) one not found, which is counted and said."""
     if uri.startswith("model://"):
         rest = uri[len("model://") :].strip("/")
         head, _, tail = rest.partition("/")
         for folder in context.model_paths:
-            if (folder / head).is_dir():
-                return folder / head / tail if tail else folder / head
+            found = _existing(folder / head, context, uri)
+            if found is not None and found.is_dir():
+                return _found(found / tail, uri, path, context, element) if tail else found
         if not tail and head in BUILTIN_MODELS:
             return None
-        searched = ", ".join(str(f) for f in context.model_paths) or "no folders"
-        raise MapFileError(
-            f"{path}: {element} {uri}: model {head!r} not found (searched {searched}); "
-            "give its folder with --model-path DIR or GAZEBO_MODEL_PATH"
-        )
-    if uri.startswith("file://"):
-        target = Path(uri[len("file://") :])
-    elif re.match(r"^[a-z][a-z0-9+.-]*://", uri):
+        searched = ", ".join(dict.fromkeys(str(f) for f in context.model_paths)) or "no folders"
+        return _missing(f"{path}: {element} {uri}: model {head!r} not found (searched {searched}); give its "
+                        "folder with --model-path DIR or GAZEBO_MODEL_PATH", uri, context)  # fmt: skip
+    if re.match(r"^[a-z][a-z0-9+.-]*://", uri) and not uri.startswith("file://"):
         raise MapFileError(f"{path}: {element} {uri}: unknown URI scheme (use model://, file:// or a path)")
-    else:
-        target = path.parent / uri
-    if not target.exists():
-        raise MapFileError(f"{path}: {element} {uri}: {target} does not exist")
-    return target
+    relative = Path(uri[len("file://") :] if uri.startswith("file://") else uri)
+    if relative.is_absolute():
+        return _found(relative, uri, path, context, element)
+    for base in _search_bases(path, context):
+        found = _existing(base / relative, context, uri)
+        if found is not None:
+            return found
+    return _found(path.parent / relative, uri, path, context, element)
+
+
+def _search_bases(path: Path, context: _Context) -> list[Path]:
+    """Where a relative URI is looked for, in Gazebo's order: the file's folder, the model paths and their
+    parents, the world's folder and its parents, ``GAZEBO_RESOURCE_PATH``."""
+    bases = [path.parent]
+    for folder in context.model_paths:
+        bases += [folder, folder.parent]
+    if context.world_folder is not None:
+        bases += [context.world_folder, *context.world_folder.parents]
+    bases += [Path(p) for p in os.environ.get("GAZEBO_RESOURCE_PATH", "").split(os.pathsep) if p]
+    return list(dict.fromkeys(bases))
+
+
+def _existing(target: Path, context: _Context, uri: str) -> Path | None:
+    """``target`` if it exists, else the one entry of its folder whose name differs from it only in case."""
+    if target.exists():
+        return target
+    folder = target.parent
+    if not folder.is_dir():
+        return None
+    matches = [p for p in folder.iterdir() if p.name.lower() == target.name.lower()]
+    if len(matches) != 1:
+        return None
+    context.case_fixed.append(f"{uri}: {matches[0]}")
+    return matches[0]
+
+
+def _found(target: Path, uri: str, path: Path, context: _Context, element: str) -> Path | None:
+    found = _existing(target, context, uri)
+    if found is not None:
+        return found
+    return _missing(f"{path}: {element} {uri}: {target} does not exist", uri, context)
+
+
+def _missing(message: str, uri: str, context: _Context) -> Path | None:
+    """Nothing found: an error with ``strict``, else counted (and said at the end)."""
+    if context.strict:
+        raise MapFileError(message)
+    context.missing.append(uri)
+    return None
 
 
 def _model_file(folder: Path) -> Path:
@@ -247,7 +308,10 @@ def _geometry(geometry: ET.Element | None, frame: np.ndarray, name: str, path: P
     kind = shape.tag
     where = f"{path}: {name}: <{kind}>"
     if kind == "mesh":
-        mesh = _mesh_file(shape, path, name, context).copy()
+        found = _mesh_file(shape, path, name, context)
+        if found is None:
+            return None
+        mesh = found.copy()
     elif kind == "box":
         mesh = trimesh.creation.box(extents=_vector(shape, "size", 3, where))
     elif kind == "cylinder":
@@ -315,7 +379,8 @@ def _mesh_file(shape: ET.Element, path: Path, name: str, context: _Context) -> A
     if shape.find("submesh") is not None:
         raise MapFileError(f"{path}: {name}: <mesh><submesh> is not read; export the submesh as its own file")
     target = _resolve(uri, path, context, "<mesh>")
-    assert target is not None  # a mesh URI never names a built-in model
+    if target is None:  # not found: left out (said by read_sdf_world)
+        return None
     scale_element = shape.find("scale")
     scale = (1.0, 1.0, 1.0)
     if scale_element is not None:

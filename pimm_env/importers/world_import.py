@@ -26,12 +26,14 @@ MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off", ".dae")
 SDF_SUFFIXES = (".world", ".sdf")
 #: Default name-to-class rules for meshes: whole words, the last matching rule wins, ``*`` when none matches
 #: (see "Name rules" in :mod:`pimm_env.world.mesh`). Wall comes last: ``floor_01_walls_1`` is a wall.
+#: The last matching rule wins, so the more specific class comes last: ``floor_01_ceiling`` is a ceiling, and
+#: ``wall_ceiling`` too (a floor's or a wall's name is where a ceiling piece is often filed).
 DEFAULT_MESH_RULES = [
     {"match": "*", "class": "clutter"},
-    {"match": "ceiling", "class": "ceiling"},
-    {"match": "cealing", "class": "ceiling"},
     {"match": "floor", "class": "floor"},
     {"match": "wall", "class": "wall"},
+    {"match": "ceiling", "class": "ceiling"},
+    {"match": "cealing", "class": "ceiling"},
 ]
 
 
@@ -65,12 +67,14 @@ def import_world(
     model_paths: Sequence[Path] = (),
     geometry: str = "collision",
     wall_line: bool = True,
+    strict: bool = False,
 ) -> Path:
     """Write ``maps_dir/name/world.yaml`` from a map_server ``.yaml``, a mesh or an SDF world; returns its path.
 
     ``ceiling_height``: a floor plan's ceiling (default 3 m); for a mesh or SDF world, a flat ceiling added that
     high above the floor (none is added when not given). ``rules`` are added after the defaults and win. With
-    ``wall_line``, a mesh's objects standing in a wall's line are classed wall (:mod:`wall_line`)."""
+    ``wall_line``, a mesh's objects standing in a wall's line are classed wall (:mod:`wall_line`). ``strict``: a
+    Gazebo model or mesh that cannot be found stops the import (else it is left out, said and counted)."""
     source = Path(source)
     check_world_name(name)
     if not source.is_file():
@@ -87,7 +91,7 @@ def import_world(
         elif suffix in MESH_SUFFIXES:
             spec = _from_mesh(source, name, folder, all_rules, up_axis, ceiling_height, wall_line)
         elif suffix in SDF_SUFFIXES:
-            spec = _from_sdf(source, name, folder, all_rules, ceiling_height, model_paths, geometry, wall_line)
+            spec = _from_sdf(source, name, folder, all_rules, ceiling_height, model_paths, geometry, wall_line, strict)
         else:
             raise MapFileError(
                 f"{source}: expected a map_server .yaml, an SDF world ({', '.join(SDF_SUFFIXES)}) "
@@ -138,12 +142,13 @@ def _from_sdf(
     model_paths: Sequence[Path],
     geometry: str,
     wall_line: bool,
+    strict: bool = False,
 ) -> dict[str, Any]:
     import trimesh
 
     from pimm_env.importers.sdf_world import read_sdf_world
 
-    meshes = read_sdf_world(source, model_paths, geometry)
+    meshes = read_sdf_world(source, model_paths, geometry, strict)
     scene = trimesh.Scene()
     for key, mesh in meshes.items():
         scene.add_geometry(mesh, node_name=key, geom_name=key)
