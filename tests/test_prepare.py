@@ -50,4 +50,8 @@ def test_describe_warns_when_the_corner_map_is_thin():
         seconds={"maps": 0.1},
     )
     assert describe(thin).startswith("warning: 3 corners over 400 m^2 (0.8 per 100 m^2")
+    assert "--ceiling-height" not in describe(thin)  # it has a ceiling: the advice fits what was given
+    from dataclasses import replace
+
+    assert "the world has no ceiling: give --ceiling-height" in describe(replace(thin, has_ceiling=False))
     assert "warning" not in describe(Preparation("w", Path("maps/w"), 40, 400.0, 10, ["route_1"], False, {}))

@@ -175,7 +175,6 @@ def run_replay(
     from pimm_agents.results.folder import write_results, write_run_record
     from pimm_agents.results.tum import write_tum
     from pimm_env.bags.read import BagTopics
-    from pimm_env.errors import PimmError
     from pimm_env.mapping.derived_maps import ensure_derived_maps
     from pimm_env.mapping.map_server import load_map_server
     from pimm_env.sim.sensors import sensor_layouts
@@ -202,8 +201,8 @@ def run_replay(
             done, truth = replay_bag(bag, specs, map_path, topics)
             results += done
             has_truth = has_truth and truth
-    except PimmError:
-        shutil.rmtree(folder, ignore_errors=True)  # made before the layouts were read into it: no empty results
+    except BaseException:  # any failure (a bug, Ctrl-C too) leaves no half-made results folder
+        shutil.rmtree(folder, ignore_errors=True)
         raise
     write_params_file(folder / "config.yaml", localizers)
     record = {"command": command, "bag": str(bag), "world": None if map_path else world,

@@ -10,6 +10,7 @@ from pathlib import Path
 from pimm_env.driving.routes import RouteConfig
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.model import World
+from pimm_env.world.semantics import SemanticClass
 
 
 @dataclass
@@ -22,6 +23,7 @@ class Preparation:
     scenarios: list[str]
     routes_written: bool
     seconds: dict[str, float] = field(default_factory=dict)
+    has_ceiling: bool = True  # whether any element of the world is a ceiling
 
 
 def prepare_world(
@@ -70,6 +72,7 @@ def prepare_world(
         scenarios=list(load_scenarios(loaded)),
         routes_written=written,
         seconds=seconds,
+        has_ceiling=any(e.semantic == SemanticClass.CEILING for e in loaded.elements),
     )
 
 
@@ -93,10 +96,14 @@ def describe(done: Preparation) -> str:
     per_100 = 100.0 * done.corners / max(done.free_m2, 1e-9)
     warning = ""
     if per_100 < MIN_CORNERS_PER_100_M2:
+        why = (
+            "the ceiling meets few of its walls (a ceiling only over some rooms, or walls that stop short of it)"
+            if done.has_ceiling
+            else "the world has no ceiling: give --ceiling-height on import"
+        )
         warning = (
             f"warning: {done.corners} corners over {done.free_m2:.0f} m^2 ({per_100:.1f} per 100 m^2, fewer than "
-            f"{MIN_CORNERS_PER_100_M2:g}): PIMM leans on its other cues here (a world without a ceiling needs "
-            "--ceiling-height on import)\n"
+            f"{MIN_CORNERS_PER_100_M2:g}): PIMM leans on its other cues here; {why}\n"
         )
     return warning + (
         f"{done.world}: {done.free_m2:.0f} m^2 free, {done.corners} corners, {done.fingerprints} fingerprints, "
