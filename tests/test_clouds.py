@@ -166,3 +166,15 @@ def test_odd_arrays_and_georeferenced_files(tmp_path):
     np.save(tmp_path / "utm.npy", utm)
     cloud = read_cloud(tmp_path / "utm.npy")
     assert np.allclose(cloud.points.astype(np.float64) + cloud.offset, utm, atol=1e-5)  # float32 alone: 0.5 m
+
+
+def test_a_truncated_binary_ply_is_refused_not_read_with_rows_of_garbage(tmp_path, points):
+    import open3d as o3d
+
+    full = tmp_path / "full.ply"
+    o3d.io.write_point_cloud(str(full), _open3d_cloud(points), write_ascii=False)
+    cut = tmp_path / "cut.ply"
+    cut.write_bytes(full.read_bytes()[:-40])
+    with pytest.raises(CloudFileError, match=r"cut.ply: \d+ bytes, its header's elements need \d+ \(the file is cut"):
+        read_cloud(cut)
+    assert len(read_cloud(full).points) == len(points)

@@ -128,9 +128,41 @@ def _from_viewpoint(xyz: np.ndarray, viewpoint: tuple[float, ...]) -> np.ndarray
     return (xyz - t) @ rotation
 
 
+#: PLY's property types and their sizes in bytes
+PLY_SIZES = {
+    "char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
+    "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8,
+}  # fmt: skip
+
+
+def _check_ply_size(path: Path) -> None:
+    """A binary PLY whose elements all have rows of one size must hold them all: a truncated one is refused (read
+    as it is, its missing rows would be whatever memory held)."""
+    with path.open("rb") as handle:
+        head = handle.read(65536)
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        raise CloudFileError(f"{path}: not a PLY file (no 'ply' ... 'end_header' header)")
+    lines = head[:end].decode("ascii", errors="replace").splitlines()
+    if not any(line.startswith("format binary") for line in lines):
+        return  # ASCII: open3d counts its rows
+    need, count = head.index(b"\n", end) + 1, 0
+    for words in (line.split() for line in lines):
+        if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit():
+            count = int(words[2])
+        elif words[:1] == ["property"] and len(words) >= 3:
+            if words[1] == "list" or words[1] not in PLY_SIZES:
+                return  # rows of varying size (faces): the reader checks what it can
+            need += count * PLY_SIZES[words[1]]
+    size = path.stat().st_size
+    if size < need:
+        raise CloudFileError(f"{path}: {size} bytes, its header's elements need {need} (the file is cut short)")
+
+
 def _ply(path: Path) -> tuple[np.ndarray, None, None]:
     import open3d as o3d
 
+    _check_ply_size(path)
     with _quiet_open3d():
         cloud = o3d.t.io.read_point_cloud(path, remove_nan_points=False, remove_infinite_points=False)
     if "positions" not in cloud.point:
