@@ -102,17 +102,17 @@ def test_a_cloud_without_z_is_refused():
     t = store.types
     fields = [t["sensor_msgs/msg/PointField"](name=n, offset=4 * i, datatype=7, count=1) for i, n in enumerate("xy")]
     header = t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="lidar")
-    msg = t["sensor_msgs/msg/PointCloud2"](
-        header=header, height=1, width=2, fields=fields, is_bigendian=False, point_step=8, row_step=16,
-        data=np.zeros(16, np.uint8), is_dense=True,
-    )  # fmt: skip
+
+    def two_points(fields: list):
+        return t["sensor_msgs/msg/PointCloud2"](
+            header=header, height=1, width=2, fields=fields, is_bigendian=False, point_step=8, row_step=16,
+            data=np.zeros(16, np.uint8), is_dense=True,
+        )  # fmt: skip
+
+    msg = two_points(fields)
     with pytest.raises(BagError, match=r"/points message 3: PointCloud2 has no field\(s\) \['z'\]"):
         cloud_points(msg, "/points message 3")
-    fields.append(t["sensor_msgs/msg/PointField"](name="z", offset=8, datatype=7, count=1))  # past point_step 8
-    msg = t["sensor_msgs/msg/PointCloud2"](
-        header=header, height=1, width=2, fields=fields, is_bigendian=False, point_step=8, row_step=16,
-        data=np.zeros(16, np.uint8), is_dense=True,
-    )  # fmt: skip
+    msg = two_points([*fields, t["sensor_msgs/msg/PointField"](name="z", offset=8, datatype=7, count=1)])  # past 8
     with pytest.raises(BagError, match=r"message 3: PointCloud2 field\(s\) \['z'\] at offset\(s\) \[8\] do not fit"):
         cloud_points(msg, "/points message 3")
 

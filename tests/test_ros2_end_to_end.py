@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -85,6 +86,18 @@ class Watcher:
         raise AssertionError(f"{what}: not within {seconds} s (statuses: {self.statuses[-3:]})")
 
 
+@contextmanager
+def node_and_robot(tmp_path: Path, node: list[str], robot: list[str]):
+    """``evaluate.py node NODE...`` and ``sim-robot ROBOT...`` running, and a participant watching them as nav2
+    would: yields (node process, robot process, domain, watcher); both processes are ended whatever happens."""
+    processes = (start(tmp_path / "node.log", "node", *node), start(tmp_path / "robot.log", "sim-robot", *robot))
+    try:
+        with Domain() as domain:
+            yield (*processes, domain, Watcher(domain))
+    finally:
+        stop(*processes)
+
+
 def pose_stamped(pose: list[float]):
     t = ros_types().types
     return t["geometry_msgs/msg/PoseStamped"](
@@ -96,49 +109,39 @@ def pose_stamped(pose: list[float]):
 
 
 def test_pimm_through_the_node_localizes_and_notices_a_kidnap(ros_domain, tmp_path) -> None:
-    node = start(tmp_path / "node.log", "node", "--localizer", "pimm", "--seconds", "120")
-    robot = start(tmp_path / "robot.log", "sim-robot", "--scenario", "area_b", "--seed", "1")
-    try:
-        with Domain() as domain:
-            watcher = Watcher(domain)
-            kidnap = domain.publisher("/sim/kidnap", "geometry_msgs/msg/PoseStamped")
-            right = lambda: watcher.statuses and watcher.statuses[-1][1] == "localized" and watcher.error_m() < 1.0  # noqa: E731
-            watcher.wait(right, 90, "PIMM right and localized", node, robot)
-            watcher.wait(lambda: kidnap.matched() > 0, 10, "the robot hears /sim/kidnap")
-            sent = time.monotonic()
-            kidnap.publish(pose_stamped(HALL_A))
-            noticed = watcher.wait(
-                lambda: any(t > sent and s != "localized" for t, s in watcher.statuses), 10, "kidnap noticed", node
-            )
-            assert noticed - sent <= 2.0
-            assert np.hypot(*(planar_pose(watcher.newest["truth"])[:2] - HALL_A[:2])) < 1.0  # it was carried
-    finally:
-        stop(node, robot)
+    pimm, drive = ["--localizer", "pimm", "--seconds", "120"], ["--scenario", "area_b", "--seed", "1"]
+    with node_and_robot(tmp_path, pimm, drive) as (node, robot, domain, watcher):
+        kidnap = domain.publisher("/sim/kidnap", "geometry_msgs/msg/PoseStamped")
+        right = lambda: watcher.statuses and watcher.statuses[-1][1] == "localized" and watcher.error_m() < 1.0  # noqa: E731
+        watcher.wait(right, 90, "PIMM right and localized", node, robot)
+        watcher.wait(lambda: kidnap.matched() > 0, 10, "the robot hears /sim/kidnap")
+        sent = time.monotonic()
+        kidnap.publish(pose_stamped(HALL_A))
+        noticed = watcher.wait(
+            lambda: any(t > sent and s != "localized" for t, s in watcher.statuses), 10, "kidnap noticed", node
+        )
+        assert noticed - sent <= 2.0
+        assert np.hypot(*(planar_pose(watcher.newest["truth"])[:2] - HALL_A[:2])) < 1.0  # it was carried
 
 
 def test_a_known_start_from_initialpose(ros_domain, tmp_path) -> None:
-    node = start(tmp_path / "node.log", "node", "--localizer", "amcl", "--seconds", "90")
-    robot = start(tmp_path / "robot.log", "sim-robot", "--scenario", "area_a", "--seed", "2")
-    try:
-        with Domain() as domain:
-            watcher = Watcher(domain)
-            initial = domain.publisher("/initialpose", "geometry_msgs/msg/PoseWithCovarianceStamped")
-            watcher.wait(lambda: "truth" in watcher.newest and "pose" in watcher.newest, 60, "node running", node)
-            truth = planar_pose(watcher.newest["truth"])
-            t = ros_types().types
-            cov = np.zeros(36)
-            cov[[0, 7, 35]] = [0.25, 0.25, 0.068]  # nav2's RViz "2D Pose Estimate" covariance
-            pose = pose_stamped(list(truth)).pose
-            msg = t["geometry_msgs/msg/PoseWithCovarianceStamped"](
-                header=header(0.0, "map"), pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=cov)
-            )
-            watcher.wait(lambda: initial.matched() > 0, 10, "the node hears /initialpose")
-            initial.publish(msg)
-            sent = time.monotonic()
-            watcher.wait(lambda: watcher.statuses and watcher.statuses[-1][0] > sent + 1.0, 10, "updates after it")
-            assert watcher.error_m() < 0.5
-    finally:
-        stop(node, robot)
+    amcl, drive = ["--localizer", "amcl", "--seconds", "90"], ["--scenario", "area_a", "--seed", "2"]
+    with node_and_robot(tmp_path, amcl, drive) as (node, _, domain, watcher):
+        initial = domain.publisher("/initialpose", "geometry_msgs/msg/PoseWithCovarianceStamped")
+        watcher.wait(lambda: "truth" in watcher.newest and "pose" in watcher.newest, 60, "node running", node)
+        truth = planar_pose(watcher.newest["truth"])
+        t = ros_types().types
+        cov = np.zeros(36)
+        cov[[0, 7, 35]] = [0.25, 0.25, 0.068]  # nav2's RViz "2D Pose Estimate" covariance
+        pose = pose_stamped(list(truth)).pose
+        msg = t["geometry_msgs/msg/PoseWithCovarianceStamped"](
+            header=header(0.0, "map"), pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=cov)
+        )
+        watcher.wait(lambda: initial.matched() > 0, 10, "the node hears /initialpose")
+        initial.publish(msg)
+        sent = time.monotonic()
+        watcher.wait(lambda: watcher.statuses and watcher.statuses[-1][0] > sent + 1.0, 10, "updates after it")
+        assert watcher.error_m() < 0.5
 
 
 def test_the_node_agrees_with_a_replay_of_the_same_drive(ros_domain, tmp_path) -> None:
@@ -160,22 +163,17 @@ def test_the_node_agrees_with_a_replay_of_the_same_drive(ros_domain, tmp_path) -
     with next(folder.rglob("*.csv")).open() as handle:
         rows = [(float(r["timestamp_real"]), float(r["est_x"]), float(r["est_y"])) for r in csv.DictReader(handle)]
     replayed = np.array(rows)
-    node = start(tmp_path / "node.log", "node", "--localizer", "pimm", "--seconds", "150")
-    robot = start(tmp_path / "robot.log", "sim-robot", "--scenario", "area_b", "--seed", "0")
     poses = []
-    try:
-        with Domain() as domain:
-            watcher = Watcher(domain)
-            end = time.monotonic() + 150
-            while robot.poll() is None and time.monotonic() < end:
-                for _, msg in watcher.subs["pose"].take():
-                    stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-                    status = watcher.statuses[-1][1] if watcher.statuses else "lost"
-                    poses.append((stamp, *planar_pose(msg)[:2], status == "localized"))
-                watcher.poll()
-                time.sleep(0.01)
-    finally:
-        stop(node, robot)
+    pimm, drive = ["--localizer", "pimm", "--seconds", "150"], ["--scenario", "area_b", "--seed", "0"]
+    with node_and_robot(tmp_path, pimm, drive) as (_, robot, _, watcher):
+        end = time.monotonic() + 150
+        while robot.poll() is None and time.monotonic() < end:
+            for _, msg in watcher.subs["pose"].take():
+                stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+                status = watcher.statuses[-1][1] if watcher.statuses else "lost"
+                poses.append((stamp, *planar_pose(msg)[:2], status == "localized"))
+            watcher.poll()
+            time.sleep(0.01)
     published = np.array(poses)
     localized = published[published[:, 3] > 0]
     assert len(localized) > 100
