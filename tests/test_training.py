@@ -250,3 +250,18 @@ def test_heldout_refuses_a_bad_setting_before_writing_any_building(tmp_path):
     assert result.exit_code != 0
     assert "max_rivalz" in result.output
     assert not worlds.exists() and not out.exists()
+
+
+def test_the_heldout_table_shows_the_published_covariances_overconfident_rows():
+    from training.heldout import format_table, summarize
+
+    row = {"miou": 0.9, "recall_at_3": 0.8, "corner_recall": 0.7, "convergence_rate": 1.0, "convergence_time_s": 4.0,
+           "position_error_m": 0.02, "excursions_per_trial": 0.0, "excursions_held_per_trial": 0.0,
+           "kidnap_recovery": 1.0, "trials": 5.0, "false_free_trials": 5.0, "false_localized_s": 0.0,
+           "localized_s": 100.0, "max_false_localized_s": 0.0, "localized_right_trials": 5.0,
+           "time_to_localized_s": 6.0, "within_3sigma": 1.0, "kidnap_noticed_s": 0.3, "rows": 4000.0,
+           "published_overconfident_rows": 2.0}  # fmt: skip
+    rows = {"gen-1": {"pimm": row}, "gen-2": {"pimm": {**row, "published_overconfident_rows": 6.0}}}
+    table = format_table(rows, ["pimm"]).splitlines()
+    assert table[0].endswith("| published overconf. % |") and table[2].endswith("| 0.05 % |")
+    assert summarize(rows, "pimm")["published_overconfident_rows"] == 8.0

@@ -104,6 +104,14 @@ def _honesty(folder: Path, localizer: str) -> dict[str, float | None]:
         "time_to_localized_s": float(np.median(times)) if times else None,
         "within_3sigma": float(np.mean(within)) if within else None,
         "kidnap_noticed_s": max(noticed) if noticed else None,
+        # rows more than 1 m off shown a position sigma under 0.5 m by the covariance on amcl_pose (a consumer
+        # without the status); None where a log has no published covariance
+        "rows": float(sum(h.rows for h in honesty)),
+        "published_overconfident_rows": (
+            None
+            if any(h.published_overconfident_rows is None for h in honesty)
+            else float(sum(h.published_overconfident_rows or 0 for h in honesty))
+        ),
     }
 
 
@@ -124,8 +132,8 @@ def format_table(rows: dict[str, dict[str, dict[str, float | None]]], localizers
     lines = [
         "| building | localizer | mIoU | recall@3 (2 m) | corner recall | conv. rate | conv. time s | pos. err m "
         "| excursions / trial | after 5 s held | kidnap | loc. time s | false-free trials | false loc. % "
-        "| longest false s | 3-sigma % | kidnap noticed s |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| longest false s | 3-sigma % | kidnap noticed s | published overconf. % |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for building, by_localizer in rows.items():
         for localizer in localizers:
@@ -139,7 +147,8 @@ def format_table(rows: dict[str, dict[str, dict[str, float | None]]], localizers
                 f"{_share(r.get('false_free_trials'), r.get('trials'))} | "
                 f"{_share(r.get('false_localized_s'), r.get('localized_s'), '.1f')} | "
                 f"{cell(r.get('max_false_localized_s'), '.1f')} | {cell(r.get('within_3sigma'), '.0f', 100)} | "
-                f"{cell(r.get('kidnap_noticed_s'), '.1f')} |"
+                f"{cell(r.get('kidnap_noticed_s'), '.1f')} | "
+                f"{_share(r.get('published_overconfident_rows'), r.get('rows'), '.2f')} |"
             )
     return "\n".join(lines)
 
@@ -162,8 +171,10 @@ def summarize(rows: dict[str, dict[str, dict[str, float | None]]], localizer: st
     times = [t for t in (r["convergence_time_s"] for r in items) if t is not None]
     summary = {key: mean(key) for key in items[0]}
     summary["convergence_time_s"] = float(np.median(times)) if times else None
-    for key in ("trials", "false_free_trials", "false_localized_s", "localized_s", "localized_right_trials"):
+    for key in ("trials", "false_free_trials", "false_localized_s", "localized_s", "localized_right_trials", "rows"):
         summary[key] = float(sum(r.get(key) or 0.0 for r in items))
+    published = [r.get("published_overconfident_rows") for r in items]
+    summary["published_overconfident_rows"] = None if None in published else float(sum(published))  # type: ignore[arg-type]
     for key in ("max_false_localized_s", "kidnap_noticed_s"):
         values = [v for v in (r.get(key) for r in items) if v is not None]
         summary[key] = max(values) if values else None
