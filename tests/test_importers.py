@@ -139,6 +139,14 @@ def test_a_ceiling_height_that_is_not_a_positive_number_is_refused(tmp_path, hei
     assert not (tmp_path / "maps" / "x").exists()
 
 
+def test_a_mesh_without_faces_is_named_as_the_users_file(tmp_path):
+    source = tmp_path / "points.obj"
+    source.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    with pytest.raises(MapFileError, match=r"points.obj: the mesh has no faces"):
+        import_world(source, "x", tmp_path / "maps")
+    assert not (tmp_path / "maps" / "x").exists()
+
+
 def _box_mesh(lo, hi):
     import trimesh
 

@@ -126,6 +126,10 @@ def _from_mesh(
     ceiling: float | None,
     wall_line: bool,
 ) -> dict[str, Any]:
+    from pimm_env.importers.sdf_world import read_mesh_file
+
+    if len(read_mesh_file(source).faces) == 0:  # said of the user's file, before anything is written
+        raise MapFileError(f"{source}: the mesh has no faces (a point set?): world import needs surfaces")
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / source.name
     if source.resolve() != target.resolve():
