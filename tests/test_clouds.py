@@ -178,3 +178,13 @@ def test_a_truncated_binary_ply_is_refused_not_read_with_rows_of_garbage(tmp_pat
     with pytest.raises(CloudFileError, match=r"cut.ply: \d+ bytes, its header's elements need \d+ \(the file is cut"):
         read_cloud(cut)
     assert len(read_cloud(full).points) == len(points)
+
+
+def test_a_kitti_file_without_reflectance_is_read_as_its_points(tmp_path):
+    rng = np.random.default_rng(1)
+    xyz = rng.uniform(-20, 20, (400, 3)).astype("<f4")  # 4 800 bytes: a whole number of 16-byte rows too
+    (tmp_path / "xyz.bin").write_bytes(xyz.tobytes())
+    np.testing.assert_array_equal(read_cloud(tmp_path / "xyz.bin").points, xyz)
+    xyzr = np.column_stack([xyz, rng.uniform(0, 1, 400)]).astype("<f4")
+    (tmp_path / "xyzr.bin").write_bytes(xyzr.tobytes())
+    np.testing.assert_array_equal(read_cloud(tmp_path / "xyzr.bin").points, xyz)

@@ -217,9 +217,19 @@ def _npy(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | N
 
 
 def _kitti(path: Path) -> tuple[np.ndarray, None, None]:
+    """KITTI's float32 x, y, z, reflectance; a file of x, y, z alone (12 bytes a point) is told apart by its
+    "reflectance" column, which would then hold coordinates: negative, or beyond any reflectance scale."""
     size = path.stat().st_size
-    if size % 16:
-        raise CloudFileError(
-            f"{path}: {size} bytes is not a whole number of KITTI points (float32 x, y, z, reflectance: 16 bytes each)"
-        )
-    return np.fromfile(path, dtype="<f4").reshape(-1, 4)[:, :3], None, None
+    raw = np.fromfile(path, dtype="<f4")
+    if size % 16 == 0:
+        rows = raw.reshape(-1, 4)
+        reflectance = rows[:, 3]
+        plausible = np.isfinite(reflectance).all() and reflectance.min() >= 0 and reflectance.max() <= 255
+        if plausible or size % 12:
+            return rows[:, :3], None, None
+    if size % 12 == 0:
+        return raw.reshape(-1, 3), None, None
+    raise CloudFileError(
+        f"{path}: {size} bytes is not a whole number of KITTI points (float32 x, y, z, reflectance: 16 bytes each; "
+        "or x, y, z: 12)"
+    )
