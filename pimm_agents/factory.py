@@ -76,12 +76,18 @@ def _build_pimm(world: World, config: Any, name: str, sensors: str | None) -> Lo
     from pimm_agents.perception.files import load_perception
     from pimm_agents.pimm.localizer import PimmLocalizer
     from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.mapping.twins import TWINS_FILE, MapTwins, TwinConfig
     from pimm_env.sim.sensors import sensor_layouts
+    from pimm_env.world.files import world_dir
 
     maps = load_derived_maps(world)
     segmenter, fingerprints = load_perception(world)
     lidar3d = sensor_layouts(sensors)[0]
-    return PimmLocalizer(maps.occupancy, maps.corners, segmenter, fingerprints, config, name=name, lidar3d=lidar3d)
+    twins = MapTwins(maps.occupancy, TwinConfig())
+    twins.load(world_dir(world) / TWINS_FILE)  # the world's table of them, where `world prepare` wrote one
+    return PimmLocalizer(
+        maps.occupancy, maps.corners, segmenter, fingerprints, config, name=name, lidar3d=lidar3d, twins=twins
+    )
 
 
 def _registration_config() -> Any:

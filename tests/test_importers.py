@@ -223,7 +223,7 @@ def test_world_import_command_prepares_a_world_to_run_in(tmp_path):
     result = CliRunner().invoke(evaluate.app, [*args, "--routes", "2"])
     assert result.exit_code == 0, result.output
     folder = tmp_path / "maps" / "plan"
-    assert {"world.yaml", "occupancy.pgm", "corners.yaml", "fingerprints.npz", "scenarios.yaml"} <= {
+    assert {"world.yaml", "occupancy.pgm", "corners.yaml", "fingerprints.npz", "scenarios.yaml", "twins.npz"} <= {
         p.name for p in folder.iterdir()
     }
     from pimm_env.driving.scenarios import load_scenarios

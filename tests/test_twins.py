@@ -57,6 +57,27 @@ def test_twins_are_carried_to_every_pose_of_a_cell():
     assert np.allclose(wrap_angle(b[:, 2] - a[:, 2]), 1.0)
 
 
+def test_the_table_of_twins_gives_what_working_them_out_gives_and_only_for_its_own_map(tmp_path, monkeypatch):
+    rooms = twin_rooms()
+    made = MapTwins(rooms, TwinConfig())
+    assert made.precompute() == len(made.free_cells()) > 0
+    path = made.save(tmp_path / "twins.npz")
+    taken = MapTwins(rooms, TwinConfig())
+    assert taken.load(path)
+
+    def worked_out(*args):  # with the table, no update works a cell out
+        raise AssertionError("a cell was worked out although the table has it")
+
+    monkeypatch.setattr(taken, "_twins_at", worked_out)
+    rng = np.random.default_rng(0)
+    gx, gy = rooms.grid.cell_centers()
+    free = rng.choice(np.flatnonzero(rooms.free), 30, replace=False)  # poses where a localizer may be
+    for pose in np.column_stack([gx.ravel()[free], gy.ravel()[free], rng.uniform(-3, 3, 30)]):
+        np.testing.assert_array_equal(taken.of(pose), made.of(pose))
+    assert not MapTwins(rooms, TwinConfig(min_overlap=0.7)).load(path)  # other settings: not taken
+    assert not MapTwins(turned_rooms(), TwinConfig()).load(path)  # another map: not taken
+
+
 def test_a_place_that_sees_no_walls_has_no_twins():
     grid = GridSpec.covering(np.array([0.0, 0.0]), np.array([40.0, 40.0]), 0.1)
     gx, gy = grid.cell_centers()

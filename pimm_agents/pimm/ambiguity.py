@@ -58,11 +58,17 @@ class AmbiguityCheck:
     whether the estimate is held) and returns decisions; it never writes the filter."""
 
     def __init__(
-        self, occupancy: OccupancyGrid, wall_field: LikelihoodField, temperature: float, config: RivalConfig
+        self,
+        occupancy: OccupancyGrid,
+        wall_field: LikelihoodField,
+        temperature: float,
+        config: RivalConfig,
+        twins: MapTwins | None = None,
     ) -> None:
         #: look-alike places the recent scans cannot tell from the estimate (rivals.py)
         self.tracker = RivalTracker(wall_field, occupancy.free, temperature, config)
-        self.twins = MapTwins(occupancy, TwinConfig())
+        #: the map's twins (``twins``: with the world's table of them loaded, so no update works one out)
+        self.twins = twins if twins is not None else MapTwins(occupancy, TwinConfig())
         self._odom: np.ndarray | None = None  # the odometry the rivals were last carried to
         self._twin_updates = 0  # localized updates since the twins were last offered
         #: the cells the twins were looked for from since the estimate was last lost or jumped

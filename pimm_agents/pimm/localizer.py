@@ -31,6 +31,7 @@ from pimm_env.errors import LocalizerError
 from pimm_env.geometry import carry, compose
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.mapping.twins import MapTwins
 from pimm_env.sim.lidar import Lidar3DConfig, directions_3d, to_robot_frame
 from pimm_env.world.semantics import SemanticClass
 
@@ -49,6 +50,7 @@ class PimmLocalizer:
         config: PimmConfig = PimmConfig(),
         name: str = "pimm",
         lidar3d: Lidar3DConfig | None = None,
+        twins: MapTwins | None = None,
     ) -> None:
         self.name = name
         self.resample = None
@@ -91,7 +93,7 @@ class PimmLocalizer:
         #: beside the filter: whether the estimate is the only place the scans allow (PimmConfig: with the walls)
         check = None
         if config.rivals.enabled and field is not None:
-            check = AmbiguityCheck(occupancy, field, walls.temperature, config.rivals)
+            check = AmbiguityCheck(occupancy, field, walls.temperature, config.rivals, twins)
         self.step = MeasurementStep(self.filter, check, config.belief.confirm_updates)
         self.history = OdometryHistory()
         self.guard = ObservationGuard(config.guard)

@@ -1,5 +1,6 @@
-"""Preparing a world for localization: derived maps, the fingerprint map made with the world's weights (the
-shipped ones unless it has its own), and generated routes in ``scenarios.yaml`` when it has none."""
+"""Preparing a world for localization: derived maps, the table of the map's twins, the fingerprint map made with
+the world's weights (the shipped ones unless it has its own), and generated routes in ``scenarios.yaml`` when it
+has none."""
 
 from __future__ import annotations
 
@@ -41,6 +42,7 @@ def prepare_world(
     from pimm_env.driving.routes import plan_routes, scenarios_document
     from pimm_env.driving.scenarios import load_scenarios, scenarios_path
     from pimm_env.mapping.derived_maps import build_derived_maps
+    from pimm_env.mapping.twins import TWINS_FILE, MapTwins, TwinConfig
     from pimm_env.world.files import load_world, world_dir
 
     loaded = world if isinstance(world, World) else load_world(world)
@@ -49,6 +51,11 @@ def prepare_world(
     start = time.perf_counter()
     maps = build_derived_maps(loaded)
     seconds["maps"] = time.perf_counter() - start
+    start = time.perf_counter()
+    twins = MapTwins(maps.occupancy, TwinConfig())  # PIMM's ambiguity check's, worked out once per cell
+    twins.precompute(progress)
+    twins.save(world_dir(loaded) / TWINS_FILE)
+    seconds["twins"] = time.perf_counter() - start
     start = time.perf_counter()
     written = new_routes or not scenarios_path(loaded).is_file()
     if written:

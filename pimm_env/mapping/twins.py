@@ -6,11 +6,18 @@ the wall cells within ``radius_m`` of a place, turns them by every ``angle_step_
 map's walls (one FFT correlation per angle, at ``resolution_m``), and returns the poses where at least
 ``min_overlap`` of them land on walls there. A robot at a twin sees what it would see at the place. Results are
 kept per ``cell_m`` cell of the map. PIMM's ambiguity check, its bounds and its active guide use it.
+
+Working out one cell takes tens of milliseconds (36 FFT correlations), too long for a localizer's update on a
+robot: ``world prepare`` works out every cell with free space once and writes the table beside the other derived
+maps (``twins.npz``, ``save``); ``load`` takes it back when it was made from the same map and settings, and a cell
+it lacks is worked out as before.
 """
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
@@ -68,6 +75,58 @@ class MapTwins:
         padded[self._reach : self._reach + rows, self._reach : self._reach + cols] = target
         self._target_fft = np.fft.rfft2(padded)
         self._cache: dict[tuple[int, int], np.ndarray] = {}
+
+    def signature(self) -> str:
+        """What the twins depend on: the settings and the map's walls and free space (a table made from another
+        map or other settings is not taken)."""
+        digest = hashlib.sha256(repr(self.config).encode())
+        digest.update(repr((self.grid.origin, self.grid.resolution, self.grid.shape)).encode())
+        digest.update(np.packbits(self.walls).tobytes())
+        digest.update(np.packbits(self.free).tobytes())
+        return digest.hexdigest()[:16]
+
+    def free_cells(self) -> list[tuple[int, int]]:
+        """Every ``cell_m`` cell holding free space: the cells a localizer's estimate can ask about."""
+        rows, cols = np.nonzero(self.free)
+        x = self.grid.origin[0] + (cols + 0.5) * self.grid.resolution
+        y = self.grid.origin[1] + (rows + 0.5) * self.grid.resolution
+        cells = np.unique(np.column_stack([np.floor(x / self.config.cell_m), np.floor(y / self.config.cell_m)]), axis=0)
+        return [(int(i), int(j)) for i, j in cells]
+
+    def precompute(self, progress: bool = False) -> int:
+        """Work out the twins of every cell with free space now; returns how many cells were worked out."""
+        cells = [key for key in self.free_cells() if key not in self._cache]
+        if progress:
+            from tqdm import tqdm
+
+            cells = tqdm(cells, desc="map twins", unit="cell", leave=False)  # type: ignore[assignment]
+        for key in cells:
+            self.of(np.array([(key[0] + 0.5) * self.config.cell_m, (key[1] + 0.5) * self.config.cell_m, 0.0]))
+        return len(cells)
+
+    def save(self, path: Path) -> Path:
+        """The table of every cell worked out so far, with the signature it holds for."""
+        keys = sorted(self._cache)
+        counts = np.array([len(self._cache[k]) for k in keys], dtype=np.int64)
+        rows = np.vstack([self._cache[k] for k in keys]).reshape(-1, 5) if keys else np.zeros((0, 5))
+        np.savez_compressed(
+            path, signature=np.array(self.signature()), keys=np.array(keys, dtype=np.int64).reshape(-1, 2),
+            counts=counts, rows=rows,
+        )  # fmt: skip
+        return Path(path)
+
+    def load(self, path: Path) -> bool:
+        """Take the table at ``path`` if it was made from this map and these settings; whether it was."""
+        if not Path(path).is_file():
+            return False
+        with np.load(path, allow_pickle=False) as data:
+            if str(data["signature"]) != self.signature():
+                return False
+            starts = np.concatenate([[0], np.cumsum(data["counts"])])
+            rows = data["rows"]
+            for k, key in enumerate(data["keys"]):
+                self._cache[(int(key[0]), int(key[1]))] = rows[starts[k] : starts[k + 1]]
+        return True
 
     def cell_of(self, pose: np.ndarray) -> tuple[int, int]:
         """The ``cell_m`` cell whose twins ``of`` gives for ``pose``."""
@@ -132,6 +191,10 @@ class MapTwins:
     def _free_at(self, x: float, y: float) -> bool:
         rows, cols, valid = self.grid.cells_of(np.array([[x, y]]))
         return bool(valid[0] and self.free[rows[0], cols[0]])
+
+
+#: The table of a world's twins (PIMM's settings), beside its other derived maps.
+TWINS_FILE = "twins.npz"
 
 
 def local_peaks(score: np.ndarray, floor: float, size: int = 5) -> tuple[np.ndarray, np.ndarray]:
