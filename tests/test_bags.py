@@ -332,7 +332,7 @@ def test_steps_are_timed_by_header_stamps_or_by_receive_times(tmp_path):
 
     assert np.allclose(times("header"), header_stamps)
     assert np.allclose(times("receive"), [1.0, 1.1, 1.2, 1.3])
-    with pytest.raises(BagError, match="stamps must be 'header' or 'receive'"):
+    with pytest.raises(BagError, match="stamps must be one of header, receive, order, got 'sensor'"):
         BagTopics(stamps="sensor")
 
 
@@ -463,3 +463,27 @@ def test_a_clock_that_never_advances_says_to_replay_by_receive_time_and_stale_sc
     assert aside == {"scan_stamp_not_newer": 19}  # counted up to where it stopped
     steps = list(read_steps(bag, BagTopics(stamps="receive"), config.lidar2d, config.lidar3d))
     assert len(steps) == 30 and steps[-1].obs["time"][0] == pytest.approx(3.9)
+
+
+def test_coarse_stamps_spread_in_order_so_that_every_message_has_a_time_of_its_own(tmp_path):
+    """A log printed with too few digits: ten odometry messages share each whole second."""
+    from rosbags.rosbag2 import Writer
+
+    from pimm_env.bags.read import spread_equal
+
+    store = typestore()
+    bag = tmp_path / "coarse"
+    with Writer(bag, version=9) as writer:
+        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
+        writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        for i in range(30):
+            msg = odometry(store, 1000.0 + i // 10, np.array([0.01 * i, 0.0, 0.0]), "odom")
+            writer.write(odom, 1_000_000_000 + i, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
+    config = SimConfig()
+    times = [
+        float(s.obs["time"][0]) for s in read_steps(bag, BagTopics(stamps="order"), config.lidar2d, config.lidar3d)
+    ]
+    np.testing.assert_allclose(times, 1000.0 + 0.1 * np.arange(30), atol=1e-9)
+    assert spread_equal(np.array([5.0, 5.0, 6.0, 6.0, 6.0, 7.0])).tolist() == pytest.approx(
+        [5, 5.5, 6, 6 + 1 / 3, 6 + 2 / 3, 7]
+    )

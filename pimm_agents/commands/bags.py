@@ -106,7 +106,11 @@ def replay(
     out: Path = OUT,
     json_out: bool = JSON,
     sensors: str | None = typer.Option(None, help="LiDAR presets or .yaml (default: the bag's record, or its data)"),
-    stamps: str = typer.Option("header", help="time messages by their header stamps or by when the bag received them"),
+    stamps: str = typer.Option(
+        "header",
+        help="header (their stamps), receive (when the bag received them) or order (the stamps, each run of equal "
+        "ones spread up to the next: coarse stamps)",
+    ),
 ) -> None:
     """Feed a bag to localizers and write the same results folder as run (metrics where it has ground truth)."""
     from pimm_agents.experiments.replay import run_replay

@@ -34,6 +34,7 @@ from pimm_env.bags.messages import (
 )
 from pimm_env.bags.tf_truth import TfTruth
 
+STAMPS = ("header", "receive", "order")
 #: Odometry messages whose times all agree from the start: a clock that does not advance (all zero, never set).
 STALLED_STAMPS = 20
 
@@ -48,12 +49,14 @@ class BagTopics:
     truth: str | None = TOPICS["truth"]
     events: str | None = TOPICS["events"]
     #: the time of each message: its header stamp ("header", when the sensor saw it) or when the bag received it
-    #: ("receive": for a log whose stamps are wrong or from unsynchronized clocks)
+    #: ("receive": for a log whose stamps are wrong or from unsynchronized clocks), or its header stamps with the
+    #: messages that share one spread evenly up to the next ("order": for stamps printed too coarsely to tell the
+    #: messages apart, as a classic log written with 6 significant digits)
     stamps: str = "header"
 
     def __post_init__(self) -> None:
-        if self.stamps not in ("header", "receive"):
-            raise BagError(f"stamps must be 'header' or 'receive', got {self.stamps!r}")
+        if self.stamps not in STAMPS:
+            raise BagError(f"stamps must be one of {', '.join(STAMPS)}, got {self.stamps!r}")
 
 
 @dataclass
@@ -101,7 +104,16 @@ def read_steps(
         fresh_scan = fresh_cloud = kidnapped = False
         counts: dict[str, int] = {}
         first_stamps: list[float] = []  # the first odometry times, to tell a clock that never advances
+        first_received: list[float] = []
         by_receipt = topics.stamps == "receive"
+        ordered = _ordered_stamps(reader, connections, priority) if topics.stamps == "order" else {}
+
+        def when(msg: Any, received: int, topic: str, index: int) -> float:
+            """A message's time: its receive time, its stamp spread in order, or its header stamp."""
+            if by_receipt:
+                return received * 1e-9
+            return float(ordered[topic][index]) if ordered else stamp_seconds(msg)
+
         for connection, received, raw in in_step_order(reader.messages(connections=connections), priority):
             topic = connection.topic
             index = counts[topic] = counts.get(topic, -1) + 1
@@ -119,13 +131,13 @@ def read_steps(
                     pose = None
                 truth = truth if pose is None else pose
             elif topic == topics.scan:
-                stamp = received * 1e-9 if by_receipt else stamp_seconds(msg)
+                stamp = when(msg, received, topic, index)
                 if index and stamp <= scan_time:  # a localizer would take it for the scan it already has
                     aside["scan_stamp_not_newer"] = aside.get("scan_stamp_not_newer", 0) + 1
                 scan = scan_ranges(msg, lidar2d.beams, lidar2d.max_range, where)
                 scan_time, fresh_scan = stamp, True
             elif topic == topics.points:
-                stamp = received * 1e-9 if by_receipt else stamp_seconds(msg)
+                stamp = when(msg, received, topic, index)
                 if index and stamp <= cloud_time:
                     aside["cloud_stamp_not_newer"] = aside.get("cloud_stamp_not_newer", 0) + 1
                 cloud, mask = organize(cloud_points(msg, where), lidar3d, where)
@@ -133,23 +145,15 @@ def read_steps(
             elif topic == topics.odom:
                 # a header stamp that goes back is served as it is: the localizers' guard sets that observation
                 # aside and counts it (the bag's receive order is the order)
-                t = received * 1e-9 if by_receipt else stamp_seconds(msg)
+                t = when(msg, received, topic, index)
                 odom = planar_pose(msg, where)
                 if not (np.all(np.isfinite(odom)) and np.isfinite(t)):  # set aside: the next one closes the step
                     aside["non_finite_odometry"] = aside.get("non_finite_odometry", 0) + 1
                     continue
                 first_stamps.append(t)
+                first_received.append(received * 1e-9)
                 if len(first_stamps) == STALLED_STAMPS and max(first_stamps) == min(first_stamps):
-                    kind = "receive times" if by_receipt else "header stamps"
-                    fix = (
-                        "neither the stamps nor the receive times tell the messages apart"
-                        if by_receipt
-                        else "the recorder's clock was not set: replay with --stamps receive (the bag's receive times)"
-                    )
-                    raise BagError(
-                        f"{path}: {topic}: the first {STALLED_STAMPS} {kind} are all {t}: time does not advance, "
-                        f"so no localizer could move; {fix}"
-                    )
+                    raise BagError(_stalled(path, topic, topics.stamps, t, np.ptp(first_received)))
                 obs = {
                     "odom": odom.astype(np.float32),
                     "cloud": cloud.copy(),
@@ -161,6 +165,52 @@ def read_steps(
                 }
                 yield Step(obs, None if truth is None else truth.copy(), fresh_scan, fresh_cloud, kidnapped)
                 fresh_scan = fresh_cloud = kidnapped = False
+
+
+def _stalled(path: Path, topic: str, stamps: str, t: float, received_span_s: float) -> str:
+    """Why a replay whose first odometry times all agree cannot go on, and which ``--stamps`` would."""
+    said = {"header": "header stamps", "receive": "receive times", "order": "stamps, spread in order,"}[stamps]
+    if stamps == "header" and received_span_s > 1e-3:
+        fix = "the recorder's clock was not set: replay with --stamps receive (the bag's receive times)"
+    elif stamps != "order":
+        fix = ("neither the stamps nor the receive times tell the messages apart: replay with --stamps order (the "
+               "header stamps, those that repeat spread evenly up to the next)")  # fmt: skip
+    else:
+        fix = "the log holds one stamp only: no order of them gives it a time"
+    return (
+        f"{path}: {topic}: the first {STALLED_STAMPS} {said} are all {t}: time does not advance, so no localizer "
+        f"could move; {fix}"
+    )
+
+
+def _ordered_stamps(reader: Any, connections: list, priority: dict) -> dict[str, np.ndarray]:
+    """Every topic's header stamps in the order read, each run of equal ones spread evenly up to the next (the
+    last run over the topic's mean step)."""
+    stamps: dict[str, list[float]] = {}
+    for connection, _, raw in in_step_order(reader.messages(connections=connections), priority):
+        msg = reader.deserialize(raw, connection.msgtype)
+        header = getattr(msg, "header", None)
+        stamps.setdefault(connection.topic, []).append(stamp_seconds(msg) if header is not None else np.nan)
+    return {topic: spread_equal(np.array(values)) for topic, values in stamps.items()}
+
+
+def spread_equal(stamps: np.ndarray) -> np.ndarray:
+    """``stamps`` with each run of equal values spread evenly from its value up to the next value (the last
+    run at the mean step of the messages before it)."""
+    out = np.array(stamps, dtype=float)
+    n = len(out)
+    last = int(np.flatnonzero(out != out[-1])[-1]) + 1 if n and np.any(out != out[-1]) else 0  # the last run's start
+    mean_step = (out[last] - out[0]) / last if last else 0.0
+    i = 0
+    while i < n:
+        j = i + 1
+        while j < n and out[j] == out[i]:
+            j += 1
+        if j - i > 1:
+            upto = stamps[j] if j < n else stamps[i] + (j - i) * mean_step
+            out[i:j] = stamps[i] + (upto - stamps[i]) * np.arange(j - i) / (j - i)
+        i = j
+    return out
 
 
 def in_step_order(messages: Iterable[tuple[Any, int, Any]], priority: dict[str | None, int]) -> Iterator[tuple]:
