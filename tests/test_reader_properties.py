@@ -16,7 +16,10 @@ from pimm_env.bags.carmen import read_carmen
 from pimm_env.clouds.read import read_cloud
 from pimm_env.errors import BagError, CloudFileError
 
-FEW = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+#: the same generated cases on every run (a CI that fails must fail again where it is run next)
+FEW = settings(
+    max_examples=40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 RNG = np.random.default_rng(5)
 POINTS = RNG.uniform(-5, 5, (200, 3))
 
@@ -67,6 +70,7 @@ def test_a_cloud_file_cut_anywhere_is_read_whole_or_refused(kind, cut):
 @FEW
 @given(kind=st.sampled_from(sorted(VALID)), at=st.integers(0, 400), byte=st.integers(0, 255))
 def test_a_cloud_file_with_one_byte_changed_is_read_or_refused(kind, at, byte):
+    """(Found by this test: one byte of an .npy's float64 made a value beyond float32's range, stored as inf.)"""
     data = bytearray(VALID[kind])
     data[min(at, len(data) - 1)] = byte
     _read(bytes(data), "." + kind.split("-")[0])
@@ -107,3 +111,9 @@ def test_arrays_of_other_shapes_are_refused_naming_the_shape(shape):
     buffer = io.BytesIO()
     np.save(buffer, np.ones(shape))
     assert _read(buffer.getvalue(), ".npy") is None
+
+
+def test_a_value_beyond_float32s_range_is_no_return():
+    buffer = io.BytesIO()
+    np.save(buffer, np.vstack([POINTS, [[1e300, 0.0, 0.0]]]))
+    assert _read(buffer.getvalue(), ".npy") is None  # an unorganized cloud: refused, naming the file

@@ -132,7 +132,10 @@ def _ascii_rows(path: Path, header: PcdHeader, data: bytes) -> np.ndarray:
             f"{path}: {len(data)} bytes of ASCII data cannot hold POINTS {header.points} x {columns} values "
             "(cut short, or a damaged header)"
         )
-    lines = [line for line in data.decode("ascii", errors="replace").splitlines() if line.strip()]
+    text = data.decode("ascii", errors="replace")
+    if text.strip() and not text.endswith(("\n", "\r")):  # a row cut mid-number would be read as another value
+        raise CloudFileError(f"{path}: the last data row does not end its line (the file is cut short)")
+    lines = [line for line in text.splitlines() if line.strip()]
     if len(lines) != header.points:
         raise CloudFileError(f"{path}: {len(lines)} data rows, the header says POINTS {header.points} (cut short?)")
     values = np.empty((len(lines), columns))

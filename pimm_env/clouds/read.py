@@ -68,14 +68,15 @@ def _returns(
 ) -> CloudFile:
     if len(xyz) == 0:
         raise CloudFileError(f"{path}: the cloud has no points")
-    finite = np.isfinite(xyz).all(axis=1)
+    with np.errstate(invalid="ignore"):  # beyond float32's range is infinite in the cloud kept: no return
+        finite = (np.abs(xyz) < np.finfo(np.float32).max).all(axis=1)
     good = finite & np.any(xyz != 0, axis=1)
     if organized is None and not finite.all() and not drop_invalid:
         first = int(np.flatnonzero(~finite)[0])
         raise CloudFileError(
             f"{path}: {int((~finite).sum())} of {len(xyz)} points have NaN or infinite coordinates (first: row "
             f"{first}); an unorganized cloud has no rays without returns: repair the file, or pass --drop-invalid "
-            "to leave them out"
+            "to leave them out (a coordinate beyond float32's range counts as infinite)"
         )
     if not good.any():
         raise CloudFileError(f"{path}: none of its {len(xyz)} points is a return (all NaN, infinite or at the origin)")
@@ -196,9 +197,11 @@ def _las(path: Path) -> tuple[np.ndarray, None, None]:
 
 
 def _npy(path: Path) -> tuple[np.ndarray, np.ndarray | None, tuple[int, int] | None]:
+    import tokenize
+
     try:
         array = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, EOFError) as error:
+    except (ValueError, OSError, EOFError, SyntaxError, tokenize.TokenError) as error:  # a damaged header too
         raise CloudFileError(f"{path}: not a readable .npy array ({error})") from None
     if array.dtype.kind not in "fiu":
         raise CloudFileError(f"{path}: array of {array.dtype}; give numbers (x, y, z first)")
