@@ -212,9 +212,10 @@ def test_truth_as_pose_stamped_is_read_and_a_type_without_a_pose_is_named(tmp_pa
         planar_pose(msg, "/scan message 0")
 
 
-def drive_bag(bag: Path, odom_of, truth_from: int = 0) -> Path:
+def drive_bag(bag: Path, odom_of, truth_from: int = 0, stamp_of=lambda i: 0.1 * i) -> Path:
     """30 steps 0.1 s apart east along y = 2 from x = 2 (0.05 m a step) in the iilab's free space: a scan of 3 m
-    everywhere, the truth from step ``truth_from`` on, and the odometry ``odom_of(step, true pose)``."""
+    everywhere, the truth from step ``truth_from`` on, and the odometry ``odom_of(step, true pose)``; every
+    message of step i stamped ``stamp_of(i)``."""
     from rosbags.rosbag2 import Writer
 
     store = typestore()
@@ -225,7 +226,7 @@ def drive_bag(bag: Path, odom_of, truth_from: int = 0) -> Path:
         truth = writer.add_connection("/ground_truth", "nav_msgs/msg/Odometry", typestore=store)
         scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
         for i in range(30):
-            at, t = int(1e8) * i, 0.1 * i
+            at, t = int(1e8) * i, stamp_of(i)
             pose = np.array([2.0 + 0.05 * i, 2.0, 0.0])
             msg = laser_scan(store, t, np.full(lidar.beams, 3.0), angles, lidar)
             writer.write(scan, at, store.serialize_cdr(msg, "sensor_msgs/msg/LaserScan"))
@@ -467,23 +468,14 @@ def test_a_clock_that_never_advances_says_to_replay_by_receive_time_and_stale_sc
 
 def test_coarse_stamps_spread_in_order_so_that_every_message_has_a_time_of_its_own(tmp_path):
     """A log printed with too few digits: ten odometry messages share each whole second."""
-    from rosbags.rosbag2 import Writer
-
     from pimm_env.bags.read import spread_equal
 
-    store = typestore()
-    bag = tmp_path / "coarse"
-    with Writer(bag, version=9) as writer:
-        odom = writer.add_connection("/odom", "nav_msgs/msg/Odometry", typestore=store)
-        writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
-        for i in range(30):
-            msg = odometry(store, 1000.0 + i // 10, np.array([0.01 * i, 0.0, 0.0]), "odom")
-            writer.write(odom, 1_000_000_000 + i, store.serialize_cdr(msg, "nav_msgs/msg/Odometry"))
+    bag = drive_bag(tmp_path / "coarse", lambda i, pose: pose, stamp_of=lambda i: 1000.0 + i // 10)
     config = SimConfig()
     times = [
         float(s.obs["time"][0]) for s in read_steps(bag, BagTopics(stamps="order"), config.lidar2d, config.lidar3d)
     ]
-    np.testing.assert_allclose(times, 1000.0 + 0.1 * np.arange(30), atol=1e-9)
+    np.testing.assert_allclose(times, 1000.0 + 0.1 * np.arange(30), atol=1e-9)  # each second's ten, 0.1 s apart
     assert spread_equal(np.array([5.0, 5.0, 6.0, 6.0, 6.0, 7.0])).tolist() == pytest.approx(
         [5, 5.5, 6, 6 + 1 / 3, 6 + 2 / 3, 7]
     )

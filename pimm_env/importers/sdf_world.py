@@ -8,14 +8,14 @@ mesh (COLLADA ``.dae`` with its ``<unit>`` and ``<up_axis>`` honoured, or any fo
 because it is what a Gazebo ray sensor hits. Every piece is named ``model::...::link::collision``, so the mesh
 world's name rules (see :mod:`pimm_env.world.mesh`) classify it by the models' names.
 
-SDF 1.4-1.9 are read; a world saved by Gazebo with a ``<state>`` takes the models' poses from it. A missing
-model, a URI scheme other than ``model://``/``file://``/a path, or geometry it cannot read is an error naming the
-SDF file and the element.
+SDF 1.4-1.9 are read; a world saved by Gazebo with a ``<state>`` takes the models' poses from it. URIs are
+found as Gazebo finds them (:mod:`gazebo_paths`): a model or mesh not found is left out and counted (with
+``strict``, an error); a URI scheme other than ``model://``/``file://``/a path, an include loop, or geometry it
+cannot read is an error naming the SDF file and the element.
 """
 
 from __future__ import annotations
 
-import os
 import re
 import warnings
 import xml.etree.ElementTree as ET
@@ -27,30 +27,17 @@ from typing import Any
 import numpy as np
 
 from pimm_env.errors import MapFileError, MissingFileError
-
-#: Models Gazebo ships that hold no building, when they are not on the model path: a light (nothing to leave
-#: out) and the endless ground plane (left out, with a warning: the building's own floor is used).
-BUILTIN_MODELS = {"sun": "", "ground_plane": "Gazebo's ground plane (the building's own floor is used)"}
+from pimm_env.importers.gazebo_paths import BUILTIN_MODELS, GazeboPaths, model_file, model_path
 
 
 @dataclass
 class _Context:
-    model_paths: list[Path]
+    paths: GazeboPaths  # where URIs lead, and what could not be found
     geometry: str
     meshes: dict[str, Any] = field(default_factory=dict)  # name -> trimesh.Trimesh in the map frame
     cache: dict[tuple[Path, tuple[float, float, float]], Any] = field(default_factory=dict)
     left_out: list[str] = field(default_factory=list)
     including: list[Path] = field(default_factory=list)  # the chain of model files being included, outermost first
-    strict: bool = False  # a model or mesh not found stops the import (else: left out, warned and counted)
-    world_folder: Path | None = None
-    missing: list[str] = field(default_factory=list)  # models and meshes not found, left out
-    case_fixed: list[str] = field(default_factory=list)  # files found only by a name differing in case
-
-
-def model_path(extra: Sequence[Path] = ()) -> list[Path]:
-    """Folders searched for ``model://NAME``: the given ones, then ``GAZEBO_MODEL_PATH``'s."""
-    env = [Path(p) for p in os.environ.get("GAZEBO_MODEL_PATH", "").split(os.pathsep) if p]
-    return [Path(p) for p in extra] + env
 
 
 def read_sdf_world(
@@ -58,14 +45,14 @@ def read_sdf_world(
 ) -> dict[str, Any]:
     """Every collision (or visual) piece of an SDF world or model file, as trimesh meshes keyed by scoped name.
 
-    URIs resolve as Gazebo resolves them (``_resolve``). A model or mesh that cannot be found is left out with a
+    URIs resolve as Gazebo resolves them (:mod:`gazebo_paths`). A model or mesh that cannot be found is left out with a
     warning naming each and their count, as Gazebo loads the rest; with ``strict`` it stops the import."""
     path = Path(path)
     if geometry not in ("collision", "visual"):
         raise MapFileError(f"geometry: expected 'collision' or 'visual', got {geometry!r}")
     root = _parse(path)
     folders = [path.parent / "models", path.parent.parent / "models", *model_path(model_paths)]
-    context = _Context([f for f in folders if f.is_dir()], geometry, strict=strict, world_folder=path.parent)
+    context = _Context(GazeboPaths([f for f in folders if f.is_dir()], path.parent, strict), geometry)
     world = root.find("world")
     if world is None:
         models = root.findall("model")
@@ -83,14 +70,15 @@ def read_sdf_world(
             _include(include, np.eye(4), "", path, context)
     if context.left_out:
         warnings.warn(f"{path}: left out {', '.join(context.left_out)}", stacklevel=2)
-    if context.missing:
+    missing, case_fixed = context.paths.missing, context.paths.case_fixed
+    if missing:
         warnings.warn(
-            f"{path}: {len(context.missing)} model(s) or mesh(es) not found, left out (--strict stops instead): "
-            + "; ".join(context.missing),
+            f"{path}: {len(missing)} model(s) or mesh(es) not found, left out (--strict stops instead): "
+            + "; ".join(missing),
             stacklevel=2,
         )
-    if context.case_fixed:
-        warnings.warn(f"{path}: found by a name differing in case: {'; '.join(context.case_fixed)}", stacklevel=2)
+    if case_fixed:
+        warnings.warn(f"{path}: found by a name differing in case: {'; '.join(case_fixed)}", stacklevel=2)
     if not context.meshes:
         raise MapFileError(f"{path}: no {geometry} geometry found in the world")
     return context.meshes
@@ -185,12 +173,12 @@ def _include(include: ET.Element, parent: np.ndarray, prefix: str, path: Path, c
     if not uri:
         raise MapFileError(f"{path}: <include> without a <uri>")
     builtin = uri.removeprefix("model://").strip("/")
-    folder = _resolve(uri, path, context, "<include>")
+    folder = context.paths.resolve(uri, path, "<include>")
     if folder is None:
         if BUILTIN_MODELS.get(builtin):
             context.left_out.append(f"{uri} ({BUILTIN_MODELS[builtin]})")
         return
-    sdf_file = _model_file(folder) if folder.is_dir() else folder
+    sdf_file = model_file(folder) if folder.is_dir() else folder
     root = _parse(sdf_file)
     models = root.findall("model")
     if not models:
@@ -211,92 +199,6 @@ def _include(include: ET.Element, parent: np.ndarray, prefix: str, path: Path, c
         _model(model, parent, prefix, sdf_file, context, pose)
     finally:
         context.including.pop()
-
-
-def _resolve(uri: str, path: Path, context: _Context, element: str) -> Path | None:
-    """The file or model folder a URI names, as Gazebo finds it: ``model://NAME/...`` in the model paths;
-    ``file://`` and plain paths as they are, else against the model paths and their parents, the world's folder and
-    its parents, and ``GAZEBO_RESOURCE_PATH``; a name differing only in case is taken, and said. None: a built-in
-    model that holds no building, or (not ``strict``) one not found, which is counted and said."""
-    if uri.startswith("model://"):
-        rest = uri[len("model://") :].strip("/")
-        head, _, tail = rest.partition("/")
-        for folder in context.model_paths:
-            found = _existing(folder / head, context, uri)
-            if found is not None and found.is_dir():
-                return _found(found / tail, uri, path, context, element) if tail else found
-        if not tail and head in BUILTIN_MODELS:
-            return None
-        searched = ", ".join(dict.fromkeys(str(f) for f in context.model_paths)) or "no folders"
-        return _missing(f"{path}: {element} {uri}: model {head!r} not found (searched {searched}); give its "
-                        "folder with --model-path DIR or GAZEBO_MODEL_PATH", uri, context)  # fmt: skip
-    if re.match(r"^[a-z][a-z0-9+.-]*://", uri) and not uri.startswith("file://"):
-        raise MapFileError(f"{path}: {element} {uri}: unknown URI scheme (use model://, file:// or a path)")
-    relative = Path(uri[len("file://") :] if uri.startswith("file://") else uri)
-    if relative.is_absolute():
-        return _found(relative, uri, path, context, element)
-    for base in _search_bases(path, context):
-        found = _existing(base / relative, context, uri)
-        if found is not None:
-            return found
-    return _found(path.parent / relative, uri, path, context, element)
-
-
-def _search_bases(path: Path, context: _Context) -> list[Path]:
-    """Where a relative URI is looked for, in Gazebo's order: the file's folder, the model paths and their
-    parents, the world's folder and its parents, ``GAZEBO_RESOURCE_PATH``."""
-    bases = [path.parent]
-    for folder in context.model_paths:
-        bases += [folder, folder.parent]
-    if context.world_folder is not None:
-        bases += [context.world_folder, *context.world_folder.parents]
-    bases += [Path(p) for p in os.environ.get("GAZEBO_RESOURCE_PATH", "").split(os.pathsep) if p]
-    return list(dict.fromkeys(bases))
-
-
-def _existing(target: Path, context: _Context, uri: str) -> Path | None:
-    """``target`` if it exists, else the one entry of its folder whose name differs from it only in case."""
-    if target.exists():
-        return target
-    folder = target.parent
-    if not folder.is_dir():
-        return None
-    matches = [p for p in folder.iterdir() if p.name.lower() == target.name.lower()]
-    if len(matches) != 1:
-        return None
-    context.case_fixed.append(f"{uri}: {matches[0]}")
-    return matches[0]
-
-
-def _found(target: Path, uri: str, path: Path, context: _Context, element: str) -> Path | None:
-    found = _existing(target, context, uri)
-    if found is not None:
-        return found
-    return _missing(f"{path}: {element} {uri}: {target} does not exist", uri, context)
-
-
-def _missing(message: str, uri: str, context: _Context) -> Path | None:
-    """Nothing found: an error with ``strict``, else counted (and said at the end)."""
-    if context.strict:
-        raise MapFileError(message)
-    context.missing.append(uri)
-    return None
-
-
-def _model_file(folder: Path) -> Path:
-    """A model folder's SDF file: the one its ``model.config`` names, else ``model.sdf``."""
-    config = folder / "model.config"
-    if config.is_file():
-        try:
-            names = [e.text.strip() for e in ET.parse(config).getroot().iter("sdf") if e.text and e.text.strip()]
-        except ET.ParseError:
-            names = []
-        for name in reversed(names):  # the newest version is usually listed last
-            if (folder / name).is_file():
-                return folder / name
-    if (folder / "model.sdf").is_file():
-        return folder / "model.sdf"
-    raise MissingFileError(f"model folder {folder} has no model.sdf (nor a model.config naming one)")
 
 
 def _geometry(geometry: ET.Element | None, frame: np.ndarray, name: str, path: Path, context: _Context) -> Any:
@@ -378,7 +280,7 @@ def _mesh_file(shape: ET.Element, path: Path, name: str, context: _Context) -> A
         raise MapFileError(f"{path}: {name}: <mesh> without a <uri>")
     if shape.find("submesh") is not None:
         raise MapFileError(f"{path}: {name}: <mesh><submesh> is not read; export the submesh as its own file")
-    target = _resolve(uri, path, context, "<mesh>")
+    target = context.paths.resolve(uri, path, "<mesh>")
     if target is None:  # not found: left out (said by read_sdf_world)
         return None
     scale_element = shape.find("scale")
