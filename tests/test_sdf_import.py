@@ -123,6 +123,25 @@ def test_collada_units_and_up_axis_are_honoured(tmp_path):
     assert standing.bounds[0][2] == pytest.approx(0.0) and standing.bounds[1][2] == pytest.approx(2.0)
 
 
+def test_a_building_tagged_y_up_whose_vertices_stand_z_up_is_not_stood_on_end(tmp_path):
+    """A 56 m long wall, 0.18 m thick and 3 m tall, written z up but tagged Y_UP (as published worlds have them)."""
+    import trimesh
+
+    wall = trimesh.creation.box(extents=[0.18, 56.0, 3.0])
+    wall.apply_translation([0, 0, 1.5])
+    text = tmp_path / "seed.dae"
+    _cube_dae(text, side=1.0, unit=1.0, up="Y_UP")  # a COLLADA file to put the wall's vertices in
+    document = text.read_text()
+    positions = " ".join(f"{v:.6f}" for v in wall.vertices.ravel())
+    cube = trimesh.creation.box(extents=[1.0, 1.0, 1.0])
+    cube.apply_translation([0, 0.5, 0])
+    document = document.replace(" ".join(f"{v:.6f}" for v in cube.vertices.ravel()), positions)
+    (tmp_path / "wall.dae").write_text(document)
+    with pytest.warns(UserWarning, match=r"wall.dae: tagged Y_UP, but turned so it would stand 56.0 m tall"):
+        mesh = read_mesh_file(tmp_path / "wall.dae")
+    assert mesh.extents == pytest.approx([0.18, 56.0, 3.0], abs=1e-3)
+
+
 def test_a_world_without_a_ceiling_gets_one_from_ceiling_height(tmp_path):
     source = _world(tmp_path, ceiling=False)
     with pytest.warns(UserWarning, match="no ceiling"):

@@ -312,11 +312,27 @@ def read_mesh_file(path: Path) -> Any:
         scene = scene.convert_units("meters", guess=False)
     mesh = scene.to_mesh() if len(scene.geometry) else trimesh.Trimesh()
     up = collada_up_axis(path) if path.suffix.lower() == ".dae" else "Z_UP"
-    if up == "Y_UP":
-        mesh.apply_transform(np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]], dtype=float))
-    elif up == "X_UP":
-        mesh.apply_transform(np.array([[0, -1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0], [0, 0, 0, 1]], dtype=float))
-    return mesh
+    turn = {"Y_UP": [[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]],
+            "X_UP": [[0, -1, 0, 0], [0, 0, -1, 0], [1, 0, 0, 0], [0, 0, 0, 1]]}.get(up)  # fmt: skip
+    if turn is None or not len(mesh.vertices):
+        return mesh
+    turned = mesh.copy()
+    turned.apply_transform(np.array(turn, dtype=float))
+    if turned.extents[2] > ON_END_HEIGHT_M >= mesh.extents[2]:
+        # a building tagged Y_UP whose vertices are Z-up, as Gazebo shows it: turned, it would stand tens of metres
+        # tall, and as it is it stands a floor high
+        warnings.warn(
+            f"{path}: tagged {up}, but turned so it would stand {turned.extents[2]:.1f} m tall and "
+            f"{min(turned.extents[:2]):.2f} m wide: its vertices are taken as z up",
+            stacklevel=2,
+        )
+        return mesh
+    return turned
+
+
+#: A mesh of one floor that its up-axis tag would stand taller than this (m), while as it is it stands lower, is
+#: taken as it is: the tag is wrong (Gazebo shows such files as their vertices stand).
+ON_END_HEIGHT_M = 10.0
 
 
 def collada_up_axis(path: Path) -> str:
