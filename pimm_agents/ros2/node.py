@@ -64,8 +64,7 @@ class LocalizationNode:
         name: str = "pimm_localization",
         occupancy: Any = None,
     ) -> None:
-        self.make, self.lidar3d, self.lidar2d, self.config = make, lidar3d, lidar2d, config
-        self.domain, self.occupancy = domain, occupancy
+        self.make, self.lidar3d, self.config, self.domain = make, lidar3d, config, domain
         c = config
         self.inputs = RobotInputs(domain, config, lidar3d, lidar2d)
         self.initialpose = domain.subscription("/initialpose", "geometry_msgs/msg/PoseWithCovarianceStamped")
