@@ -38,11 +38,6 @@ def covariance_3x3(cov36: Any) -> np.ndarray:
     return full[np.ix_(index, index)]
 
 
-def planar_yaw(pose: Any) -> float:
-    q = pose.orientation
-    return float(np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y**2 + q.z**2)))
-
-
 def pose_with_covariance(estimate: PoseEstimate, stamp: float, frame: str) -> Any:
     """``amcl_pose``: the estimate with the covariance a consumer without the status should see."""
     t = ros_types().types

@@ -35,11 +35,11 @@ from pimm_agents.ros2.nav2_messages import (
     map_to_odom,
     occupancy_grid,
     particle_cloud,
-    planar_yaw,
     pose_with_covariance,
 )
 from pimm_agents.ros2.node_config import NodeConfig
 from pimm_agents.ros2.robot_inputs import RobotInputs
+from pimm_env.bags.messages import planar_pose
 from pimm_env.ros2 import domain as qos
 from pimm_env.ros2.domain import Domain, Publisher, Subscription
 from pimm_env.ros2.graph import GraphEntry
@@ -103,7 +103,7 @@ class LocalizationNode:
     def _set_initial_pose(self, msg: Any) -> dict[str, Any]:
         """A ``PoseWithCovarianceStamped`` on ``/initialpose`` or in ``set_initial_pose``: restart the localizer
         there at its next update."""
-        pose = np.array([msg.pose.pose.position.x, msg.pose.pose.position.y, planar_yaw(msg.pose.pose)])
+        pose = planar_pose(msg, "initial pose")
         cov = covariance_3x3(msg.pose.covariance)
         if np.all(np.isfinite(pose)) and np.all(np.isfinite(cov)):
             self._reset_to = (pose, cov)

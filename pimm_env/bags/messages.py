@@ -39,14 +39,23 @@ def nanoseconds(seconds: float) -> int:
     return round(seconds * 1e9)
 
 
-def _header(store, seconds: float, frame: str):
-    ns = nanoseconds(seconds)
-    stamp = store.types["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-    return store.types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+def time_stamp(store, seconds: float):
+    """``builtin_interfaces/Time`` of ``seconds`` (from 0: a stamp is never negative)."""
+    ns = max(0, nanoseconds(seconds))
+    return store.types["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def header(store, seconds: float, frame: str):
+    return store.types["std_msgs/msg/Header"](stamp=time_stamp(store, seconds), frame_id=frame)
+
+
+def seconds_of(stamp: Any) -> float:
+    """A ``builtin_interfaces/Time`` in seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
 
 
 def stamp_seconds(msg: Any) -> float:
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+    return seconds_of(msg.header.stamp)
 
 
 def odometry(store, seconds: float, pose: np.ndarray, frame: str, child: str = "base_link"):
@@ -62,7 +71,7 @@ def odometry(store, seconds: float, pose: np.ndarray, frame: str, child: str = "
     twist = t["geometry_msgs/msg/TwistWithCovariance"](
         twist=t["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=np.zeros(36)
     )
-    return t["nav_msgs/msg/Odometry"](header=_header(store, seconds, frame), child_frame_id=child, pose=pose_msg,
+    return t["nav_msgs/msg/Odometry"](header=header(store, seconds, frame), child_frame_id=child, pose=pose_msg,
                                       twist=twist)  # fmt: skip
 
 
@@ -99,7 +108,7 @@ def laser_scan(store, seconds: float, ranges: np.ndarray, angles: np.ndarray, li
     ranges[ranges >= lidar.max_range] = np.inf
     increment = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
     return store.types["sensor_msgs/msg/LaserScan"](
-        header=_header(store, seconds, "base_scan"),
+        header=header(store, seconds, "base_scan"),
         angle_min=float(angles[0]),
         angle_max=float(angles[-1]),
         angle_increment=increment,
@@ -140,7 +149,7 @@ def point_cloud(store, seconds: float, cloud: np.ndarray, mask: np.ndarray, ring
     fields = [t["sensor_msgs/msg/PointField"](name=n, offset=4 * i, datatype=_FLOAT32, count=1)
               for i, n in enumerate("xyz")]  # fmt: skip
     return t["sensor_msgs/msg/PointCloud2"](
-        header=_header(store, seconds, "lidar"),
+        header=header(store, seconds, "lidar"),
         height=rings,
         width=width,
         fields=fields,

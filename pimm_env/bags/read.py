@@ -150,10 +150,11 @@ def read_steps(
                 if not (np.all(np.isfinite(odom)) and np.isfinite(t)):  # set aside: the next one closes the step
                     aside["non_finite_odometry"] = aside.get("non_finite_odometry", 0) + 1
                     continue
-                first_stamps.append(t)
-                first_received.append(received * 1e-9)
-                if len(first_stamps) == STALLED_STAMPS and max(first_stamps) == min(first_stamps):
-                    raise BagError(_stalled(path, topic, topics.stamps, t, np.ptp(first_received)))
+                if len(first_stamps) < STALLED_STAMPS:  # only the first ones tell a clock that never advances
+                    first_stamps.append(t)
+                    first_received.append(received * 1e-9)
+                    if len(first_stamps) == STALLED_STAMPS and max(first_stamps) == min(first_stamps):
+                        raise BagError(_stalled(path, topic, topics.stamps, t, np.ptp(first_received)))
                 obs = {
                     "odom": odom.astype(np.float32),
                     "cloud": cloud.copy(),

@@ -7,20 +7,19 @@ from typing import Any
 
 import numpy as np
 
+from pimm_env.bags import messages
+from pimm_env.bags.messages import seconds_of
 from pimm_env.ros2.messages import ros_types
+
+__all__ = ["clock", "header", "mount", "planar", "quaternion", "seconds_of", "stamp", "tf_message", "transform"]
 
 
 def stamp(seconds: float) -> Any:
-    ns = max(0, round(seconds * 1e9))
-    return ros_types().types["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+    return messages.time_stamp(ros_types(), seconds)
 
 
 def header(seconds: float, frame: str) -> Any:
-    return ros_types().types["std_msgs/msg/Header"](stamp=stamp(seconds), frame_id=frame)
-
-
-def seconds_of(msg_stamp: Any) -> float:
-    return msg_stamp.sec + msg_stamp.nanosec * 1e-9
+    return messages.header(ros_types(), seconds, frame)
 
 
 def quaternion(roll: float, pitch: float, yaw: float) -> Any:

@@ -41,21 +41,43 @@ def service_type(srv: str, side: str) -> Any:
     return make_idl_struct(f"{name}_{side}", f"{package}::srv::dds_::{name}_{side}_", members)
 
 
+def _endpoints(domain: Domain, name: str, srv: str, server: bool) -> tuple[Any, Any, Any, Any]:
+    """(reader, writer, request type, reply type) of one side of ``name``: a server reads requests and writes
+    replies, a client the other way round."""
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    base = dds_topic_name(name)[len("rt/") :]
+    request, reply = service_type(srv, "Request"), service_type(srv, "Response")
+    topics = (
+        Topic(domain.participant, f"rq/{base}Request", request),
+        Topic(domain.participant, f"rr/{base}Reply", reply),
+    )
+    qos = SERVICE_QOS.policies()
+    reads, writes = topics if server else topics[::-1]
+    return (
+        DataReader(domain.participant, reads, qos=qos),
+        DataWriter(domain.participant, writes, qos=qos),
+        request,
+        reply,
+    )
+
+
+def _sample(kind: Any, client: int, sequence: int, fields: dict[str, Any]) -> Any:
+    """A request or reply of ``kind`` with Cyclone's header (an empty message's one member set, as rosidl's)."""
+    if "structure_needs_at_least_one_member" in kind.__annotations__:
+        fields = {"structure_needs_at_least_one_member": 0, **fields}
+    return kind(client_guid=client, sequence=sequence, **fields)
+
+
 class ServiceServer:
     """Answers ``name`` (``srv``): ``handler(request)`` gets the request's fields as the Cyclone sample and
     returns the response's fields (a dict; empty for an empty response). ``spin_once`` answers what waits."""
 
     def __init__(self, domain: Domain, name: str, srv: str, handler: Callable[[Any], dict[str, Any]]) -> None:
-        from cyclonedds.pub import DataWriter
-        from cyclonedds.sub import DataReader
-        from cyclonedds.topic import Topic
-
-        base = dds_topic_name(name)[len("rt/") :]
-        request, reply = service_type(srv, "Request"), service_type(srv, "Response")
-        qos = SERVICE_QOS.policies()
-        self.reader = DataReader(domain.participant, Topic(domain.participant, f"rq/{base}Request", request), qos=qos)
-        self.writer = DataWriter(domain.participant, Topic(domain.participant, f"rr/{base}Reply", reply), qos=qos)
-        self.reply_type, self.handler, self.name = reply, handler, name
+        self.reader, self.writer, _, self.reply_type = _endpoints(domain, name, srv, server=True)
+        self.handler, self.name = handler, name
         self.answered = 0
 
     @property
@@ -70,9 +92,7 @@ class ServiceServer:
             if isinstance(request, InvalidSample):
                 continue
             fields = self.handler(request)
-            if "structure_needs_at_least_one_member" in self.reply_type.__annotations__:
-                fields = {"structure_needs_at_least_one_member": 0, **fields}
-            self.writer.write(self.reply_type(client_guid=request.client_guid, sequence=request.sequence, **fields))
+            self.writer.write(_sample(self.reply_type, request.client_guid, request.sequence, fields))
             answered += 1
         self.answered += answered
         return answered
@@ -85,23 +105,14 @@ def call(domain: Domain, name: str, srv: str, fields: dict[str, Any], client: in
     import time
 
     from cyclonedds.internal import InvalidSample
-    from cyclonedds.pub import DataWriter
-    from cyclonedds.sub import DataReader
-    from cyclonedds.topic import Topic
 
-    base = dds_topic_name(name)[len("rt/") :]
-    request, reply = service_type(srv, "Request"), service_type(srv, "Response")
-    qos = SERVICE_QOS.policies()
-    writer = DataWriter(domain.participant, Topic(domain.participant, f"rq/{base}Request", request), qos=qos)
-    reader = DataReader(domain.participant, Topic(domain.participant, f"rr/{base}Reply", reply), qos=qos)
+    reader, writer, request, _ = _endpoints(domain, name, srv, server=False)
     end = time.monotonic() + timeout
     while not writer.get_matched_subscriptions() or not reader.get_matched_publications():
         if time.monotonic() > end:
             raise TimeoutError(f"no server of {name} answered within {timeout} s")
         time.sleep(0.01)
-    if "structure_needs_at_least_one_member" in request.__annotations__:
-        fields = {"structure_needs_at_least_one_member": 0, **fields}
-    writer.write(request(client_guid=client, sequence=sequence, **fields))
+    writer.write(_sample(request, client, sequence, fields))
     while time.monotonic() < end:
         for answer in reader.take(N=16):
             if not isinstance(answer, InvalidSample) and (answer.client_guid, answer.sequence) == (client, sequence):
