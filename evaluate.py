@@ -59,7 +59,12 @@ def run(
     start: str = typer.Option("global", help="global (pose unknown) or known (true start, nav2's covariance)"),
     backend: str = BACKEND,
     address: str | None = ADDRESS,
-    fault: str = typer.Option("", "--fault", help="dropout@START:DUR, slip@START:DUR, kidnap@START (comma-separated)"),
+    fault: str = typer.Option(
+        "", "--fault", help="dropout@START:DUR, slip@START:DUR, kidnap@START[:anywhere] (comma-separated)"
+    ),
+    kidnaps: int = typer.Option(
+        0, min=0, help="N: N kidnap trials per route in place of --trials, each kidnapped once to a seeded place"
+    ),
     walkers: int = typer.Option(0, min=0, help="people walking about (not in the maps)"),
     unmapped: int = typer.Option(0, min=0, help="pieces of furniture along the walls that the maps do not have"),
     driver: str = typer.Option(
@@ -73,8 +78,9 @@ def run(
     if plan is None:
         chosen = resolve_localizers(localizers, params, settings)
         plan = RunPlan(
-            world, chosen, tuple(scenarios or ()), trials, seed, sensors, start, fault, walkers, unmapped, driver
-        )
+            world, chosen, tuple(scenarios or ()), trials, seed, sensors, start, fault, walkers, unmapped, driver,
+            kidnaps,
+        )  # fmt: skip
     _run_plan(plan, Execution(workers, backend, address, progress=not json_out), out, resume, video)
 
 

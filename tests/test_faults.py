@@ -10,10 +10,19 @@ import evaluate
 from pimm_agents.experiments.recorder import LocalizationRecorder
 from pimm_agents.scoring.metrics import kidnap_recoveries
 from pimm_agents.scoring.trial_log import TrialLog
-from pimm_env.driving.rollout import drive
+from pimm_env.driving.rollout import drive, run
 from pimm_env.driving.scenarios import get_scenario
 from pimm_env.envs.base_env import SimConfig
-from pimm_env.envs.faults import Fault, Kidnaps, LidarDropout, OdometrySlip, parse_faults, with_faults
+from pimm_env.envs.faults import (
+    KIDNAP_WINDOW_S,
+    Fault,
+    Kidnaps,
+    LidarDropout,
+    OdometrySlip,
+    kidnap_trial_fault,
+    parse_faults,
+    with_faults,
+)
 from pimm_env.envs.iilab_env import IILabEnv
 from pimm_env.geometry import relative_motion
 from tests.plugins.dead_reckoning import DeadReckoning
@@ -92,7 +101,7 @@ def test_slip_over_reports_distance_and_leaves_the_heading_wrong():
 
 def test_kidnaps_land_on_the_route_and_the_trial_records_each():
     scenario = get_scenario("area_b")
-    env = Kidnaps(env_2d(), [1.0, 2.0], route=scenario.waypoints)
+    env = Kidnaps(env_2d(), parse_faults("kidnap@1,kidnap@2"), route=scenario.waypoints)
     recorder = LocalizationRecorder(env, DeadReckoning())
     obs, info = recorder.reset(seed=0, options={"pose": scenario.start})
     poses, odoms, kidnaps = [info["true_pose"]], [obs["odom"]], []
@@ -112,7 +121,7 @@ def test_kidnaps_land_on_the_route_and_the_trial_records_each():
         assert min(gaps) < 0.1  # on the route
     log = recorder.trial_log()
     assert len(log.kidnap_rows) == 2 and log.kidnap_index == log.kidnap_rows[-1]
-    again = Kidnaps(env_2d(), [1.0, 2.0], route=scenario.waypoints)
+    again = Kidnaps(env_2d(), parse_faults("kidnap@1,kidnap@2"), route=scenario.waypoints)
     again.reset(seed=0, options={"pose": scenario.start})
     while True:
         obs, *_, info = again.step(np.array([0.3, 0.0], dtype=np.float32))
@@ -140,9 +149,52 @@ def test_with_faults_stacks_one_wrapper_per_kind():
 
 def test_the_driver_carries_on_from_where_a_kidnap_put_the_robot():
     scenario = get_scenario("area_b")
-    env = Kidnaps(env_2d(), [5.0, 15.0], route=scenario.waypoints)
+    env = Kidnaps(env_2d(), parse_faults("kidnap@5,kidnap@15"), route=scenario.waypoints)
     env.reset(seed=1, options={"pose": scenario.start})
     completed, collided, poses, _ = drive(env, scenario.waypoints, scenario.speed)
     env.close()
     assert completed and not collided
     assert np.hypot(*(poses[-1][:2] - np.asarray(scenario.waypoints)[-1])) < 0.2
+
+
+def test_a_kidnap_may_land_anywhere_and_the_driver_gets_a_route_from_there():
+    assert parse_faults("kidnap@40:anywhere") == [Fault("kidnap", 40.0, 0.0, "anywhere")]
+    with pytest.raises(ValueError, match="lands on one of route, anywhere"):
+        parse_faults("kidnap@40:moon")
+    scenario = get_scenario("area_b")
+    env = with_faults(env_2d(), parse_faults(kidnap_trial_fault(3)), route=scenario.waypoints)
+    seen = {}
+
+    def watch(obs, info):
+        if info.get("kidnapped"):
+            seen.update(info, time=time_of(obs))
+
+    result = run(scenario, seed=3, env=env, on_step=watch)
+    assert seen["landing"] in ("twin", "free") and KIDNAP_WINDOW_S[0] <= seen["time"] <= KIDNAP_WINDOW_S[1] + 0.2
+    jump = result.true_path[np.argmax(np.hypot(*np.diff(result.true_path[:, :2], axis=0).T)) + 1]
+    np.testing.assert_allclose(jump[:2], seen["route"][0], atol=1e-6)  # the route starts where it landed
+    assert result.completed and not result.collided  # ... and the robot drove it to its end
+    assert np.hypot(*(result.true_path[-1, :2] - seen["route"][-1])) < 0.5
+
+
+def test_landings_go_into_twins_turned_and_elsewhere_far_enough():
+    from pimm_env.driving.landings import TWIN_TURN_DEG, Landings
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.mapping.twins import MapTwins, TwinConfig
+    from pimm_env.world.files import load_world
+
+    occupancy = load_derived_maps(load_world("iilab")).occupancy
+    twins = MapTwins(occupancy, TwinConfig())
+    landings = Landings(occupancy, twins)
+    place = np.array([-10.0, 4.2, 0.0])
+    kinds = set()
+    for seed in range(8):
+        pose, route, kind = landings.draw(place, np.random.default_rng(seed))
+        kinds.add(kind)
+        assert np.hypot(*(pose[:2] - place[:2])) >= 5.0 and np.hypot(*(route[0] - pose[:2])) < 1e-9
+        assert np.hypot(*np.diff(route, axis=0).T).sum() >= 20.0
+        if kind == "twin":  # near one of the place's twins, turned away from its heading
+            near = twins.of(place)[np.argmin(np.hypot(*(twins.of(place)[:, :2] - pose[:2]).T))]
+            assert np.hypot(*(near[:2] - pose[:2])) <= 0.2
+            assert abs(np.degrees(np.angle(np.exp(1j * (pose[2] - near[2]))))) >= TWIN_TURN_DEG - 1e-6
+    assert kinds == {"twin", "free"}

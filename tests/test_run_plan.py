@@ -79,3 +79,17 @@ def test_results_folders_made_in_one_second_do_not_collide(tmp_path):
     assert first != second and first.is_dir() and second.is_dir()
     assert second.name.startswith(first.name) or second.name[:19] > first.name[:19]
     assert latest_folder(tmp_path, "run") == second and latest_folder(tmp_path, "run_plan") == other
+
+
+def test_kidnap_trials_replace_the_trials_of_each_route_and_leave_out_kidnap_scenarios():
+    localizers = resolve_localizers(["amcl"])
+    plan = RunPlan(localizers=localizers, trials=5, seed=3, faults="dropout@5:2", kidnaps=2).checked()
+    assert "a_c_b_kidnap" not in plan.scenarios and "area_b" in plan.scenarios
+    specs = plan.specs()
+    assert len(specs) == 2 * len(plan.scenarios)
+    first = [s for s in specs if s.scenario == "area_b"]
+    assert [(s.trial, s.seed) for s in first] == [(0, 3), (1, 4)]
+    assert first[0].faults.startswith("dropout@5:2,kidnap@") and first[0].faults.endswith(":anywhere")
+    assert first[0].faults != first[1].faults  # each trial's kidnap time is its seed's
+    with pytest.raises(ExperimentError, match=r"without a kidnap of their own.*\['a_c_b_kidnap'\]"):
+        RunPlan(localizers=localizers, scenarios=("a_c_b_kidnap",), kidnaps=1).checked()

@@ -7,8 +7,9 @@ from typer.testing import CliRunner
 
 import evaluate
 from pimm_agents.experiments.runner import run_shared
-from pimm_agents.experiments.sweep import read_sweep, rows_of
+from pimm_agents.experiments.sweep import read_sweep, rows_of, sweep_specs
 from pimm_agents.scoring.trial import TrialSpec
+from pimm_env.envs.faults import kidnap_trial_fault
 from pimm_env.mapping.derived_maps import ensure_derived_maps
 from pimm_env.world.files import load_world
 from tests.rooms import DEAD, ROUTES
@@ -48,6 +49,13 @@ def test_a_sweep_crosses_worlds_localizers_and_settings_into_one_table(two_rooms
     assert (Path(summary["folder"]) / "sweep.yaml").is_file()
 
 
+def test_a_sweep_of_kidnaps_runs_that_many_kidnap_trials_of_each_route(tmp_path):
+    spec = tmp_path / "sweep.yaml"
+    spec.write_text("worlds: [iilab]\nscenarios: [area_b]\nlocalizers: {amcl: {}}\ntrials: 7\nkidnaps: 3\nseed: 4\n")
+    specs = sweep_specs(read_sweep(spec))
+    assert [(s.trial, s.seed, s.faults) for s in specs] == [(k, 4 + k, kidnap_trial_fault(4 + k)) for k in range(3)]
+
+
 def test_a_bad_sweep_file_names_the_field(tmp_path):
     spec = tmp_path / "sweep.yaml"
     for text, message in (
@@ -55,6 +63,7 @@ def test_a_bad_sweep_file_names_the_field(tmp_path):
         ("worlds: []\nlocalizers: {amcl: {}}\n", "worlds: expected a non-empty list"),
         ("worlds: [iilab]\nlocalizers: {amcl: {}}\ngrid: {pimm: {x: [1]}}\n", "grid.pimm: no such label"),
         ("worlds: [iilab]\nlocalizers: {amcl: {}}\ngrid: {amcl: {max_particles: 5}}\n", "grid.amcl.max_particles"),
+        ("worlds: [iilab]\nlocalizers: {amcl: {}}\nkidnaps: -1\n", "kidnaps: expected a whole number"),
     ):
         spec.write_text(text)
         with pytest.raises(ValueError, match=message):

@@ -12,6 +12,7 @@ seed: 0                     # trial i uses seed + i
 sensors: thesis
 start: global
 faults: dropout@30:5        # pimm_env/envs/faults.py
+kidnaps: 0                  # N > 0: N kidnap trials per route scenario in place of `trials` (below)
 walkers: 2
 unmapped: 0
 driver: route               # or policy:NAME (random, greedy, a policy's .zip): pimm_agents/active/driver.py
@@ -48,6 +49,10 @@ class RunPlan:
     walkers: int = 0
     unmapped: int = 0
     driver: str = "route"
+    #: N > 0: each scenario without a kidnap of its own runs N kidnap trials in place of ``trials``: trial k is
+    #: kidnapped once, at a time and to a place drawn from its seed (``faults.kidnap_trial_fault``: anywhere in
+    #: the free space, half the time into a twin of the place left)
+    kidnaps: int = 0
 
     def checked(self) -> RunPlan:
         """This plan with its scenarios filled in from the world, after checking every field; a bad one raises a
@@ -59,24 +64,32 @@ class RunPlan:
 
         if not self.localizers:
             raise ExperimentError("localizers: a run needs at least one")
-        if self.trials < 1 or self.walkers < 0 or self.unmapped < 0:
+        if self.trials < 1 or self.walkers < 0 or self.unmapped < 0 or self.kidnaps < 0:
             raise ExperimentError(
-                f"trials must be >= 1 and walkers, unmapped >= 0, got {self.trials}, {self.walkers}, {self.unmapped}"
+                f"trials must be >= 1 and walkers, unmapped, kidnaps >= 0, got {self.trials}, {self.walkers}, "
+                f"{self.unmapped}, {self.kidnaps}"
             )
         if self.start not in STARTS:
             raise ExperimentError(f"start: expected {' or '.join(STARTS)}, got {self.start!r}")
         sensor_layouts(self.sensors)
         parse_faults(self.faults)
         check_driver(self.driver)
-        available = list(load_scenarios(load_world(self.world)))
+        known = load_scenarios(load_world(self.world))
+        available = [n for n, s in known.items() if not self.kidnaps or s.kidnap_to is None]
         unknown = [s for s in self.scenarios if s not in available]
         if unknown:
             valid = ", ".join(available)
-            raise ExperimentError(f"unknown scenario(s) {unknown} in world {self.world!r}; valid: {valid}")
+            what = "scenario(s) without a kidnap of their own (kidnaps)" if self.kidnaps else "scenario(s)"
+            raise ExperimentError(f"unknown {what} {unknown} in world {self.world!r}; valid: {valid}")
         return RunPlan(**{**self.as_dict(), "scenarios": tuple(self.scenarios or available)})
 
     def specs(self) -> list[TrialSpec]:
         """Every trial, trial-major (a stopped run holds every scenario's first trials)."""
+        from pimm_env.envs.faults import kidnap_trial_fault
+
+        def faults(seed: int) -> str:
+            return ",".join(filter(None, [self.faults, kidnap_trial_fault(seed) if self.kidnaps else ""]))
+
         return [
             TrialSpec(
                 scenario,
@@ -87,12 +100,12 @@ class RunPlan:
                 params,
                 self.sensors,
                 self.start,
-                faults=self.faults,
+                faults=faults(self.seed + trial),
                 walkers=self.walkers,
                 unmapped=self.unmapped,
                 driver=self.driver,
             )
-            for trial in range(self.trials)
+            for trial in range(self.kidnaps or self.trials)
             for scenario in self.scenarios
             for name, params in self.localizers.items()
         ]
@@ -136,7 +149,7 @@ def read_plan(path: Path) -> RunPlan:
     if unknown:
         raise ExperimentError(f"{path}: unknown field {unknown[0]!r}; valid fields: {', '.join(valid)}")
     kinds = {"world": str, "trials": int, "seed": int, "sensors": str, "start": str, "faults": str, "driver": str}
-    kinds.update(walkers=int, unmapped=int, localizers=dict, scenarios=list)
+    kinds.update(walkers=int, unmapped=int, kidnaps=int, localizers=dict, scenarios=list)
     for name, kind in kinds.items():
         if name in data and not isinstance(data[name], kind):
             raise ExperimentError(f"{path}: {name}: expected {kind.__name__}, got {data[name]!r}")

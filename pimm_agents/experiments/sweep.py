@@ -9,6 +9,7 @@ localizers:                          # label: {localizer: factory name (default:
 grid:                                # optional: settings to cross, per label (dotted keys for nested ones)
   pimm: {filter.num_particles: [2000, 10000]}
 trials: 3                            # seeds seed, seed + 1, ...
+kidnaps: 0                           # N > 0: N kidnap trials per route scenario in place of trials (RunPlan)
 seed: 0
 sensors: thesis
 start: global
@@ -28,7 +29,7 @@ from typing import Any
 from pimm_agents.scoring.trial import TrialSpec
 from pimm_env.errors import ExperimentError
 
-KEYS = ("worlds", "scenarios", "localizers", "grid", "trials", "seed", "sensors", "start")
+KEYS = ("worlds", "scenarios", "localizers", "grid", "trials", "kidnaps", "seed", "sensors", "start")
 
 
 @dataclass(frozen=True)
@@ -41,6 +42,7 @@ class Sweep:
     seed: int = 0
     sensors: str = "thesis"
     start: str = "global"
+    kidnaps: int = 0  # as RunPlan.kidnaps
 
 
 def read_sweep(path: Path) -> Sweep:
@@ -71,6 +73,9 @@ def read_sweep(path: Path) -> Sweep:
     trials = data.get("trials", 3)
     if not isinstance(trials, int) or trials < 1:
         raise ExperimentError(f"{path}: trials: expected a positive integer, got {trials!r}")
+    kidnaps = data.get("kidnaps", 0)
+    if not isinstance(kidnaps, int) or kidnaps < 0:
+        raise ExperimentError(f"{path}: kidnaps: expected a whole number >= 0, got {kidnaps!r}")
     scenarios = data.get("scenarios")
     if scenarios is not None and (not isinstance(scenarios, list) or not scenarios):
         raise ExperimentError(f"{path}: scenarios: expected a non-empty list, got {scenarios!r}")
@@ -83,6 +88,7 @@ def read_sweep(path: Path) -> Sweep:
         seed=int(data.get("seed", 0)),
         sensors=str(data.get("sensors", "thesis")),
         start=str(data.get("start", "global")),
+        kidnaps=kidnaps,
     )
 
 
@@ -113,21 +119,30 @@ def sweep_specs(sweep: Sweep) -> list[TrialSpec]:
     """Every trial of the sweep, trial-major (a stopped sweep has every row's first trials)."""
     from pimm_agents.experiments.trial_store import world_label
     from pimm_env.driving.scenarios import load_scenarios
+    from pimm_env.envs.faults import kidnap_trial_fault
     from pimm_env.world.files import load_world
 
     rows = rows_of(sweep)
     cases = []
     for world in sweep.worlds:
-        available = list(load_scenarios(load_world(world)))
+        known = load_scenarios(load_world(world))
+        available = [n for n, s in known.items() if not sweep.kidnaps or s.kidnap_to is None]
         chosen = sweep.scenarios or available
         missing = [s for s in chosen if s not in available]
         if missing:
-            raise ExperimentError(f"world {world!r} has no scenario(s) {missing}; it has {', '.join(available)}")
+            what = "scenario(s) without a kidnap of their own (kidnaps)" if sweep.kidnaps else "scenario(s)"
+            raise ExperimentError(f"world {world!r} has no {what} {missing}; it has {', '.join(available)}")
         for scenario in chosen:
             cases.append((world, scenario, f"{world_label(world)}/{scenario}" if len(sweep.worlds) > 1 else ""))
+    seeds = range(sweep.seed, sweep.seed + (sweep.kidnaps or sweep.trials))
+
+    def fault(seed: int) -> str:
+        return kidnap_trial_fault(seed) if sweep.kidnaps else ""
+
+    setup = (sweep.sensors, sweep.start)
     return [
-        TrialSpec(scenario, factory, trial, sweep.seed + trial, world, params, sweep.sensors, sweep.start, name, row)
-        for trial in range(sweep.trials)
+        TrialSpec(scenario, factory, seed - sweep.seed, seed, world, params, *setup, name, row, fault(seed))
+        for seed in seeds
         for world, scenario, row in cases
         for name, factory, params in rows
     ]

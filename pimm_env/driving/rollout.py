@@ -75,8 +75,9 @@ def drive(
         odoms.append(np.asarray(obs["odom"], dtype=float))
         if on_step is not None:
             on_step(obs, info)
-        if info.get("kidnapped"):  # a fault teleported the robot onto the route: drive on from there
-            controller = PurePursuit(rest_of_route(waypoints, pose), PursuitConfig(speed=speed))
+        if info.get("kidnapped"):  # a fault teleported the robot: drive on from there (its own route, or one given)
+            path = info["route"] if "route" in info else rest_of_route(waypoints, pose)
+            controller = PurePursuit(path, PursuitConfig(speed=speed))
         if info["collision"]:
             return False, True, true_poses, odoms
         if controller.done:

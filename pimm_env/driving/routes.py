@@ -55,9 +55,23 @@ def thin(
 def _plan_route(
     graph: FreeGraph, occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator
 ) -> np.ndarray:
-    """Waypoints (K, 2) of one route (see the module docstring)."""
+    """Waypoints (K, 2) of one route from a random place (see the module docstring)."""
     target = rng.uniform(config.min_length_m, config.max_length_m)
-    current = int(rng.integers(len(graph.xy)))
+    return _route_from(graph, occupancy, config, rng, int(rng.integers(len(graph.xy))), target)
+
+
+def plan_route_from(
+    graph: FreeGraph, occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator, node: int
+) -> np.ndarray:
+    """Waypoints (K, 2) of one route from ``graph``'s ``node`` (as the routes are planned)."""
+    target = rng.uniform(config.min_length_m, config.max_length_m)
+    return _route_from(graph, occupancy, config, rng, node, target)
+
+
+def _route_from(
+    graph: FreeGraph, occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator, current: int,
+    target: float,
+) -> np.ndarray:
     visited = [current]
     route = [current]
     length = 0.0

@@ -7,10 +7,13 @@
 - ``Kidnaps``: at each given time the robot is teleported without the odometry knowing
   (``reset(options={"kidnap": ...})`` of the env): given the route it is driving, to a random point of it at
   least 5 m (along the route) from where the robot is, heading along the route, and the driver carries on
-  from there (``driving.rollout.drive``); without one, to a random free pose. ``info["kidnapped"]``
-  marks the step, so a recorder can count the metrics from it.
+  from there (``driving.rollout.drive``); without one, to a random free pose. ``kidnap@T:anywhere`` lands
+  anywhere in the free space, half the time in a twin of the place left (``driving/landings.py``), and gives
+  the driver a route from there (``info["route"]``). ``info["kidnapped"]`` marks the step, so a recorder can
+  count the metrics from it.
 
-``parse_faults("dropout@30:5,slip@20:3,kidnap@40,kidnap@70")`` reads the command line's form: NAME@START[:DURATION].
+``parse_faults("dropout@30:5,slip@20:3,kidnap@40,kidnap@70:anywhere")`` reads the command line's form:
+NAME@START[:DURATION] (a kidnap's second part: where it lands, ``route`` or ``anywhere``).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from pimm_env.geometry import compose, relative_motion, wrap_angle
 from pimm_env.world.polyline import nearest_on_path
 
 FAULTS = ("dropout", "slip", "kidnap")
+LANDINGS = ("route", "anywhere")
 
 
 @dataclass(frozen=True)
@@ -33,6 +37,7 @@ class Fault:
     kind: str  # one of FAULTS
     start_s: float
     duration_s: float = 0.0
+    landing: str = "route"  # a kidnap's: one of LANDINGS
 
     def active(self, t: float) -> bool:
         return self.start_s <= t < self.start_s + self.duration_s
@@ -46,8 +51,14 @@ def parse_faults(text: str) -> list[Fault]:
         if name not in FAULTS or not when:
             raise EnvError(f"fault {item!r}: expected NAME@START[:DURATION] with NAME one of {', '.join(FAULTS)}")
         start, _, duration = when.partition(":")
+        landing = "route"
+        if name == "kidnap" and duration:
+            if duration not in LANDINGS:
+                where = ", ".join(LANDINGS)
+                raise EnvError(f"fault {item!r}: a kidnap lands on one of {where}, e.g. kidnap@40:anywhere")
+            landing, duration = duration, ""
         try:
-            fault = Fault(name, float(start), float(duration) if duration else 0.0)
+            fault = Fault(name, float(start), float(duration) if duration else 0.0, landing)
         except ValueError:
             raise EnvError(f"fault {item!r}: START and DURATION must be numbers (seconds)") from None
         if not (np.isfinite(fault.start_s) and fault.start_s >= 0 and np.isfinite(fault.duration_s)):
@@ -58,6 +69,17 @@ def parse_faults(text: str) -> list[Fault]:
     return faults
 
 
+#: a kidnap trial's kidnap comes at a seeded time in this window (s): after a global start has been localized
+#: (PIMM's median is under 10 s) and while the shortest generated route (30 m at 0.5 m/s) is still driven
+KIDNAP_WINDOW_S = (30.0, 50.0)
+
+
+def kidnap_trial_fault(seed: int) -> str:
+    """The fault of a kidnap trial with ``seed``: one kidnap, landing anywhere, at a time drawn from ``seed``."""
+    start = np.random.default_rng([seed, 7]).uniform(*KIDNAP_WINDOW_S)
+    return f"kidnap@{start:.1f}:anywhere"
+
+
 def with_faults(env: gym.Env, faults: list[Fault], route: np.ndarray | None = None) -> gym.Env:
     """``env`` wrapped in one wrapper per kind of fault asked for (kidnaps land on ``route`` if given)."""
     by_kind = {kind: [f for f in faults if f.kind == kind] for kind in FAULTS}
@@ -66,7 +88,7 @@ def with_faults(env: gym.Env, faults: list[Fault], route: np.ndarray | None = No
     if by_kind["dropout"]:
         env = LidarDropout(env, by_kind["dropout"])
     if by_kind["kidnap"]:
-        env = Kidnaps(env, [f.start_s for f in by_kind["kidnap"]], route)
+        env = Kidnaps(env, by_kind["kidnap"], route)
     return env
 
 
@@ -138,11 +160,12 @@ class Kidnaps(gym.Wrapper):
     #: the least distance along the route between where the robot was and where it lands
     MIN_JUMP_M = 5.0
 
-    def __init__(self, env: gym.Env, times: list[float], route: np.ndarray | None = None) -> None:
+    def __init__(self, env: gym.Env, kidnaps: list[Fault], route: np.ndarray | None = None) -> None:
         super().__init__(env)
-        self.times = sorted(times)
+        self.kidnaps = sorted(kidnaps, key=lambda f: f.start_s)
         self.route = None if route is None else np.asarray(route, dtype=float).reshape(-1, 2)
         self._next = 0
+        self._landings: Any = None  # driving.landings.Landings, made at the first kidnap that lands anywhere
 
     def reset(self, **kwargs: Any):
         options = kwargs.get("options") or {}
@@ -152,12 +175,32 @@ class Kidnaps(gym.Wrapper):
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
-        if self._next < len(self.times) and _time(obs) >= self.times[self._next]:
+        if self._next < len(self.kidnaps) and _time(obs) >= self.kidnaps[self._next].start_s:
+            fault = self.kidnaps[self._next]
             self._next += 1
-            target = True if self.route is None else self._along_route(np.asarray(info["true_pose"], dtype=float))
+            pose, route = np.asarray(info["true_pose"], dtype=float), {}
+            if fault.landing == "anywhere":
+                target, waypoints, kind = self._anywhere(pose)
+                route = {"route": waypoints, "landing": kind}
+            else:
+                target = True if self.route is None else self._along_route(pose)
             obs, kidnapped = self.env.reset(options={"kidnap": target})
-            info = {**info, **kidnapped, "kidnapped": True}
+            info = {**info, **kidnapped, **route, "kidnapped": True}
         return obs, reward, terminated, truncated, info
+
+    def _anywhere(self, pose: np.ndarray) -> tuple[list[float], np.ndarray, str]:
+        """A landing anywhere (``driving.landings``), drawn from the env's seeded generator."""
+        if self._landings is None:
+            from pimm_env.driving.landings import Landings
+            from pimm_env.mapping.twins import TWINS_FILE, MapTwins, TwinConfig
+            from pimm_env.world.files import world_dir
+
+            base = self.env.unwrapped
+            twins = MapTwins(base.maps.occupancy, TwinConfig())  # type: ignore[attr-defined]
+            twins.load(world_dir(base.world) / TWINS_FILE)  # type: ignore[attr-defined]
+            self._landings = Landings(base.maps.occupancy, twins)  # type: ignore[attr-defined]
+        target, waypoints, kind = self._landings.draw(pose, self.env.unwrapped.np_random)
+        return [float(v) for v in target], waypoints, kind
 
     def _along_route(self, pose: np.ndarray) -> list[float]:
         """A random pose on the route, at least ``MIN_JUMP_M`` along it from the robot, heading along it."""
