@@ -69,7 +69,11 @@ def plan_route_from(
 
 
 def _route_from(
-    graph: FreeGraph, occupancy: OccupancyGrid, config: RouteConfig, rng: np.random.Generator, current: int,
+    graph: FreeGraph,
+    occupancy: OccupancyGrid,
+    config: RouteConfig,
+    rng: np.random.Generator,
+    current: int,
     target: float,
 ) -> np.ndarray:
     visited = [current]
