@@ -25,7 +25,7 @@ from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.mapping.twins import MapTwins
 
 #: the route driven after a landing: long enough to be localized again and watched for a while (ours)
-AFTER_LANDING = RouteConfig(count=1, min_length_m=20.0, max_length_m=30.0)
+AFTER_LANDING = RouteConfig(count=1, min_length_m=15.0, max_length_m=25.0)
 #: in a twin, the least turn from the twin's heading (see above)
 TWIN_TURN_DEG = 45.0
 

@@ -71,7 +71,7 @@ def parse_faults(text: str) -> list[Fault]:
 
 #: a kidnap trial's kidnap comes at a seeded time in this window (s): after a global start has been localized
 #: (PIMM's median is under 10 s) and while the shortest generated route (30 m at 0.5 m/s) is still driven
-KIDNAP_WINDOW_S = (30.0, 50.0)
+KIDNAP_WINDOW_S = (20.0, 35.0)
 
 
 def kidnap_trial_fault(seed: int) -> str:
