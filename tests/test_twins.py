@@ -143,15 +143,18 @@ def test_a_twin_the_filter_never_held_keeps_the_place_ambiguous_until_the_block_
     assert "localized" in without
 
 
-def test_a_place_is_called_localized_only_once_its_twins_were_looked_for_from_two_cells(monkeypatch):
-    # turning on one spot, the twin search from its one cell offers shifted near-copies, not the other room:
-    # looked for from that cell alone, the place is called localized before the robot has moved (without the
-    # injection, whose random particles in the other room the check can also fit there; the margins summed as
-    # they are, without the raster's allowance, under which the place is not called localized on that spot at all)
+def test_a_place_is_called_localized_only_once_every_twin_was_looked_at(monkeypatch):
+    # turning on one spot, the twin search from its one cell ranks shifted near-copies above the other room: with
+    # only the six best (the check's count before it queued them all) and looked for from that cell alone, the
+    # place is called localized before the robot has moved (without the injection, whose random particles in the
+    # other room the check can also fit there; the margins summed as they are, without the raster's allowance)
     monkeypatch.setattr(ambiguity, "TWINS_FROM_CELLS", 1)
     monkeypatch.setattr(kept_scans, "MAP_ERROR_CELLS", 0.0)
-    one_cell = [status for status, _, pose in started_at_the_truth(injection=0.0) if pose[0] < 15.5]
-    assert "localized" in one_cell
+    every = [status for status, _, pose in started_at_the_truth(injection=0.0) if pose[0] < 15.5]
+    assert "localized" not in every
+    monkeypatch.setattr(ambiguity, "TwinConfig", lambda: TwinConfig(max_twins=6))
+    six = [status for status, _, pose in started_at_the_truth(injection=0.0) if pose[0] < 15.5]
+    assert "localized" in six
 
 
 def test_the_rival_check_is_set_from_a_params_section_and_settings_that_go_together_are_checked_together():

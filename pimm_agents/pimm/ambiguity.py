@@ -22,6 +22,7 @@ from pimm_agents.localizer import Hypothesis
 from pimm_agents.particles.belief import BeliefReading, BeliefView
 from pimm_agents.particles.likelihood_field import LikelihoodField
 from pimm_agents.pimm.rivals import CANDIDATES, RivalConfig, RivalTracker
+from pimm_agents.pimm.twin_queue import TwinQueue
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.mapping.twins import MapTwins, TwinConfig
 
@@ -31,6 +32,9 @@ TWINS_EVERY_UPDATES = 20
 #: A place is called localized only once its twins have been looked for from this many map cells: a search from
 #: one cell can miss a twin that the next cell's finds (measured: docs/design.md#the-maps-twins).
 TWINS_FROM_CELLS = 2
+#: the map's twins that match the place's walls best, tried whatever the scans say of them (the rest are looked
+#: at in turns, twin_queue.py)
+TWINS_BY_WALLS = 6
 
 
 def rival_hypothesis(place: np.ndarray) -> Hypothesis:
@@ -73,6 +77,8 @@ class AmbiguityCheck:
         self._twin_updates = 0  # localized updates since the twins were last offered
         #: the cells the twins were looked for from since the estimate was last lost or jumped
         self._twin_cells: set[tuple[int, int]] = set()
+        #: every twin of the place since it was last estimated after a jump, looked at in turns
+        self.queue = TwinQueue()
         #: whether the estimate has been reported localized since it last jumped: a held place is not moved by the
         #: rival check (its margins over 150 scans are not enough to overturn a place the scans confirmed)
         self.held = False
@@ -83,6 +89,7 @@ class AmbiguityCheck:
         self._odom = None
         self._twin_updates = 0
         self._twin_cells.clear()
+        self.queue.clear()
         self.held = False
         self._kept = 0
 
@@ -132,6 +139,7 @@ class AmbiguityCheck:
         unchanged = Decision(reading.status)
         if self._odom is not None:
             self.tracker.move(self._odom, odom)
+            self.queue.move(self._odom, odom)
         self._odom = odom.copy()
         if reading.status == "lost":
             self._forget_place()
@@ -155,9 +163,14 @@ class AmbiguityCheck:
             # the map's look-alikes of a place about to be called localized, and every few updates while it is
             self._twin_updates += 1
             if reported != "localized" or self._twin_updates >= TWINS_EVERY_UPDATES:
-                first = np.vstack([first, self.twins.of(pose)])
+                twins = self.twins.of(pose)
+                first = np.vstack([first, twins[:TWINS_BY_WALLS]])
                 self._twin_updates = 0
                 self._twin_cells.add(self.twins.cell_of(pose))
+                if not self.queue.started and self.tracker.settled:
+                    self.queue.start(twins, self.tracker, odom)
+        if self.queue.started and self.tracker.settled:
+            first = np.vstack([first, self.queue.take(self.tracker, odom)])
         if self.tracker.update(pose, odom, candidates, first, lead=not self.held) == 0:
             if reading.status == "localized" and not (self.tracker.settled and self.twins_looked()):
                 return Decision("ambiguous")
@@ -173,10 +186,12 @@ class AmbiguityCheck:
         for from."""
         self.tracker.reset()
         self._twin_cells.clear()
+        self.queue.clear()
 
     def twins_looked(self) -> bool:
-        """Whether the map's twins of the place have been looked for from enough cells (``TWINS_FROM_CELLS``)."""
-        return len(self._twin_cells) >= TWINS_FROM_CELLS
+        """Whether the map's twins of the place have been looked for from enough cells (``TWINS_FROM_CELLS``) and
+        every one of them has been looked at (``TwinQueue.examined``)."""
+        return len(self._twin_cells) >= TWINS_FROM_CELLS and self.queue.examined
 
     def standing(self) -> tuple[Hypothesis, ...]:
         """The standing rivals as hypotheses (``rival_hypothesis``)."""
@@ -188,5 +203,6 @@ class AmbiguityCheck:
         stood (the scans led by one rival need not rule out the next). The reading there is ``ambiguous``."""
         target = self.tracker.promote(rival)
         self._twin_cells.clear()
+        self.queue.clear()
         self.tracker.keep(pose)
         return Decision("ambiguous", self.standing(), target, self.tracker.config.switch_updates)

@@ -35,7 +35,10 @@ class TwinConfig:
     resolution_m: float = 0.25  # the map is compared at this cell size; walls count within one cell
     angle_step_deg: float = 10.0  # a divisor of 90, so that a building's own axes are among the turns
     min_overlap: float = 0.6  # share of the place's wall cells that must land on walls at a twin
-    max_twins: int = 6  # the best-matching twins offered (at least 1.5 m apart, or turned apart: below)
+    #: the best-matching twins kept (None: all; at least 1.5 m apart, or turned apart: below). PIMM's check keeps
+    #: all: a twin left out is a place it cannot rule out, and a floor of repeated rooms along corridors has
+    #: hundreds per place (median 191, at most 471 on a real KTH floor), the true one ranked 70th by its overlap
+    max_twins: int | None = None
     #: two matches less than 1.5 m apart are one twin unless their turns differ by more than this (180: position
     #: alone decides, as the ambiguity check was measured; the bounds use 30)
     distinct_turn_deg: float = 180.0
@@ -48,8 +51,8 @@ class TwinConfig:
             raise LocalizerError(f"twins: angle_step_deg must divide 90, got {self.angle_step_deg}")
         if not 0 <= self.distinct_turn_deg <= 180:
             raise LocalizerError(f"twins: distinct_turn_deg must lie in [0, 180], got {self.distinct_turn_deg}")
-        if not 0 < self.min_overlap <= 1 or self.max_twins < 0:
-            raise LocalizerError("twins: min_overlap must lie in (0, 1], max_twins >= 0")
+        if not 0 < self.min_overlap <= 1 or (self.max_twins is not None and self.max_twins < 0):
+            raise LocalizerError("twins: min_overlap must lie in (0, 1], max_twins >= 0 (or None: all)")
 
 
 class MapTwins:
@@ -184,7 +187,7 @@ class MapTwins:
             ):
                 continue
             kept.append((x, y, turn))
-            if len(kept) == c.max_twins:
+            if c.max_twins is not None and len(kept) == c.max_twins:
                 break
         return np.array([[x, y, t, centre[0], centre[1]] for x, y, t in kept]).reshape(-1, 5)
 
