@@ -11,7 +11,7 @@ from pimm_agents.pimm.ambiguity import AmbiguityCheck
 from pimm_agents.pimm.feature_filter import FeatureFilter, FeatureFilterConfig
 from pimm_agents.pimm.rivals import RivalConfig
 from pimm_agents.pimm.step import MeasurementStep
-from pimm_env.geometry import carry, relative_motion
+from pimm_env.geometry import carry, compose, relative_motion
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.mapping.occupancy import OccupancyGrid
 from pimm_env.world.grid import GridSpec
@@ -155,3 +155,40 @@ def round_east_and_round() -> np.ndarray:
     turn = np.array([[14.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)])
     drive = [[x, 1.0, 0.0] for x in np.arange(14.0, 20.0, 0.12)]
     return np.vstack([turn, drive, [[20.0, 1.0, a] for a in np.linspace(0.0, 2 * np.pi, 40)[1:]]])
+
+
+# A corridor (y 0-2) with five identical offices north of it (each 4 m x 3.8 m, its door at its west end), and a
+# cabinet at the corridor's west end: the one thing that tells the offices' doorways apart, within a LiDAR's reach.
+CABINET = (3.0, 3.6, 0.0, 0.5)
+
+
+def office_row(offices: int = 5, pitch: float = 5.0) -> OccupancyGrid:
+    length = offices * pitch
+    grid = GridSpec.covering(np.array([0.0, 0.0]), np.array([length, 6.0]), 0.1, margin=0.5)
+    gx, gy = grid.cell_centers()
+    free = (gx > 0) & (gx < length) & (gy > 0) & (gy < 2)
+    for k in range(offices):
+        x0 = k * pitch + 0.5
+        free |= (gx > x0) & (gx < x0 + 4.0) & (gy > 2.2) & (gy < 6)
+        free |= (gx > x0 + 0.5) & (gx < x0 + 1.5) & (gy >= 1.9) & (gy <= 2.3)
+    free &= ~((gx > CABINET[0]) & (gx < CABINET[1]) & (gy > CABINET[2]) & (gy < CABINET[3]))
+    return OccupancyGrid(grid, occupied=~free, free=free)
+
+
+def kidnapped_into_an_office() -> tuple[np.ndarray, np.ndarray, int]:
+    """Odometry and true poses: east along the corridor from x = 1 to 8, then carried into the third office
+    (turned), where it turns round once, leaves by the door and drives west along the corridor to x = 4; and the
+    index of the first pose after the kidnap. The odometry knows nothing of the carrying."""
+    truth = [[x, 1.0, 0.0] for x in np.arange(1.0, 8.0, 0.12)]
+    kidnap = len(truth)
+    truth += [[13.0, 4.0, 1.3 + a] for a in np.linspace(0.0, 2 * np.pi, 50)]
+    for a, b in zip([(13.0, 4.0), (11.5, 3.0), (11.5, 1.0)], [(11.5, 3.0), (11.5, 1.0), (4.0, 1.0)], strict=True):
+        a, b = np.array(a), np.array(b)
+        heading = float(np.arctan2(*(b - a)[::-1]))
+        truth += [[*(a + (b - a) * s), heading] for s in np.arange(0.0, 1.0, 0.12 / np.hypot(*(b - a)))]
+    poses = np.array(truth)
+    odometry = [poses[0]]
+    for k in range(1, len(poses)):
+        step = np.zeros(3) if k == kidnap else relative_motion(poses[k - 1], poses[k])
+        odometry.append(compose(odometry[-1], step).reshape(3))
+    return np.array(odometry), poses, kidnap

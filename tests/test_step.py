@@ -7,10 +7,13 @@ from pimm_agents.pimm.ambiguity import Decision
 from pimm_agents.pimm.feature_filter import FeatureFilterConfig
 from pimm_agents.pimm.rivals import RivalConfig
 from tests.scenes import (
+    CABINET,
     features_from,
+    kidnapped_into_an_office,
     l_room,
     make_step,
     no_corners,
+    office_row,
     path,
     rays_from,
     round_east_and_round,
@@ -36,6 +39,29 @@ def test_twin_rooms_are_ambiguous_until_the_block_that_tells_them_apart_is_seen(
     twins = step.reading.hypotheses
     assert updates[-1][0] == "localized" and np.hypot(*(updates[-1][1][:2] - truth[-1, :2])) < 0.3
     assert twins[0].x > 12 and (len(twins) == 1 or twins[1].weight < 0.1 * twins[0].weight)
+
+
+def test_kidnapped_into_one_of_a_row_of_identical_offices_it_is_never_localized_until_the_cabinet_is_seen():
+    occupancy = office_row()
+    step = make_step(occupancy, no_corners(), FeatureFilterConfig(num_particles=5000))
+    step.filter.reset(np.random.default_rng(0))
+    odometry, truth, _ = kidnapped_into_an_office()
+    updates = track(step, odometry, truth, walls_in(occupancy))
+
+    def sees_the_cabinet(pose):
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        ends = pose[:2] + rays_from(occupancy, pose, 10.0) @ np.array([[c, s], [-s, c]])
+        x0, x1, _, y1 = CABINET
+        return bool(np.any((ends[:, 0] > x0 - 0.15) & (ends[:, 0] < x1 + 0.15) & (ends[:, 1] < y1 + 0.15)))
+
+    carried = next(k for k, (_, _, pose) in enumerate(updates) if pose[1] > 2.2)  # the first update in the office
+    after = [(status, pose) for status, _, pose in updates[carried:]]
+    first_sight = next(k for k, (_, pose) in enumerate(after) if sees_the_cabinet(pose))
+    assert updates[carried - 1][0] == "localized"  # right, in the corridor, before the kidnap
+    assert "localized" not in [status for status, _ in after[:first_sight]]
+    assert "ambiguous" in [status for status, _ in after[:first_sight]]
+    status, estimate, pose = updates[-1]
+    assert status == "localized" and np.hypot(*(estimate[:2] - pose[:2])) < 0.3
 
 
 def test_a_kidnap_turns_localized_off_within_a_few_updates():
