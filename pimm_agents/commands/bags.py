@@ -11,6 +11,7 @@ import typer
 
 from pimm_agents.command_line import command
 from pimm_agents.commands.options import JSON, OUT, PARAMS, SENSORS, SETTINGS, WORLD, as_json, this_command
+from pimm_env.errors import PimmError
 
 app = typer.Typer(add_completion=False)
 convert_app = typer.Typer(add_completion=False, help="Turn logs in other formats into bags that replay reads.")
@@ -53,22 +54,52 @@ def convert_carmen(
 
 @command(app, "map")
 def map_command(
-    from_bag: Path = typer.Option(..., "--from-bag", help="a bag with 2D scans and true poses"),
-    out: Path = typer.Option(..., help="the map_server .yaml to write (its .pgm beside it)"),
-    resolution: float = typer.Option(0.05, min=0.01, help="cell size (m)"),
+    from_bag: Path = typer.Option(..., "--from-bag", help="a bag with 2D scans (or 3D clouds) and true poses"),
+    out: Path | None = typer.Option(None, help="the map_server .yaml to write (its .pgm beside it)"),
+    cloud: Path | None = typer.Option(
+        None, help="a point-cloud map (.pcd) to write from the bag's 3D clouds, as SLAM writes one"
+    ),
+    resolution: float = typer.Option(0.05, min=0.01, help="cell size (m); the point-cloud map's voxel"),
     scan_topic: str = typer.Option("/scan", "--scan-topic"),
+    points_topic: str = typer.Option("/points", "--points-topic"),
     truth_topic: str = typer.Option("/ground_truth", "--truth-topic"),
     odom_topic: str = typer.Option("/odom", "--odom-topic"),
 ) -> None:
-    """A map_server map from a bag's scans laid at its true poses (it flatters a localizer replaying that bag)."""
+    """A map_server map from a bag's scans, or a point-cloud map from its clouds, laid at its true poses (either
+    flatters a localizer replaying that bag)."""
     from pimm_env.bags.layout import layouts_from_bag
     from pimm_env.bags.read import BagTopics
+
+    if out is None and cloud is None:
+        raise PimmError("map: give --out MAP.yaml (an occupancy map), --cloud MAP.pcd (a point-cloud map) or both")
+    if cloud is not None:
+        from pimm_env.bags.cloud_map import cloud_map_from_bag
+        from pimm_env.clouds.pcd import write_pcd
+
+        if cloud.suffix.lower() != ".pcd":
+            raise PimmError(f"--cloud {cloud}: a point-cloud map is written as .pcd")
+        topics = BagTopics(odom=odom_topic, scan=None, points=points_topic, truth=truth_topic, events=None)
+        lidar3d, lidar2d = layouts_from_bag(from_bag, None, points_topic)
+        if lidar3d is None:
+            raise PimmError(f"{from_bag}: no 3D clouds on {points_topic!r} (--points-topic) to build a point-cloud map")
+        points, clouds = cloud_map_from_bag(from_bag, topics, lidar2d, lidar3d, resolution)
+        cloud.parent.mkdir(parents=True, exist_ok=True)
+        write_pcd(cloud, points)
+        typer.echo(
+            f"wrote {cloud}: {len(points)} points ({resolution} m voxels) from {clouds} clouds; then: python"
+            f" evaluate.py world import {cloud} --name NAME"
+        )
+    if out is not None:
+        _occupancy_map(from_bag, out, resolution, BagTopics(odom_topic, scan_topic, None, truth_topic, None))
+
+
+def _occupancy_map(from_bag: Path, out: Path, resolution: float, topics) -> None:
+    from pimm_env.bags.layout import layouts_from_bag
     from pimm_env.bags.scan_map import map_from_bag
     from pimm_env.mapping.from_scans import SPARSE_SCAN_SPACING_M, ScanMapConfig, scan_spacing_m
     from pimm_env.mapping.occupancy import save_map_server
 
-    topics = BagTopics(odom=odom_topic, scan=scan_topic, points=None, truth=truth_topic, events=None)
-    _, lidar2d = layouts_from_bag(from_bag, scan_topic, None)
+    _, lidar2d = layouts_from_bag(from_bag, topics.scan, None)
     occupancy, poses = map_from_bag(from_bag, topics, lidar2d, ScanMapConfig(resolution=resolution))
     out.parent.mkdir(parents=True, exist_ok=True)
     save_map_server(occupancy, out)

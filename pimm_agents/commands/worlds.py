@@ -17,7 +17,8 @@ world_app = typer.Typer(add_completion=False, help="Bring your own building: imp
 def world_import(
     source: Path = typer.Argument(
         ...,
-        help="a map_server .yaml (+ .pgm/.png), a Gazebo world (.world .sdf) or a mesh (.obj .ply .stl .glb .dae ...)",
+        help="a map_server .yaml (+ .pgm/.png), a Gazebo world (.world .sdf), a mesh (.obj .ply .stl .glb .dae ...)"
+        " or a point-cloud map (.pcd .ply .las .laz .npy)",
     ),
     name: str = typer.Option(..., help="the world's name: it is written to maps/NAME/"),
     ceiling_height: float | None = typer.Option(

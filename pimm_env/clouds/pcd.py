@@ -239,3 +239,18 @@ def lzf_decompress(packed: bytes, size: int, path: Path | str = "data") -> bytes
     if o != size:
         raise CloudFileError(f"{path}: the compressed data unpacks to {o} bytes, expected {size} (damaged)")
     return bytes(out)
+
+
+def write_pcd(path: Path, points: np.ndarray) -> Path:
+    """``points`` (N, 3) as a binary PCD (x y z float32, unorganized), written under a temporary name and moved
+    into place when complete."""
+    xyz = np.ascontiguousarray(np.asarray(points, dtype="<f4").reshape(-1, 3))
+    header = (
+        "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+        f"COUNT 1 1 1\nWIDTH {len(xyz)}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {len(xyz)}\nDATA binary\n"
+    )
+    path = Path(path)
+    partial = path.with_name(f".{path.name}.partial")
+    partial.write_bytes(header.encode("ascii") + xyz.tobytes())
+    partial.replace(path)
+    return path

@@ -23,6 +23,8 @@ from pimm_env.importers.vectorize import vectorize
 from pimm_env.mapping.map_server import read_ros_map
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off", ".dae")
+#: point-cloud maps (a ``.ply`` without faces is one too): pimm_env/importers/cloud_map.py
+CLOUD_SUFFIXES = (".pcd", ".las", ".laz", ".npy", ".bin")
 SDF_SUFFIXES = (".world", ".sdf")
 #: Default name-to-class rules for meshes: whole words, the last matching rule wins, ``*`` when none matches
 #: (see "Name rules" in :mod:`pimm_env.world.mesh`). Wall comes last: ``floor_01_walls_1`` is a wall.
@@ -88,14 +90,16 @@ def import_world(
     try:
         if suffix in (".yaml", ".yml"):
             spec = _from_ros_map(source, name, ceiling_height or PLAN_CEILING_HEIGHT, ceilings, furnish_count, seed)
+        elif suffix in CLOUD_SUFFIXES or (suffix == ".ply" and _is_point_set(source)):
+            spec = _from_cloud(source, name, folder, all_rules, wall_line)
         elif suffix in MESH_SUFFIXES:
             spec = _from_mesh(source, name, folder, all_rules, up_axis, ceiling_height, wall_line)
         elif suffix in SDF_SUFFIXES:
             spec = _from_sdf(source, name, folder, all_rules, ceiling_height, model_paths, geometry, wall_line, strict)
         else:
             raise MapFileError(
-                f"{source}: expected a map_server .yaml, an SDF world ({', '.join(SDF_SUFFIXES)}) "
-                f"or a mesh ({', '.join(MESH_SUFFIXES)})"
+                f"{source}: expected a map_server .yaml, an SDF world ({', '.join(SDF_SUFFIXES)}), "
+                f"a mesh ({', '.join(MESH_SUFFIXES)}) or a point-cloud map ({', '.join(CLOUD_SUFFIXES)}, .ply)"
             )
         return write_world(spec, folder / "world.yaml")
     except BaseException:
@@ -135,6 +139,40 @@ def _from_mesh(
     if source.resolve() != target.resolve():
         shutil.copyfile(source, target)
     return _mesh_spec(source.name, name, folder, rules, up_axis, ceiling, source, wall_line)
+
+
+def _is_point_set(source: Path) -> bool:
+    """Whether a ``.ply`` holds points only (a SLAM map), not faces (a mesh)."""
+    from pimm_env.importers.sdf_world import read_mesh_file
+
+    try:
+        return len(read_mesh_file(source).faces) == 0
+    except Exception:  # trimesh cannot read it as a mesh: the cloud reader says what is wrong with it
+        return True
+
+
+def _from_cloud(source: Path, name: str, folder: Path, rules: list[dict[str, str]], wall_line: bool) -> dict[str, Any]:
+    from pimm_env.clouds.read import read_cloud
+    from pimm_env.importers.cloud_map import CloudMapConfig, classify, floor_areas, write_cloud_world_mesh
+
+    config = CloudMapConfig()
+    cloud = read_cloud(source)
+    cloud_map = classify(cloud.points, config, source)  # refused before anything is written
+    areas = floor_areas(cloud_map, config)
+    folder.mkdir(parents=True, exist_ok=True)
+    mesh = write_cloud_world_mesh(cloud_map, folder / f"{source.stem}.glb")
+    spec = _mesh_spec(mesh.name, name, folder, rules, "z", None, source, wall_line)
+    spec["areas"] = areas
+    spec["cloud_map"] = {
+        "points": cloud_map.points,
+        "voxel_m": config.voxel_m,
+        "voxels": cloud_map.counts(),
+        "set_aside": cloud_map.set_aside,
+        "tilt_deg": round(cloud_map.tilt_deg, 3),
+        "floor_z": round(cloud_map.floor_z, 3),
+        "offset": [float(v) for v in cloud.offset],
+    }
+    return spec
 
 
 def _from_sdf(

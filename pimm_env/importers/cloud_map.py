@@ -1,0 +1,423 @@
+"""A building from the point-cloud map a robot's SLAM writes (FAST-LIO, LIO-SAM, GLIM, KISS-ICP save a ``.pcd``;
+surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triangle mesh PIMM and the simulator use.
+
+1. **Level** it on its floor: the lowest large level surface (points whose normal stands within 18 degrees of
+   z, binned by height) fitted as a plane; the cloud is turned by that plane's tilt and moved so the floor lies
+   at z = 0 (x and y stay the map's, so poses in the SLAM map frame stay valid). A second large level surface
+   more than ``max_storey_m`` above the floor is another storey: the map is refused, naming the heights.
+2. **Voxels** of ``voxel_m``: a voxel with fewer than ``min_points`` points (people who walked through while
+   mapping, stray returns) and a voxel with no occupied neighbour (outliers) are set aside and counted.
+3. **Classes per column** of voxels: floor within ``floor_band_m`` of the floor; in a column that rises at least
+   ``ceiling_min_m``, the voxels within ``ceiling_band_m`` of its top are ceiling (each column at its own height:
+   a real ceiling is not flat); a column filled from near the floor to near its top over at least
+   ``wall_min_height_m`` is wall; the rest is clutter.
+4. **Surfaces**: the faces of occupied voxels that border empty space, one mesh per class (named ``floor``,
+   ``ceiling``, ``wall``, ``clutter``), written as one GLB that the mesh import reads as any building.
+5. **Where the robot can be**: the outline of the floor that was seen (a room seen only through its doorway has
+   no floor in the map and is left out), as the world's areas.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pimm_env.errors import MapFileError
+
+#: The surface classes of a cloud map's voxels, in the order of ``CLASSES`` indices.
+CLASSES = ("floor", "ceiling", "wall", "clutter")
+FLOOR, CEILING, WALL, CLUTTER = range(4)
+
+
+@dataclass(frozen=True)
+class CloudMapConfig:
+    """How a point-cloud map becomes a building (ours; docs/worlds.md#your-building-from-a-point-cloud-map)."""
+
+    voxel_m: float = 0.1  # the surface's cell; a map's own noise is a few centimetres
+    min_points: int = 2  # points a voxel needs to be a surface (fewer: passers-by, strays)
+    floor_band_m: float = 0.15  # above the floor plane: floor
+    ceiling_min_m: float = 1.8  # a column rising this high ends in a ceiling
+    ceiling_band_m: float = 0.2  # below a column's top: ceiling
+    wall_from_m: float = 1.2  # a wall column is judged from this height up (furniture hides its foot)
+    wall_min_span_m: float = 0.8  # ... over at least this much
+    wall_fill: float = 0.7  # the share of its voxels there a wall column fills
+    wall_plane_m: float = 0.08  # a wall voxel within this of a wall plane belongs to it
+    door_gap_m: float = 0.6  # a wall plane's voxels further apart along it than this are two walls (a doorway)
+    min_wall_m: float = 0.5  # shorter pieces of a wall plane are not walls (a pillar's side, a shelf's end)
+    corner_reach_m: float = 0.4  # two walls whose ends come this near their meeting line meet there
+    max_storey_m: float = 4.5  # a level surface higher above the floor is another storey
+    min_area_m2: float = 2.0  # smaller patches of seen floor are not places the robot can be
+
+
+@dataclass
+class CloudMap:
+    """A levelled, classified cloud map: its voxels, their classes, and what was set aside."""
+
+    voxels: np.ndarray  # (V, 3) int voxel indices, levelled frame (floor at z = 0)
+    classes: np.ndarray  # (V,) index into CLASSES
+    voxel_m: float
+    tilt_deg: float  # the floor plane's tilt the cloud was turned by
+    floor_z: float  # the floor's height in the map's frame, before levelling
+    points: int  # points read
+    set_aside: dict[str, int] = field(default_factory=dict)  # voxels, by why
+    #: the walls fitted to the wall voxels: (W, 7) x0, y0, x1, y1 of the wall's line, its thickness, bottom, top
+    walls: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+
+    def counts(self) -> dict[str, int]:
+        return {name: int(np.count_nonzero(self.classes == k)) for k, name in enumerate(CLASSES)}
+
+
+def level_frame(points: np.ndarray, config: CloudMapConfig, source: Path | str) -> tuple[np.ndarray, float, float]:
+    """``points`` turned and moved so that the floor plane is z = 0 (see the module's text); the tilt (deg) and
+    the floor's height in the given frame."""
+    import open3d as o3d
+
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)).voxel_down_sample(config.voxel_m)
+    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(16))
+    thin, normals = np.asarray(cloud.points), np.asarray(cloud.normals)
+    level = thin[np.abs(normals[:, 2]) > np.cos(np.radians(18.0))]
+    if len(level) < 100:
+        raise MapFileError(
+            f"{source}: no level surface in the map ({len(level)} level points): is it a building's floor with z up?"
+        )
+    bins = np.arange(level[:, 2].min(), level[:, 2].max() + 0.1, 0.1)
+    counts, edges = np.histogram(level[:, 2], bins=bins) if len(bins) > 1 else (np.array([len(level)]), bins)
+    strong = np.flatnonzero(counts >= 0.2 * counts.max())
+    floor_at = float(edges[strong[0]] + 0.05) if len(bins) > 1 else float(np.median(level[:, 2]))
+    storeys = [float(edges[k] + 0.05) for k in strong if edges[k] + 0.05 - floor_at > config.max_storey_m]
+    if storeys:
+        heights = ", ".join(f"{h:.2f}" for h in [floor_at, *storeys])
+        raise MapFileError(
+            f"{source}: the map holds more than one storey (large level surfaces at z = {heights} m); crop it to"
+            " one floor (its floor to its ceiling) and import that"
+        )
+    near = level[np.abs(level[:, 2] - floor_at) < 0.2]
+    normal = np.array([0.0, 0.0, 1.0])
+    if len(near) >= 3:  # the floor plane by least squares, twice, the second time without the points 3 cm off
+        for _ in range(2):
+            centre = near.mean(axis=0)
+            normal = np.linalg.svd(near - centre, full_matrices=False)[2][2]
+            normal = normal * np.sign(normal[2] or 1.0)
+            kept = np.abs((near - centre) @ normal) < 0.03
+            near = near[kept] if kept.sum() >= 3 else near
+    turn = _turn_onto_z(normal)
+    levelled = np.asarray(points, dtype=float) @ turn.T
+    floor_z = float(np.median((near @ turn.T)[:, 2])) if len(near) else floor_at
+    levelled[:, 2] -= floor_z
+    return levelled, float(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0)))), floor_z
+
+
+def _turn_onto_z(normal: np.ndarray) -> np.ndarray:
+    """The rotation taking the unit ``normal`` onto +z by the shortest turn (Rodrigues)."""
+    axis = np.cross(normal, [0.0, 0.0, 1.0])
+    s, c = float(np.linalg.norm(axis)), float(normal[2])
+    if s < 1e-12:
+        return np.eye(3)
+    k = axis / s
+    skew = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + s * skew + (1.0 - c) * skew @ skew
+
+
+def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), source: Path | str = "cloud") -> CloudMap:
+    """The cloud map of ``points`` (N, 3, any frame with z up): levelled, voxelized, classified."""
+    levelled, tilt, floor_z = level_frame(points, config, source)
+    index = np.floor(levelled / config.voxel_m).astype(np.int64)
+    voxels, inverse, hits = np.unique(index, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    means = np.column_stack([np.bincount(inverse, levelled[:, k]) for k in range(3)]) / hits[:, None]
+    set_aside = {"sparse voxels": int(np.count_nonzero(hits < config.min_points))}
+    voxels, means = voxels[hits >= config.min_points], means[hits >= config.min_points]
+    below = voxels[:, 2] < -round(config.floor_band_m / config.voxel_m) - 1
+    set_aside["below the floor"] = int(np.count_nonzero(below))
+    voxels, means = voxels[~below], means[~below]
+    lonely = ~_has_neighbour(voxels)
+    set_aside["outliers"] = int(np.count_nonzero(lonely))
+    voxels, means = voxels[~lonely], means[~lonely]
+    if not len(voxels):
+        raise MapFileError(f"{source}: no surface left in the map after setting aside {set_aside}")
+    classes, tops = _classes(voxels, config)
+    filled = _closed_ceiling(voxels, classes)
+    set_aside["ceiling voxels filled in (gaps between seen ceiling)"] = len(filled)
+    voxels, classes = np.vstack([voxels, filled]), np.concatenate([classes, np.full(len(filled), CEILING, np.int8)])
+    wall = np.flatnonzero(classes == WALL)
+    floor = {(int(x), int(y)) for x, y in voxels[classes == FLOOR, :2]}
+    walls, on_plane = wall_planes(means[wall], tops[wall] + config.voxel_m / 2, floor, config)
+    loose = np.flatnonzero(classes == WALL)[~on_plane]
+    classes[loose] = CLUTTER  # upright structure on no wall plane: a cabinet's side, a pillar
+    set_aside["wall voxels on no wall plane (taken as clutter)"] = len(loose)
+    return CloudMap(voxels, classes, config.voxel_m, tilt, floor_z, len(points), set_aside, walls)
+
+
+def wall_planes(
+    centres: np.ndarray, tops: np.ndarray, floor: set[tuple[int, int]], config: CloudMapConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
+    voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
+    ``door_gap_m``: the walls, (W, 7) as ``CloudMap.walls``, each up to the ceiling over it (its columns'
+    ``tops``) and standing behind its surface, on the side away from the seen ``floor`` (voxel columns); and
+    which centres lie on one."""
+    rng = np.random.default_rng(0)
+    walls: list[list[float]] = []
+    on_plane = np.zeros(len(centres), dtype=bool)
+    remaining = np.arange(len(centres))
+    tops = np.asarray(tops, dtype=float)
+    while len(remaining) >= 20:
+        inliers, normal = _ransac_line(centres[remaining, :2], config.wall_plane_m, rng)
+        inliers = remaining[inliers]
+        if len(inliers) < 20:
+            break
+        normal = np.array([normal[0], normal[1], 0.0])
+        along = np.array([-normal[1], normal[0]]) / np.hypot(normal[0], normal[1])
+        points = centres[inliers]
+        s = points[:, :2] @ along
+        order = np.argsort(s)
+        cuts = np.flatnonzero(np.diff(s[order]) > config.door_gap_m) + 1
+        for piece in np.split(order, cuts):
+            lo, hi = float(s[piece].min()), float(s[piece].max())
+            if hi - lo + config.voxel_m < config.min_wall_m:
+                continue
+            offset = float(np.median(points[piece, :2] @ normal[:2] / np.hypot(normal[0], normal[1])))
+            n2 = normal[:2] / np.hypot(normal[0], normal[1])
+            offset += _behind(offset * n2 + (lo + hi) / 2 * along, n2, floor, config.voxel_m) * config.voxel_m / 2
+            a = offset * n2 + (lo - config.voxel_m / 2) * along
+            b = offset * n2 + (hi + config.voxel_m / 2) * along
+            top = float(tops[inliers[piece]].max())
+            walls.append([a[0], a[1], b[0], b[1], config.voxel_m, 0.0, top])
+            on_plane[inliers[piece]] = True
+        remaining = np.setdiff1d(remaining, inliers)
+    return meet(np.array(walls).reshape(-1, 7), config.corner_reach_m), on_plane
+
+
+def _ransac_line(xy: np.ndarray, within: float, rng: np.random.Generator, draws: int = 300) -> tuple:
+    """The line through two of ``xy`` (K, 2) that the most points lie within ``within`` of (scored on at most
+    3000 of them, drawn from ``rng``), refitted to its inliers by least squares: (inlier indices, unit normal)."""
+    sample = xy if len(xy) <= 3000 else xy[rng.choice(len(xy), 3000, replace=False)]
+    pairs = rng.integers(len(sample), size=(draws, 2))
+    direction = sample[pairs[:, 1]] - sample[pairs[:, 0]]
+    length = np.hypot(direction[:, 0], direction[:, 1])
+    ok = length > 1e-6
+    normals = np.column_stack([-direction[ok, 1], direction[ok, 0]]) / length[ok, None]
+    if not len(normals):
+        return np.zeros(0, dtype=int), np.array([1.0, 0.0])
+    offsets = np.einsum("ij,ij->i", normals, sample[pairs[ok, 0]])
+    counts = (np.abs(sample @ normals.T - offsets) < within).sum(axis=0)
+    best = int(np.argmax(counts))
+    normal, offset = normals[best], offsets[best]
+    for _ in range(2):  # refit: the inliers' principal direction
+        inliers = np.flatnonzero(np.abs(xy @ normal - offset) < within)
+        if len(inliers) < 2:
+            break
+        centre = xy[inliers].mean(axis=0)
+        normal = np.linalg.svd(xy[inliers] - centre, full_matrices=False)[2][1]
+        offset = float(centre @ normal)
+    return np.flatnonzero(np.abs(xy @ normal - offset) < within), normal
+
+
+def _behind(middle: np.ndarray, normal: np.ndarray, floor: set[tuple[int, int]], voxel_m: float) -> int:
+    """+1 or -1: the side of a wall surface through ``middle`` (along ``normal``) with no seen floor in front of
+    it, where the wall's body stands; 0 when the floor is seen on both sides or neither."""
+    seen = []
+    for side in (1, -1):
+        probe = np.floor((middle + side * 0.3 * normal) / voxel_m).astype(int)
+        seen.append((int(probe[0]), int(probe[1])) in floor)
+    return 0 if seen[0] == seen[1] else (1 if seen[1] else -1)
+
+
+def meet(walls: np.ndarray, reach: float) -> np.ndarray:
+    """``walls`` with the ends of each two that turn by 45 degrees or more and end within ``reach`` of their
+    meeting point moved onto it (furniture in a room's corner hides where its walls meet)."""
+    walls = walls.copy()
+    for i in range(len(walls)):
+        for j in range(i + 1, len(walls)):
+            a0, a1, b0, b1 = walls[i, 0:2], walls[i, 2:4], walls[j, 0:2], walls[j, 2:4]
+            da, db = a1 - a0, b1 - b0
+            cross = da[0] * db[1] - da[1] * db[0]
+            if abs(cross) < np.sin(np.radians(45.0)) * np.hypot(*da) * np.hypot(*db):
+                continue
+            t = ((b0[0] - a0[0]) * db[1] - (b0[1] - a0[1]) * db[0]) / cross
+            point = a0 + t * da
+            ends = []
+            for k, (p0, p1) in ((i, (a0, a1)), (j, (b0, b1))):
+                gaps = [np.hypot(*(point - p0)), np.hypot(*(point - p1))]
+                end = int(np.argmin(gaps))
+                ends.append((k, end, gaps[end]))
+            if all(gap <= reach for _, _, gap in ends):
+                for k, end, _ in ends:
+                    walls[k, 2 * end : 2 * end + 2] = point
+    return walls
+
+
+def _closed_ceiling(voxels: np.ndarray, classes: np.ndarray, gap: int = 3) -> np.ndarray:
+    """Ceiling voxels for the columns in gaps of up to ``gap`` voxels between seen ceiling (a LiDAR's rings leave
+    stripes of unseen ceiling), each at the height of the nearest seen one: (K, 3) voxel indices."""
+    from scipy import ndimage
+
+    ceiling = voxels[classes == CEILING]
+    if not len(ceiling):
+        return np.zeros((0, 3), dtype=np.int64)
+    lo = ceiling[:, :2].min(axis=0) - gap
+    shape = tuple(ceiling[:, :2].max(axis=0) - lo + gap + 1)
+    seen = np.zeros(shape, dtype=bool)
+    height = np.full(shape, np.iinfo(np.int64).min)
+    np.maximum.at(height, (ceiling[:, 0] - lo[0], ceiling[:, 1] - lo[1]), ceiling[:, 2])
+    seen[ceiling[:, 0] - lo[0], ceiling[:, 1] - lo[1]] = True
+    closed = ndimage.binary_closing(seen, structure=np.ones((3, 3)), iterations=gap) & ~seen
+    _, (ix, iy) = ndimage.distance_transform_edt(~seen, return_indices=True)
+    cx, cy = np.nonzero(closed)
+    return np.column_stack([cx + lo[0], cy + lo[1], height[ix[cx, cy], iy[cx, cy]]]).astype(np.int64)
+
+
+def _keys(voxels: np.ndarray) -> np.ndarray:
+    v = voxels + (1 << 20)
+    return (v[:, 0] << 42) | (v[:, 1] << 21) | v[:, 2]
+
+
+def _has_neighbour(voxels: np.ndarray) -> np.ndarray:
+    keys = np.sort(_keys(voxels))
+    found = np.zeros(len(voxels), dtype=bool)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            for dz in (-1, 0, 1):
+                if dx or dy or dz:
+                    found |= _member(_keys(voxels + np.array([dx, dy, dz])), keys)
+    return found
+
+
+def _member(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
+    at = np.clip(np.searchsorted(sorted_keys, keys), 0, len(sorted_keys) - 1)
+    return sorted_keys[at] == keys
+
+
+def _classes(voxels: np.ndarray, config: CloudMapConfig) -> tuple[np.ndarray, np.ndarray]:
+    v = config.voxel_m
+    z = (voxels[:, 2] + 0.5) * v
+    classes = np.full(len(voxels), CLUTTER, dtype=np.int8)
+    column, inverse = np.unique(voxels[:, :2], axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    top = np.full(len(column), -np.inf)
+    np.maximum.at(top, inverse, z)
+    above_floor = z > config.floor_band_m
+    # a wall is judged on its upper part, above desks and chairs, which hide its foot from a LiDAR
+    band = above_floor & (z >= config.wall_from_m) & (z < top[inverse] - config.ceiling_band_m)
+    filled = np.bincount(inverse, weights=band, minlength=len(column))
+    span = np.maximum(top - config.ceiling_band_m - config.wall_from_m, 0.0)
+    wall_column = (span >= config.wall_min_span_m) & (filled >= config.wall_fill * span / v)
+    ceiling = (top[inverse] >= config.ceiling_min_m) & (z >= top[inverse] - config.ceiling_band_m)
+    classes[wall_column[inverse] & above_floor] = WALL
+    classes[ceiling & above_floor] = CEILING  # a wall's column ends in the ceiling it holds up
+    classes[~above_floor] = FLOOR
+    return classes, top[inverse]
+
+
+def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
+    """One trimesh per class: the faces of its voxels that border empty space, each facing out."""
+    import trimesh
+
+    v = cloud_map.voxel_m
+    keys = np.sort(_keys(cloud_map.voxels))
+    corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]])
+    # each face: the direction it faces and its four corners, counter-clockwise seen from outside
+    faces = {
+        (1, 0, 0): (1, 2, 6, 5), (-1, 0, 0): (0, 4, 7, 3), (0, 1, 0): (2, 3, 7, 6),
+        (0, -1, 0): (0, 1, 5, 4), (0, 0, 1): (4, 5, 6, 7), (0, 0, -1): (0, 3, 2, 1),
+    }  # fmt: skip
+    meshes = {}
+    for k, name in enumerate(CLASSES):
+        if k == WALL:
+            if len(cloud_map.walls):
+                meshes[name] = trimesh.util.concatenate([_wall_box(w) for w in cloud_map.walls])
+            continue
+        if k == CEILING:
+            meshes[name] = _ceiling_underside(cloud_map.voxels[cloud_map.classes == k], v)
+            continue
+        own = cloud_map.voxels[cloud_map.classes == k]
+        quads = []
+        for direction, quad in faces.items():
+            open_side = own[~_member(_keys(own + direction), keys)]
+            quads.append(open_side[:, None, :] + corners[list(quad)][None, :, :])
+        if not sum(len(q) for q in quads):
+            continue
+        meshes[name] = _quads_mesh(np.concatenate(quads).reshape(-1, 4, 3).astype(float) * v)
+    return meshes
+
+
+def _ceiling_underside(ceiling: np.ndarray, v: float):
+    """The ceiling as one downward-facing square per voxel column, at the bottom of the column's top voxel (where
+    the ceiling's surface is, to a voxel), the heights smoothed over 5 x 5 columns (a median: a voxel's worth of
+    noise is not another ceiling height, a step of several is kept)."""
+    from scipy import ndimage
+
+    lo = ceiling[:, :2].min(axis=0)
+    shape = tuple(ceiling[:, :2].max(axis=0) - lo + 1)
+    under = np.full(shape, np.iinfo(np.int64).min)
+    cx, cy = ceiling[:, 0] - lo[0], ceiling[:, 1] - lo[1]
+    np.maximum.at(under, (cx, cy), ceiling[:, 2])
+    seen = under > np.iinfo(np.int64).min
+    _, (ix, iy) = ndimage.distance_transform_edt(~seen, return_indices=True)
+    smooth = ndimage.median_filter(under[ix, iy], size=5)  # unseen columns take their nearest seen neighbour's
+    x, y = np.nonzero(seen)
+    z = smooth[x, y] * v
+    x, y = (x + lo[0]) * v, (y + lo[1]) * v
+    # clockwise seen from above: facing down
+    return _quads_mesh(np.stack([np.column_stack([x + a, y + b, z]) for a, b in ((0, 0), (0, v), (v, v), (v, 0))], 1))
+
+
+def _quads_mesh(quad: np.ndarray):
+    """Quads (Q, 4, 3), each counter-clockwise seen from the side it faces, as a triangle mesh."""
+    import trimesh
+
+    base = np.arange(len(quad))[:, None] * 4
+    triangles = np.concatenate([base + np.array([0, 1, 2]), base + np.array([0, 2, 3])])
+    return trimesh.Trimesh(quad.reshape(-1, 3), triangles, process=True)
+
+
+def _wall_box(wall: np.ndarray):
+    """A wall's line, thickness, bottom and top as a box mesh."""
+    import trimesh
+
+    x0, y0, x1, y1, thickness, bottom, top = wall
+    length = float(np.hypot(x1 - x0, y1 - y0))
+    transform = trimesh.transformations.rotation_matrix(float(np.arctan2(y1 - y0, x1 - x0)), [0, 0, 1])
+    transform[:3, 3] = [(x0 + x1) / 2, (y0 + y1) / 2, (bottom + top) / 2]
+    return trimesh.creation.box([length, thickness, top - bottom], transform)
+
+
+def floor_areas(cloud_map: CloudMap, config: CloudMapConfig) -> dict[str, list[list[float]]]:
+    """The outlines of the seen floor's patches of at least ``min_area_m2`` (small gaps under furniture closed),
+    as named areas ``floor_1``, ``floor_2``, ... in metres."""
+    from scipy import ndimage
+
+    from pimm_env.importers.vectorize import _traced_polygons
+
+    floor = cloud_map.voxels[cloud_map.classes == FLOOR]
+    if not len(floor):
+        raise MapFileError("the map shows no floor under its surfaces: a robot has nowhere to stand")
+    lo = floor[:, :2].min(axis=0)
+    mask = np.zeros(tuple(floor[:, :2].max(axis=0) - lo + 1)[::-1], dtype=bool)
+    mask[floor[:, 1] - lo[1], floor[:, 0] - lo[0]] = True
+    mask = ndimage.binary_closing(np.pad(mask, 3), iterations=3)[3:-3, 3:-3]
+    mask = ndimage.binary_fill_holes(mask)
+    v = cloud_map.voxel_m
+    areas = {}
+    for outer, _ in _traced_polygons(mask, v):
+        ring = outer + lo * v
+        x, y = ring[:, 0], ring[:, 1]
+        if 0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))) >= config.min_area_m2:
+            areas[f"floor_{len(areas) + 1}"] = np.round(ring, 3).tolist()
+    if not areas:
+        raise MapFileError(f"the map's seen floor has no patch of {config.min_area_m2} m² or more")
+    return areas
+
+
+def write_cloud_world_mesh(cloud_map: CloudMap, path: Path) -> Path:
+    """The class meshes as one GLB whose objects are named by class (the mesh import's name rules read them)."""
+    import trimesh
+
+    scene = trimesh.Scene()
+    for name, mesh in surface_meshes(cloud_map).items():
+        scene.add_geometry(mesh, node_name=name, geom_name=name)
+    scene.export(path)
+    return path

@@ -1,0 +1,115 @@
+"""A building from a point-cloud map (pimm_env/importers/cloud_map.py): made as SLAM makes one, imported, checked."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import evaluate
+from pimm_env.bags.record import record_scenario
+from pimm_env.clouds.pcd import write_pcd
+from pimm_env.errors import MapFileError
+from pimm_env.importers.world_import import import_world
+from pimm_env.mapping.derived_maps import build_derived_maps, ensure_derived_maps
+from pimm_env.mapping.occupancy import OccupancyGrid, resample_occupied, tolerant_iou
+from pimm_env.world.files import load_world
+from tests.conftest import shared_file
+from tests.rooms import ROUTES
+
+ROOM_CORNERS = np.array([[0.0, 0.0], [6.0, 0.0], [0.0, 4.0], [6.0, 4.0]])  # the fixture room's inside corners
+
+
+def surface(rng, lo, hi, count, noise=0.02):
+    """``count`` points spread over the box face from ``lo`` to ``hi`` (one coordinate equal), with noise."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    return lo + rng.uniform(size=(count, 3)) * (hi - lo) + rng.normal(0.0, noise, (count, 3))
+
+
+def slam_like_room(rng: np.random.Generator, storeys: int = 1) -> np.ndarray:
+    """The 6 m x 4 m room of ``room_file`` (3 m high, a post), as an accumulated map: noisy surfaces, the second
+    half of the drive 3 cm off (a SLAM pose error), a desk hiding the walls' foot, and a person who walked
+    through (a thin ghost)."""
+    parts = []
+    for level in range(storeys):
+        z0 = 3.3 * level
+        parts += [
+            surface(rng, [0, 0, z0], [6, 4, z0], 60_000),  # floor
+            surface(rng, [0, 0, z0 + 3], [6, 4, z0 + 3], 60_000),  # ceiling
+            surface(rng, [0, 0, z0], [6, 0, z0 + 3], 40_000),
+            surface(rng, [0, 4, z0], [6, 4, z0 + 3], 40_000),
+            surface(rng, [0, 0, z0], [0, 4, z0 + 3], 30_000),
+            surface(rng, [6, 0, z0], [6, 4, z0 + 3], 30_000),
+        ]
+    angle = rng.uniform(0, 2 * np.pi, 8000)
+    parts.append(np.column_stack([4.5 + 0.2 * np.cos(angle), 2.0 + 0.2 * np.sin(angle), rng.uniform(0, 3, 8000)]))
+    parts.append(surface(rng, [1.0, 3.2, 0.75], [2.6, 4.0, 0.75], 3000))  # a desk top against the north wall
+    parts.append(surface(rng, [3.0, 1.0, 0.0], [3.3, 1.3, 1.8], 12))  # a passer-by, seen in a few scans
+    points = np.vstack(parts)
+    points[len(points) // 2 :] += [0.03, -0.02, 0.0]
+    return points
+
+
+def test_a_slam_like_map_of_a_room_imports_with_its_corners_and_what_it_set_aside(tmp_path):
+    source = write_pcd(tmp_path / "room.pcd", slam_like_room(np.random.default_rng(0)))
+    world_file = import_world(source, "room_map", tmp_path / "maps")
+    world = load_world(world_file)
+    maps = build_derived_maps(world)
+    gaps = np.hypot(*(maps.corners.xy[:, None, :] - ROOM_CORNERS[None, :, :]).transpose(2, 0, 1))
+    assert len(maps.corners) == 4 and gaps.min(axis=0).max() < 0.1  # each corner once, within 10 cm
+    assert np.allclose(maps.corners.z, 3.0, atol=0.15)
+    text = world_file.read_text()
+    assert "sparse voxels" in text and "outliers" in text  # counted, not silently dropped
+    free = maps.occupancy.free.sum() * maps.occupancy.grid.resolution**2
+    assert 20.0 < free < 24.0  # the room's 24 m², less the post and the walls' faces
+
+
+def test_a_map_of_two_storeys_or_of_no_floor_is_refused_before_anything_is_written(tmp_path):
+    rng = np.random.default_rng(1)
+    two = write_pcd(tmp_path / "two.pcd", slam_like_room(rng, storeys=2))
+    with pytest.raises(MapFileError, match=r"two.pcd: the map holds more than one storey .*z = "):
+        import_world(two, "two", tmp_path / "maps")
+    walls = write_pcd(tmp_path / "walls.pcd", surface(rng, [0, 0, 0], [0, 4, 3], 20_000))
+    with pytest.raises(MapFileError, match="walls.pcd: no level surface"):
+        import_world(walls, "walls", tmp_path / "maps")
+    assert not (tmp_path / "maps").exists() or not any((tmp_path / "maps").iterdir())
+
+
+def test_the_real_room_scan_imports_as_one_room_with_the_corners_its_planes_show(tmp_path):
+    from pimm_agents.measurement.plane_reference import plane_reference
+    from pimm_env.clouds.read import read_cloud
+
+    scan = shared_file("real", "scans", "room_scan1.pcd")
+    maps = build_derived_maps(load_world(import_world(scan, "room_scan", tmp_path / "maps")))
+    reference = plane_reference(read_cloud(scan).points).corners  # the scan's own frame, levelled
+    gaps = np.hypot(*(maps.corners.xy[:, None, :] - reference[None, :, :]).transpose(2, 0, 1))
+    assert len(maps.corners) == len(reference) == 2 and gaps.min(axis=0).max() < 0.25
+
+
+def test_a_bags_clouds_become_a_point_cloud_map_that_imports_as_the_room(room_file, tmp_path):
+    (room_file.parent / "scenarios.yaml").write_text(ROUTES)
+    ensure_derived_maps(load_world(room_file))
+    bag = record_scenario("there", tmp_path / "bag", str(room_file), seed=0)
+    out = tmp_path / "room.pcd"
+    result = CliRunner().invoke(evaluate.app, ["map", "--from-bag", str(bag), "--cloud", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "then: python evaluate.py world import" in result.output and out.is_file()
+    maps = build_derived_maps(load_world(import_world(out, "from_bag", tmp_path / "maps")))
+    own = ensure_derived_maps(load_world(room_file)).occupancy
+    seen = resample_occupied(
+        OccupancyGrid(maps.occupancy.grid, maps.occupancy.surfaces(), ~maps.occupancy.surfaces()), own.grid
+    )
+    assert tolerant_iou(seen, own.surfaces(), 2) > 0.8  # the walls the robot's clouds saw, where the room has them
+    missing = CliRunner().invoke(evaluate.app, ["map", "--from-bag", str(bag)])
+    assert missing.exit_code != 0 and "give --out MAP.yaml" in missing.output
+
+
+def test_a_ply_without_faces_is_read_as_a_point_cloud_map(tmp_path):
+    import trimesh
+
+    points = slam_like_room(np.random.default_rng(2))
+    source = Path(tmp_path / "room.ply")
+    trimesh.PointCloud(points).export(source)
+    world = load_world(import_world(source, "ply_room", tmp_path / "maps"))
+    assert "cloud_map" in (tmp_path / "maps" / "ply_room" / "world.yaml").read_text()
+    assert {e.semantic.name.lower() for e in world.elements} >= {"floor", "ceiling", "wall"}
