@@ -401,7 +401,7 @@ def floor_areas(cloud_map: CloudMap, config: CloudMapConfig) -> dict[str, list[l
     mask = ndimage.binary_closing(np.pad(mask, 3), iterations=3)[3:-3, 3:-3]
     mask = ndimage.binary_fill_holes(mask)
     v = cloud_map.voxel_m
-    areas = {}
+    areas: dict[str, list[list[float]]] = {}
     for outer, _ in _traced_polygons(mask, v):
         ring = outer + lo * v
         x, y = ring[:, 0], ring[:, 1]
