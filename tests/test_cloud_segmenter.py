@@ -133,3 +133,17 @@ def test_the_layout_free_network_labels_a_16_ring_scan_and_one_without_rings():
             order = rng.permutation(len(points))
             right.append(_accuracy(segment_cloud(points[order], cloud).labels, truth[order]))
         assert np.mean(right) > least, (name, right)
+
+
+def test_a_scan_turned_upside_down_is_said_to_look_so_and_the_real_one_is_not(tmp_path):
+    from pimm_agents.scans.segment import hanging_ratio
+    from pimm_env.clouds.read import read_cloud
+    from tests.conftest import shared_file
+
+    points = read_cloud(shared_file("real", "scans", "room_scan1.pcd")).points.astype(float)
+    for scan, upside_down in ((points, False), (points * [1.0, -1.0, -1.0], True)):
+        floor = estimate_floor(scan)
+        assert (hanging_ratio(scan @ floor.leveling.T, floor.height) > 1.0) == upside_down
+    sim, _ = simulated_scan(Lidar3DConfig(height=0.9))
+    floor = estimate_floor(sim)
+    assert hanging_ratio(sim @ floor.leveling.T, floor.height) < 1.0  # a simulated upright scan of the iiLab

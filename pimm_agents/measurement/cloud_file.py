@@ -63,6 +63,8 @@ def segment_file(
         "sensor_height_m": round(result.sensor_height, 3),
         "height_measured": result.height_measured,
         "tilt_deg": round(result.tilt_deg, 2),
+        "hanging_ratio": round(result.hanging_ratio, 2),
+        "warnings": _warnings(result),
         "in_network_view": round(result.in_view, 3),
         "shares": {name: round(float(np.mean(result.labels == k)), 4) for k, name in enumerate(CLASS_NAMES)},
         "corners": corners,
@@ -90,6 +92,20 @@ def segment_file(
     )
     (out / "segment.json").write_text(json.dumps(record, indent=1))
     return record
+
+
+def _warnings(result: Any) -> list[str]:
+    """What a user should look at: a scan that looks upside down, or was turned far to level it."""
+    found = []
+    if result.hanging_ratio > 1.0:
+        found.append(
+            f"the scan looks upside down: {result.hanging_ratio:.1f} times as many returns within a metre under its"
+            " top as within a metre over its floor (furniture stands on a floor); if it is, give its mount as"
+            " turned over (--sensors with lidar3d mount_roll_deg: 180)"
+        )
+    if result.tilt_deg > 30.0:
+        found.append(f"the scan was turned {result.tilt_deg:.0f} deg to level it: is its file z-up?")
+    return found
 
 
 def _write_ply(path: Path, points: np.ndarray, labels: np.ndarray) -> None:

@@ -132,6 +132,7 @@ def format_segment(record: dict[str, Any]) -> list[str]:
             f"{found['unmatched_found']} found that match none"
         )
     lines.append(f"  written to {record['out']} (labels.npy, labelled.ply, corners.json, views.png)")
+    lines += [f"warning: {text}" for text in record.get("warnings", [])]
     return lines
 
 

@@ -40,6 +40,9 @@ class CloudSegmentation:
     in_view: float  # share of the returns inside the network's vertical field
     leveling: np.ndarray = field(default_factory=lambda: np.eye(3))  # sensor frame -> level frame
     far_outliers: int = 0  # returns set aside as stray (``FAR_OUTLIER``), labelled clutter
+    #: returns within a metre under the highest against within a metre over the floor (``hanging_share``): over 1,
+    #: more hangs from the ceiling than stands on the floor, and the scan is likely upside down
+    hanging_ratio: float = 0.0
 
 
 #: A return farther than this many times the 99th percentile of the scan's ranges is a stray (a multipath echo, a
@@ -67,6 +70,17 @@ def network_layout_cells(level: np.ndarray, layout: Lidar3DConfig) -> tuple[np.n
     step = 2 * np.pi / layout.points_per_layer
     column = np.round((azimuth - azimuths_3d(layout)[0]) / step).astype(np.int64) % layout.points_per_layer
     return ring * layout.points_per_layer + column, inside
+
+
+def hanging_ratio(level: np.ndarray, height: float) -> float:
+    """Returns between 0.15 and 1.2 m under the scan's top (its 99.5th height percentile) over those between 0.15
+    and 1.2 m over its floor. Desks, chairs and cabinets stand on a floor: under an upright scan's ceiling there
+    is less (on the real room scan, 0.33; turned upside down, 2.48)."""
+    z = np.asarray(level, dtype=float)[:, 2] + height
+    top = float(np.percentile(z, 99.5))
+    lower = np.count_nonzero((z > 0.15) & (z < 1.2))
+    upper = np.count_nonzero((z > top - 1.2) & (z < top - 0.15))
+    return float(upper / max(lower, 1))
 
 
 def segment_cloud(
@@ -126,6 +140,7 @@ def segment_cloud(
     structural = np.isin(labels, (int(SemanticClass.WALL), int(SemanticClass.CEILING)))
     features = detect_corners(level[structural], labels[structural], config=corners, seed=seed)
     return CloudSegmentation(
+        hanging_ratio=hanging_ratio(level, height),
         labels=labels,
         descriptor=descriptor,
         level_points=level,
