@@ -80,7 +80,7 @@ def hanging_ratio(level: np.ndarray, height: float) -> float:
     top = float(np.percentile(z, 99.5))
     lower = np.count_nonzero((z > 0.15) & (z < 1.2))
     upper = np.count_nonzero((z > top - 1.2) & (z < top - 0.15))
-    return float(upper / max(lower, 1))
+    return float(upper) / float(max(int(lower), 1))
 
 
 def segment_cloud(
