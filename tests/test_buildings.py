@@ -35,6 +35,7 @@ def test_the_generator_is_deterministic_per_seed_and_the_suites_keep_their_build
     assert {x.name for x in suites().values() if x.commands} == {
         "iilab-thesis",
         "real-plans-development",
+        "real-plans-kidnaps",
         "real-laser-logs",
     }
 
