@@ -1,0 +1,122 @@
+"""The walls of a point-cloud map (cloud_map.py): upright planes fitted across the plan to the wall voxels'
+points, cut at doorways, met where furniture hides a room's corner, and each stood as a box behind the surface the
+LiDAR saw."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from pimm_env.importers.cloud_map import CloudMapConfig
+
+
+def wall_planes(
+    centres: np.ndarray, tops: np.ndarray, floor: set[tuple[int, int]], config: CloudMapConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
+    voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
+    ``door_gap_m``: the walls, (W, 7) as ``CloudMap.walls``, each up to the ceiling over it (its columns'
+    ``tops``) and standing behind its surface, on the side away from the seen ``floor`` (voxel columns); and
+    which centres lie on one."""
+    rng = np.random.default_rng(0)
+    walls: list[list[float]] = []
+    on_plane = np.zeros(len(centres), dtype=bool)
+    remaining = np.arange(len(centres))
+    tops = np.asarray(tops, dtype=float)
+    while len(remaining) >= 20:
+        inliers, normal = _ransac_line(centres[remaining, :2], config.wall_plane_m, rng)
+        inliers = remaining[inliers]
+        if len(inliers) < 20:
+            break
+        normal = np.array([normal[0], normal[1], 0.0])
+        along = np.array([-normal[1], normal[0]]) / np.hypot(normal[0], normal[1])
+        points = centres[inliers]
+        s = points[:, :2] @ along
+        order = np.argsort(s)
+        cuts = np.flatnonzero(np.diff(s[order]) > config.door_gap_m) + 1
+        for piece in np.split(order, cuts):
+            lo, hi = float(s[piece].min()), float(s[piece].max())
+            if hi - lo + config.voxel_m < config.min_wall_m:
+                continue
+            offset = float(np.median(points[piece, :2] @ normal[:2] / np.hypot(normal[0], normal[1])))
+            n2 = normal[:2] / np.hypot(normal[0], normal[1])
+            offset += _behind(offset * n2 + (lo + hi) / 2 * along, n2, floor, config.voxel_m) * config.voxel_m / 2
+            a = offset * n2 + (lo - config.voxel_m / 2) * along
+            b = offset * n2 + (hi + config.voxel_m / 2) * along
+            top = float(tops[inliers[piece]].max())
+            walls.append([a[0], a[1], b[0], b[1], config.voxel_m, 0.0, top])
+            on_plane[inliers[piece]] = True
+        remaining = np.setdiff1d(remaining, inliers)
+    return meet(np.array(walls).reshape(-1, 7), config.corner_reach_m), on_plane
+
+
+def _ransac_line(xy: np.ndarray, within: float, rng: np.random.Generator, draws: int = 300) -> tuple:
+    """The line through two of ``xy`` (K, 2) that the most points lie within ``within`` of (scored on at most
+    3000 of them, drawn from ``rng``), refitted to its inliers by least squares: (inlier indices, unit normal)."""
+    sample = xy if len(xy) <= 3000 else xy[rng.choice(len(xy), 3000, replace=False)]
+    pairs = rng.integers(len(sample), size=(draws, 2))
+    direction = sample[pairs[:, 1]] - sample[pairs[:, 0]]
+    length = np.hypot(direction[:, 0], direction[:, 1])
+    ok = length > 1e-6
+    normals = np.column_stack([-direction[ok, 1], direction[ok, 0]]) / length[ok, None]
+    if not len(normals):
+        return np.zeros(0, dtype=int), np.array([1.0, 0.0])
+    offsets = np.einsum("ij,ij->i", normals, sample[pairs[ok, 0]])
+    counts = (np.abs(sample @ normals.T - offsets) < within).sum(axis=0)
+    best = int(np.argmax(counts))
+    normal, offset = normals[best], offsets[best]
+    for _ in range(2):  # refit: the inliers' principal direction
+        inliers = np.flatnonzero(np.abs(xy @ normal - offset) < within)
+        if len(inliers) < 2:
+            break
+        centre = xy[inliers].mean(axis=0)
+        normal = np.linalg.svd(xy[inliers] - centre, full_matrices=False)[2][1]
+        offset = float(centre @ normal)
+    return np.flatnonzero(np.abs(xy @ normal - offset) < within), normal
+
+
+def _behind(middle: np.ndarray, normal: np.ndarray, floor: set[tuple[int, int]], voxel_m: float) -> int:
+    """+1 or -1: the side of a wall surface through ``middle`` (along ``normal``) with no seen floor in front of
+    it, where the wall's body stands; 0 when the floor is seen on both sides or neither."""
+    seen = []
+    for side in (1, -1):
+        probe = np.floor((middle + side * 0.3 * normal) / voxel_m).astype(int)
+        seen.append((int(probe[0]), int(probe[1])) in floor)
+    return 0 if seen[0] == seen[1] else (1 if seen[1] else -1)
+
+
+def meet(walls: np.ndarray, reach: float) -> np.ndarray:
+    """``walls`` with the ends of each two that turn by 45 degrees or more and end within ``reach`` of their
+    meeting point moved onto it (furniture in a room's corner hides where its walls meet)."""
+    walls = walls.copy()
+    for i in range(len(walls)):
+        for j in range(i + 1, len(walls)):
+            a0, a1, b0, b1 = walls[i, 0:2], walls[i, 2:4], walls[j, 0:2], walls[j, 2:4]
+            da, db = a1 - a0, b1 - b0
+            cross = da[0] * db[1] - da[1] * db[0]
+            if abs(cross) < np.sin(np.radians(45.0)) * np.hypot(*da) * np.hypot(*db):
+                continue
+            t = ((b0[0] - a0[0]) * db[1] - (b0[1] - a0[1]) * db[0]) / cross
+            point = a0 + t * da
+            ends = []
+            for k, (p0, p1) in ((i, (a0, a1)), (j, (b0, b1))):
+                gaps = [np.hypot(*(point - p0)), np.hypot(*(point - p1))]
+                end = int(np.argmin(gaps))
+                ends.append((k, end, gaps[end]))
+            if all(gap <= reach for _, _, gap in ends):
+                for k, end, _ in ends:
+                    walls[k, 2 * end : 2 * end + 2] = point
+    return walls
+
+
+def wall_box(wall: np.ndarray):
+    """A wall's line, thickness, bottom and top as a box mesh."""
+    import trimesh
+
+    x0, y0, x1, y1, thickness, bottom, top = wall
+    length = float(np.hypot(x1 - x0, y1 - y0))
+    transform = trimesh.transformations.rotation_matrix(float(np.arctan2(y1 - y0, x1 - x0)), [0, 0, 1])
+    transform[:3, 3] = [(x0 + x1) / 2, (y0 + y1) / 2, (bottom + top) / 2]
+    return trimesh.creation.box([length, thickness, top - bottom], transform)
