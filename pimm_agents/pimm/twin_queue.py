@@ -17,8 +17,8 @@ import numpy as np
 from pimm_agents.pimm.rivals import RivalTracker, carried
 from pimm_env.geometry import relative_motion
 
-#: Ours (measured: docs/design.md#the-maps-twins): twins fitted to the newest scans per update (about 5 ms on this
-#: machine; 400 twins take the ten updates a status is confirmed over) and the best of them offered to the check.
+#: Ours (measured: docs/design.md#the-maps-twins): twins fitted to the newest scans per update (400 twins take the
+#: ten updates a status is confirmed over) and the best of them offered to the check.
 BATCH, OFFERED = 40, 2
 NEWEST_SCANS = 3  # the newest scans a queued twin is fitted to before it is ranked
 
