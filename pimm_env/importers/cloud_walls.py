@@ -4,22 +4,19 @@ LiDAR saw."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from pimm_env.importers.cloud_map import CloudMapConfig
-
 
 def wall_planes(
-    centres: np.ndarray, tops: np.ndarray, floor: set[tuple[int, int]], config: CloudMapConfig
+    centres: np.ndarray, tops: np.ndarray, floor: set[tuple[int, int]], config: Any
 ) -> tuple[np.ndarray, np.ndarray]:
     """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
     voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
     ``door_gap_m``: the walls, (W, 7) as ``CloudMap.walls``, each up to the ceiling over it (its columns'
     ``tops``) and standing behind its surface, on the side away from the seen ``floor`` (voxel columns); and
-    which centres lie on one."""
+    which centres lie on one. ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
     walls: list[list[float]] = []
     on_plane = np.zeros(len(centres), dtype=bool)
