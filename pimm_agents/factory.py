@@ -84,7 +84,16 @@ def _build_pimm(world: World, config: Any, name: str, sensors: str | None) -> Lo
     segmenter, fingerprints = load_perception(world)
     lidar3d = sensor_layouts(sensors)[0]
     twins = MapTwins(maps.occupancy, TwinConfig())
-    twins.load(world_dir(world) / TWINS_FILE)  # the world's table of them, where `world prepare` wrote one
+    table = world_dir(world) / TWINS_FILE  # the world's table of them, where `world prepare` wrote one
+    if not twins.load(table) and table.is_file():
+        import warnings
+
+        warnings.warn(
+            f"{table} was made from another map or other twin settings and is not taken: each map cell's twins are"
+            f" worked out when the robot first reaches it (tens of ms an update); `python evaluate.py world prepare"
+            f" {world.name}` writes the table again",
+            stacklevel=2,
+        )
     return PimmLocalizer(
         maps.occupancy, maps.corners, segmenter, fingerprints, config, name=name, lidar3d=lidar3d, twins=twins
     )

@@ -1,6 +1,7 @@
 import json
 from importlib.metadata import EntryPoint
 
+import numpy as np
 import pytest
 import yaml
 from typer.testing import CliRunner
@@ -90,3 +91,21 @@ def test_a_map_only_localizer_without_sensors_says_which_lidar_it_assumes():
         factory.make_localizer("amcl", map="maps/iilab/occupancy.yaml")
         factory.make_localizer("amcl", map="maps/iilab/occupancy.yaml", sensors="sick-lms200")
     assert len(heard) == 1 and "sensors=" in str(heard[0].message) and "360 beams over 360 deg" in str(heard[0].message)
+
+
+def test_a_twins_table_made_with_other_settings_is_said_and_not_taken(tmp_path):
+    import shutil
+    from dataclasses import replace
+
+    from pimm_agents.factory import make_localizer
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.mapping.twins import TWINS_FILE, MapTwins, TwinConfig
+    from pimm_env.world.files import MAPS_DIR, load_world
+
+    shutil.copytree(MAPS_DIR / "iilab", tmp_path / "iilab")
+    world = load_world(tmp_path / "iilab" / "world.yaml")
+    stale = MapTwins(load_derived_maps(world).occupancy, replace(TwinConfig(), max_twins=6))
+    stale.of(np.array([-10.0, 4.2, 0.0]))
+    stale.save(tmp_path / "iilab" / TWINS_FILE)
+    with pytest.warns(UserWarning, match="twins.npz was made from another map or other twin settings"):
+        make_localizer("pimm", world)
