@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from pimm_env.driving.routes import RouteConfig, plan_route_from
 from pimm_env.errors import RoutePlanningError
@@ -38,6 +39,7 @@ class Landings:
     ) -> None:
         self.route = replace(route, count=1)
         self.graph = free_graph(occupancy, route.clearance_m, route.step_m)
+        self.nodes = cKDTree(self.graph.xy)
         self.occupancy, self.twins, self.min_jump_m = occupancy, twins, min_jump_m
 
     def draw(self, pose: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, str]:
@@ -50,9 +52,8 @@ class Landings:
         if rng.random() < 0.5:
             twins = self.twins.of(pose)
             if len(twins):
-                gaps = np.hypot(*(xy[:, None, :] - twins[None, :, :2]).transpose(2, 0, 1))  # (nodes, twins)
-                nearest = np.argmin(gaps, axis=0)
-                usable = np.flatnonzero((gaps[nearest, np.arange(len(twins))] <= self.route.step_m) & far[nearest])
+                gaps, nearest = self.nodes.query(twins[:, :2])  # each twin's nearest node of the free graph
+                usable = np.flatnonzero((gaps <= self.route.step_m) & far[nearest])
                 if len(usable):
                     pick = int(rng.choice(usable))
                     turn = np.radians(rng.uniform(TWIN_TURN_DEG, 360.0 - TWIN_TURN_DEG))
