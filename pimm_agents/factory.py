@@ -76,20 +76,18 @@ def _build_pimm(world: World, config: Any, name: str, sensors: str | None) -> Lo
     from pimm_agents.perception.files import load_perception
     from pimm_agents.pimm.localizer import PimmLocalizer
     from pimm_env.mapping.derived_maps import load_derived_maps
-    from pimm_env.mapping.twins import TWINS_FILE, MapTwins, TwinConfig
+    from pimm_env.mapping.twins import world_twins
     from pimm_env.sim.sensors import sensor_layouts
-    from pimm_env.world.files import world_dir
 
     maps = load_derived_maps(world)
     segmenter, fingerprints = load_perception(world)
     lidar3d = sensor_layouts(sensors)[0]
-    twins = MapTwins(maps.occupancy, TwinConfig())
-    table = world_dir(world) / TWINS_FILE  # the world's table of them, where `world prepare` wrote one
-    if not twins.load(table) and table.is_file():
+    twins, stale = world_twins(world, maps.occupancy)
+    if stale is not None:
         import warnings
 
         warnings.warn(
-            f"{table} was made from another map or other twin settings and is not taken: each map cell's twins are"
+            f"{stale} was made from another map or other twin settings and is not taken: each map cell's twins are"
             f" worked out when the robot first reaches it (tens of ms an update); `python evaluate.py world prepare"
             f" {world.name}` writes the table again",
             stacklevel=2,

@@ -39,3 +39,15 @@ def moved_rigidly(poses: np.ndarray, origin: np.ndarray, target: np.ndarray) -> 
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
     """Angle in [-pi, pi)."""
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
+
+
+def rotation_onto_z(normal: np.ndarray) -> np.ndarray:
+    """The smallest rotation that takes the unit vector ``normal`` onto (0, 0, 1) (Rodrigues)."""
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    axis = np.cross(n, [0.0, 0.0, 1.0])
+    s, c = np.linalg.norm(axis), float(n[2])
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    k = axis / s
+    skew = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * skew + (1 - c) * skew @ skew

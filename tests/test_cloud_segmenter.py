@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from pimm_agents.perception.files import SHIPPED_WEIGHTS
-from pimm_agents.perception.floor import estimate_floor, rotation_onto_z
+from pimm_agents.perception.floor import estimate_floor
 from pimm_env.envs.iilab_env import IILabEnv
 from pimm_env.envs.sim_config import SimConfig
+from pimm_env.geometry import rotation_onto_z
 from pimm_env.sim.lidar import Lidar3DConfig
 
 

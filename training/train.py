@@ -136,7 +136,7 @@ class CloudSampler:
 
     def sample(self, i: int, offset: int) -> tuple[np.ndarray, np.ndarray]:
         from pimm_agents.perception.cloud_features import cloud_features
-        from pimm_agents.perception.floor import rotation_onto_z
+        from pimm_env.geometry import rotation_onto_z
 
         points, labels = self.scans.scan(i)
         height = float(self.scans.heights[i])

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pimm_env.errors import PerceptionError
+from pimm_env.geometry import rotation_onto_z
 
 
 @dataclass(frozen=True)
@@ -43,18 +44,6 @@ class Floor:
     def leveling(self) -> np.ndarray:
         """The rotation R that turns the floor's normal onto +z: R @ p is the point in a level sensor frame."""
         return rotation_onto_z(self.normal)
-
-
-def rotation_onto_z(normal: np.ndarray) -> np.ndarray:
-    """The smallest rotation that takes the unit vector ``normal`` onto (0, 0, 1) (Rodrigues)."""
-    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    axis = np.cross(n, [0.0, 0.0, 1.0])
-    s, c = np.linalg.norm(axis), float(n[2])
-    if s < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    k = axis / s
-    skew = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + s * skew + (1 - c) * skew @ skew
 
 
 def estimate_floor(points: np.ndarray, config: FloorConfig = FloorConfig(), seed: int = 0) -> Floor:

@@ -9,6 +9,7 @@ import numpy as np
 
 from pimm_env.bags.read import read_steps
 from pimm_env.errors import BagError
+from pimm_env.geometry import compose
 from pimm_env.sim.lidar import Lidar3DConfig, to_robot_frame
 
 #: clouds laid before the map is thinned again (bounds the memory a long bag takes)
@@ -30,12 +31,8 @@ def cloud_map_from_bag(
             continue
         cloud, mask = np.asarray(step.obs["cloud"], dtype=float), np.asarray(step.obs["cloud_mask"], dtype=bool)
         points = to_robot_frame(cloud[mask], lidar3d)
-        x, y, theta = step.true_pose
-        c, s = np.cos(theta), np.sin(theta)
-        pending.append(
-            np.column_stack([x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1],
-                             points[:, 2] + lidar3d.height])
-        )  # fmt: skip
+        planar = compose(step.true_pose, np.column_stack([points[:, :2], np.zeros(len(points))]))[:, :2]
+        pending.append(np.column_stack([planar, points[:, 2] + lidar3d.height]))
         clouds += 1
         if len(pending) >= THIN_EVERY:
             taken, pending = _thin(np.vstack([taken, *pending]), voxel_m, o3d), []

@@ -192,12 +192,10 @@ class Kidnaps(gym.Wrapper):
         """A landing anywhere (``driving.landings``), drawn from the env's seeded generator."""
         if self._landings is None:
             from pimm_env.driving.landings import Landings
-            from pimm_env.mapping.twins import TWINS_FILE, MapTwins, TwinConfig
-            from pimm_env.world.files import world_dir
+            from pimm_env.mapping.twins import world_twins
 
             base = self.env.unwrapped
-            twins = MapTwins(base.maps.occupancy, TwinConfig())  # type: ignore[attr-defined]
-            twins.load(world_dir(base.world) / TWINS_FILE)  # type: ignore[attr-defined]
+            twins, _ = world_twins(base.world, base.maps.occupancy)  # type: ignore[attr-defined]
             self._landings = Landings(base.maps.occupancy, twins)  # type: ignore[attr-defined]
         target, waypoints, kind = self._landings.draw(pose, self.env.unwrapped.np_random)
         return [float(v) for v in target], waypoints, kind

@@ -9,10 +9,13 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    mapping, stray returns) and a voxel with no occupied neighbour (outliers) are set aside and counted.
 3. **Classes per column** of voxels: floor within ``floor_band_m`` of the floor; in a column that rises at least
    ``ceiling_min_m``, the voxels within ``ceiling_band_m`` of its top are ceiling (each column at its own height:
-   a real ceiling is not flat); a column filled from near the floor to near its top over at least
-   ``wall_min_height_m`` is wall; the rest is clutter.
-4. **Surfaces**: the faces of occupied voxels that border empty space, one mesh per class (named ``floor``,
-   ``ceiling``, ``wall``, ``clutter``), written as one GLB that the mesh import reads as any building.
+   a real ceiling is not flat); a column filled from ``wall_from_m`` (above desks and chairs, which hide a
+   wall's foot) to near its top, over at least ``wall_min_span_m``, is wall; the rest is clutter. Ceiling gaps
+   of up to three columns between seen ceiling (a LiDAR's rings leave stripes) are filled in.
+4. **Surfaces**: walls are upright planes fitted to the wall voxels (``cloud_walls.py``), each a box behind the
+   surface the LiDAR saw; the ceiling is a downward face at each column's top, smoothed over 5 x 5 columns;
+   floor and clutter are the faces of their voxels that border empty space. One mesh per class (named
+   ``floor``, ``ceiling``, ``wall``, ``clutter``), written as one GLB that the mesh import reads as any building.
 5. **Where the robot can be**: the outline of the floor that was seen (a room seen only through its doorway has
    no floor in the map and is left out), as the world's areas.
 """
@@ -26,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from pimm_env.errors import MapFileError
+from pimm_env.geometry import rotation_onto_z
 from pimm_env.importers.cloud_walls import wall_box, wall_planes
 
 #: The surface classes of a cloud map's voxels, in the order of ``CLASSES`` indices.
@@ -104,22 +108,11 @@ def level_frame(points: np.ndarray, config: CloudMapConfig, source: Path | str) 
             normal = normal * np.sign(normal[2] or 1.0)
             kept = np.abs((near - centre) @ normal) < 0.03
             near = near[kept] if kept.sum() >= 3 else near
-    turn = _turn_onto_z(normal)
+    turn = rotation_onto_z(normal)
     levelled = np.asarray(points, dtype=float) @ turn.T
     floor_z = float(np.median((near @ turn.T)[:, 2])) if len(near) else floor_at
     levelled[:, 2] -= floor_z
     return levelled, float(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0)))), floor_z
-
-
-def _turn_onto_z(normal: np.ndarray) -> np.ndarray:
-    """The rotation taking the unit ``normal`` onto +z by the shortest turn (Rodrigues)."""
-    axis = np.cross(normal, [0.0, 0.0, 1.0])
-    s, c = float(np.linalg.norm(axis)), float(normal[2])
-    if s < 1e-12:
-        return np.eye(3)
-    k = axis / s
-    skew = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + s * skew + (1.0 - c) * skew @ skew
 
 
 def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), source: Path | str = "cloud") -> CloudMap:
@@ -146,7 +139,7 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
     wall = np.flatnonzero(classes == WALL)
     floor = {(int(x), int(y)) for x, y in voxels[classes == FLOOR, :2]}
     walls, on_plane = wall_planes(means[wall], tops[wall] + config.voxel_m / 2, floor, config)
-    loose = np.flatnonzero(classes == WALL)[~on_plane]
+    loose = wall[~on_plane]
     classes[loose] = CLUTTER  # upright structure on no wall plane: a cabinet's side, a pillar
     set_aside["wall voxels on no wall plane (taken as clutter)"] = len(loose)
     return CloudMap(voxels, classes, config.voxel_m, tilt, floor_z, len(points), set_aside, walls)
@@ -160,16 +153,21 @@ def _closed_ceiling(voxels: np.ndarray, classes: np.ndarray, gap: int = 3) -> np
     ceiling = voxels[classes == CEILING]
     if not len(ceiling):
         return np.zeros((0, 3), dtype=np.int64)
-    lo = ceiling[:, :2].min(axis=0) - gap
-    shape = tuple(ceiling[:, :2].max(axis=0) - lo + gap + 1)
-    seen = np.zeros(shape, dtype=bool)
-    height = np.full(shape, np.iinfo(np.int64).min)
-    np.maximum.at(height, (ceiling[:, 0] - lo[0], ceiling[:, 1] - lo[1]), ceiling[:, 2])
-    seen[ceiling[:, 0] - lo[0], ceiling[:, 1] - lo[1]] = True
+    lo, height, seen = _column_tops(ceiling, gap)
     closed = ndimage.binary_closing(seen, structure=np.ones((3, 3)), iterations=gap) & ~seen
     _, (ix, iy) = ndimage.distance_transform_edt(~seen, return_indices=True)
     cx, cy = np.nonzero(closed)
     return np.column_stack([cx + lo[0], cy + lo[1], height[ix[cx, cy], iy[cx, cy]]]).astype(np.int64)
+
+
+def _column_tops(voxels: np.ndarray, pad: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The voxels' columns as a grid with ``pad`` empty columns around: its lowest (x, y) index, each column's top
+    voxel index, and which columns hold a voxel."""
+    lo = voxels[:, :2].min(axis=0) - pad
+    shape = tuple(voxels[:, :2].max(axis=0) - lo + pad + 1)
+    top = np.full(shape, np.iinfo(np.int64).min)
+    np.maximum.at(top, (voxels[:, 0] - lo[0], voxels[:, 1] - lo[1]), voxels[:, 2])
+    return lo, top, top > np.iinfo(np.int64).min
 
 
 def _keys(voxels: np.ndarray) -> np.ndarray:
@@ -232,10 +230,11 @@ def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
             if len(cloud_map.walls):
                 meshes[name] = trimesh.util.concatenate([wall_box(w) for w in cloud_map.walls])
             continue
-        if k == CEILING:
-            meshes[name] = _ceiling_underside(cloud_map.voxels[cloud_map.classes == k], v)
-            continue
         own = cloud_map.voxels[cloud_map.classes == k]
+        if k == CEILING:
+            if len(own):
+                meshes[name] = _ceiling_underside(own, v)
+            continue
         quads = []
         for direction, quad in faces.items():
             open_side = own[~_member(_keys(own + direction), keys)]
@@ -252,12 +251,7 @@ def _ceiling_underside(ceiling: np.ndarray, v: float):
     noise is not another ceiling height, a step of several is kept)."""
     from scipy import ndimage
 
-    lo = ceiling[:, :2].min(axis=0)
-    shape = tuple(ceiling[:, :2].max(axis=0) - lo + 1)
-    under = np.full(shape, np.iinfo(np.int64).min)
-    cx, cy = ceiling[:, 0] - lo[0], ceiling[:, 1] - lo[1]
-    np.maximum.at(under, (cx, cy), ceiling[:, 2])
-    seen = under > np.iinfo(np.int64).min
+    lo, under, seen = _column_tops(ceiling)
     _, (ix, iy) = ndimage.distance_transform_edt(~seen, return_indices=True)
     smooth = ndimage.median_filter(under[ix, iy], size=5)  # unseen columns take their nearest seen neighbour's
     x, y = np.nonzero(seen)
@@ -276,16 +270,18 @@ def _quads_mesh(quad: np.ndarray):
     return trimesh.Trimesh(quad.reshape(-1, 3), triangles, process=True)
 
 
-def floor_areas(cloud_map: CloudMap, config: CloudMapConfig) -> dict[str, list[list[float]]]:
+def floor_areas(
+    cloud_map: CloudMap, config: CloudMapConfig, source: Path | str = "cloud"
+) -> dict[str, list[list[float]]]:
     """The outlines of the seen floor's patches of at least ``min_area_m2`` (small gaps under furniture closed),
     as named areas ``floor_1``, ``floor_2``, ... in metres."""
     from scipy import ndimage
 
-    from pimm_env.importers.vectorize import _traced_polygons
+    from pimm_env.importers.vectorize import traced_polygons
 
     floor = cloud_map.voxels[cloud_map.classes == FLOOR]
     if not len(floor):
-        raise MapFileError("the map shows no floor under its surfaces: a robot has nowhere to stand")
+        raise MapFileError(f"{source}: the map shows no floor under its surfaces: a robot has nowhere to stand")
     lo = floor[:, :2].min(axis=0)
     mask = np.zeros(tuple(floor[:, :2].max(axis=0) - lo + 1)[::-1], dtype=bool)
     mask[floor[:, 1] - lo[1], floor[:, 0] - lo[0]] = True
@@ -293,13 +289,13 @@ def floor_areas(cloud_map: CloudMap, config: CloudMapConfig) -> dict[str, list[l
     mask = ndimage.binary_fill_holes(mask)
     v = cloud_map.voxel_m
     areas: dict[str, list[list[float]]] = {}
-    for outer, _ in _traced_polygons(mask, v):
+    for outer, _ in traced_polygons(mask, v):
         ring = outer + lo * v
         x, y = ring[:, 0], ring[:, 1]
         if 0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))) >= config.min_area_m2:
             areas[f"floor_{len(areas) + 1}"] = np.round(ring, 3).tolist()
     if not areas:
-        raise MapFileError(f"the map's seen floor has no patch of {config.min_area_m2} m² or more")
+        raise MapFileError(f"{source}: the map's seen floor has no patch of {config.min_area_m2} m² or more")
     return areas
 
 

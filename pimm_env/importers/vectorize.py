@@ -113,7 +113,7 @@ def _cross(u: np.ndarray, v: np.ndarray) -> float:
     return float(u[0] * v[1] - u[1] * v[0])
 
 
-def _traced_polygons(space: np.ndarray, resolution: float) -> list[tuple[np.ndarray, list[np.ndarray]]]:
+def traced_polygons(space: np.ndarray, resolution: float) -> list[tuple[np.ndarray, list[np.ndarray]]]:
     """Outer ring and holes of each free region, in image metres (cell centres at (i + 0.5) res)."""
     import contourpy
 
@@ -149,7 +149,7 @@ def vectorize(raster: RasterMap, config: VectorizeConfig | None = None) -> Floor
         return straighten(ring, config.tolerance_cells * res, config.end_margin_cells * res, config.min_turn_deg)
 
     pieces = []
-    for outer, holes in _traced_polygons(space, res):
+    for outer, holes in traced_polygons(space, res):
         polygon = Polygon(straight(outer), [h for h in map(straight, holes) if len(h) >= 3])
         pieces.append(shapely.make_valid(polygon))
     spaces = shapely.unary_union(pieces)
@@ -158,7 +158,7 @@ def vectorize(raster: RasterMap, config: VectorizeConfig | None = None) -> Floor
     solid = box(-m, -m, cols * res + m, rows * res + m).difference(spaces)
     near = ndimage.distance_transform_edt(~raster.occupied) * res <= config.structure_reach_m
     if not near.all():
-        reach = shapely.unary_union([Polygon(o, h) for o, h in _traced_polygons(near, res)]).buffer(res)
+        reach = shapely.unary_union([Polygon(o, h) for o, h in traced_polygons(near, res)]).buffer(res)
         solid = solid.intersection(reach)
     to_map = _map_transform(raster)
     walls, clutter = [], []

@@ -90,7 +90,7 @@ def import_world(
     try:
         if suffix in (".yaml", ".yml"):
             spec = _from_ros_map(source, name, ceiling_height or PLAN_CEILING_HEIGHT, ceilings, furnish_count, seed)
-        elif suffix in CLOUD_SUFFIXES or (suffix == ".ply" and _is_point_set(source)):
+        elif suffix in CLOUD_SUFFIXES:
             spec = _from_cloud(source, name, folder, all_rules, wall_line)
         elif suffix in MESH_SUFFIXES:
             spec = _from_mesh(source, name, folder, all_rules, up_axis, ceiling_height, wall_line)
@@ -133,22 +133,14 @@ def _from_mesh(
     from pimm_env.importers.sdf_world import read_mesh_file
 
     if len(read_mesh_file(source).faces) == 0:  # said of the user's file, before anything is written
+        if source.suffix.lower() == ".ply":  # points only: a point-cloud map
+            return _from_cloud(source, name, folder, rules, wall_line)
         raise MapFileError(f"{source}: the mesh has no faces (a point set?): world import needs surfaces")
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / source.name
     if source.resolve() != target.resolve():
         shutil.copyfile(source, target)
     return _mesh_spec(source.name, name, folder, rules, up_axis, ceiling, source, wall_line)
-
-
-def _is_point_set(source: Path) -> bool:
-    """Whether a ``.ply`` holds points only (a SLAM map), not faces (a mesh)."""
-    from pimm_env.importers.sdf_world import read_mesh_file
-
-    try:
-        return len(read_mesh_file(source).faces) == 0
-    except Exception:  # trimesh cannot read it as a mesh: the cloud reader says what is wrong with it
-        return True
 
 
 def _from_cloud(source: Path, name: str, folder: Path, rules: list[dict[str, str]], wall_line: bool) -> dict[str, Any]:
@@ -158,7 +150,7 @@ def _from_cloud(source: Path, name: str, folder: Path, rules: list[dict[str, str
     config = CloudMapConfig()
     cloud = read_cloud(source)
     cloud_map = classify(cloud.points, config, source)  # refused before anything is written
-    areas = floor_areas(cloud_map, config)
+    areas = floor_areas(cloud_map, config, source)
     folder.mkdir(parents=True, exist_ok=True)
     mesh = write_cloud_world_mesh(cloud_map, folder / f"{source.stem}.glb")
     spec = _mesh_spec(mesh.name, name, folder, rules, "z", None, source, wall_line)

@@ -25,6 +25,7 @@ from scipy import ndimage
 from pimm_env.errors import LocalizerError
 from pimm_env.geometry import wrap_angle
 from pimm_env.mapping.occupancy import OccupancyGrid
+from pimm_env.world.model import World
 
 
 @dataclass(frozen=True)
@@ -198,6 +199,16 @@ class MapTwins:
 
 #: The table of a world's twins (PIMM's settings), beside its other derived maps.
 TWINS_FILE = "twins.npz"
+
+
+def world_twins(world: World, occupancy: OccupancyGrid) -> tuple[MapTwins, Path | None]:
+    """PIMM's twins of ``world``'s map (``occupancy``), with the table `world prepare` wrote beside it taken where
+    it was made from this map and these settings; and that table's path where one is there but was not taken."""
+    from pimm_env.world.files import world_dir
+
+    twins = MapTwins(occupancy, TwinConfig())
+    table = world_dir(world) / TWINS_FILE
+    return twins, None if twins.load(table) or not table.is_file() else table
 
 
 def local_peaks(score: np.ndarray, floor: float, size: int = 5) -> tuple[np.ndarray, np.ndarray]:
