@@ -16,7 +16,7 @@ from training.buildings import (
     building_spec,
     draw_plan,
 )
-from training.suites import SuiteError, parse_seeds, suite, suites
+from training.suites import SuiteError, parse_seeds, subset, suite, suites
 
 
 def test_the_generator_is_deterministic_per_seed_and_the_suites_keep_their_buildings_apart():
@@ -34,6 +34,8 @@ def test_the_generator_is_deterministic_per_seed_and_the_suites_keep_their_build
     assert len(suite("lookalike-held-out").seeds) == 96 and set(FURNISHED_HELD_OUT_SEEDS) <= held
     assert {x.name for x in suites().values() if x.commands} == {
         "iilab-thesis",
+        "every-localizer",
+        "perception",
         "real-plans-development",
         "real-plans-kidnaps",
         "real-laser-logs",
@@ -42,6 +44,9 @@ def test_the_generator_is_deterministic_per_seed_and_the_suites_keep_their_build
 
 def test_suites_name_what_is_wrong():
     assert parse_seeds(["3-5", "9"]) == (3, 4, 5, 9)
+    assert subset(suite("generated-held-out"), [925, 921]) == (921, 925)
+    with pytest.raises(SuiteError, match=r"seeds \[100\] are not buildings of suite 'generated-held-out'"):
+        subset(suite("generated-held-out"), [100, 921])
     with pytest.raises(SuiteError, match="'5-3' runs backwards"):
         parse_seeds(["5-3"])
     with pytest.raises(SuiteError, match="no suite 'nope'; suites: training"):

@@ -78,36 +78,67 @@ def heldout(
 @command_line.command(app)
 def suite(
     name: str = typer.Argument("", help="the suite (none: list them)"),
+    seeds: str = typer.Option("", help="only these of a suite's buildings ('A-B' or 'A,B,C'; the table says so)"),
     workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
     worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds"),
     out: Path = typer.Option(Path("results/suites"), help="where each suite's results and table go"),
 ) -> None:
     """Run a benchmark suite of training/suites/suites.yaml and write its table (command, commit, machine)."""
-    import subprocess
-
     from pimm_agents.experiments.run_plan import resolve_localizers
     from training.heldout import run_buildings
+    from training.suites import SuiteError, subset, suites
     from training.suites import suite as named
-    from training.suites import suites
 
     if not name:
         for entry in suites().values():
             typer.echo(f"{entry.name:24} {entry.kind:12} {entry.purpose}")
         return
     chosen = named(name)
+    made = "python -m training " + shlex.join(sys.argv[1:])
     if chosen.seeds:
+        try:
+            buildings = subset(chosen, _seed_list(seeds) if seeds else None)
+        except SuiteError as error:
+            raise typer.BadParameter(str(error), param_hint="--seeds") from None
         resolved = resolve_localizers(list(chosen.localizers))
-        made = "python -m training " + shlex.join(sys.argv[1:])
-        run_buildings(
-            list(chosen.seeds), resolved, chosen.trials, 30, workers, worlds, out / name, [], made, typer.echo
-        )
+        run_buildings(list(buildings), resolved, chosen.trials, 30, workers, worlds, out / name, [], made, typer.echo)
         return
+    if seeds:
+        raise typer.BadParameter(f"suite {name!r} is made of commands, not buildings", param_hint="--seeds")
+    _run_commands(chosen.commands, workers, out / name, made)
+
+
+def _run_commands(commands: tuple[tuple[str, ...], ...], workers: int, out: Path, made: str) -> None:
+    """A command suite's ``evaluate.py`` commands in order, as a user would type them; then ``out/table.md``: each
+    results folder's Markdown report (and each ``--markdown`` command's output), under the suite's command."""
+    import subprocess
+
+    from pimm_agents.results.markdown import markdown_report, provenance_here
+
     root = Path(__file__).resolve().parent.parent
-    for args in chosen.commands:  # the commands it is made of, in order, as a user would type them
+    tables = [provenance_here(made)]
+    for args in commands:
         typer.echo(f"$ python evaluate.py {shlex.join(args)}", err=True)
-        extra = ["--out", str(out / name)] if args[0] in ("run", "sweep", "replay") else []
-        if subprocess.run([sys.executable, str(root / "evaluate.py"), *args, *extra], cwd=root).returncode:
+        writes_results = args[0] in ("run", "sweep", "replay")
+        extra = ["--out", str(out)] if writes_results else []
+        extra += ["--workers", str(workers)] if args[0] in ("run", "sweep") else []
+        before = set(out.glob("*/summary.json"))
+        done = subprocess.run(
+            [sys.executable, str(root / "evaluate.py"), *args, *extra],
+            cwd=root,
+            stdout=subprocess.PIPE if "--markdown" in args else None,
+            text=True,
+        )
+        if done.returncode:
             raise typer.Exit(1)
+        if "--markdown" in args:
+            typer.echo(done.stdout, nl=False)
+            tables.append(done.stdout)
+        for summary in sorted(set(out.glob("*/summary.json")) - before):
+            tables.append(markdown_report(summary.parent, thesis=True))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "table.md").write_text("\n".join(tables))
+    typer.echo(f"table: {out / 'table.md'}")
 
 
 def _seed_list(text: str) -> list[int]:

@@ -76,3 +76,13 @@ def suite(name: str) -> Suite:
 def seeds_of(kind: str) -> tuple[int, ...]:
     """The seeds of every suite of ``kind``, in the file's order."""
     return tuple(s for x in suites().values() if x.kind == kind for s in x.seeds)
+
+
+def subset(chosen: Suite, seeds: list[int] | None) -> tuple[int, ...]:
+    """The suite's buildings, or only ``seeds`` of them (each must be the suite's)."""
+    if seeds is None:
+        return chosen.seeds
+    outside = sorted(set(seeds) - set(chosen.seeds))
+    if outside:
+        raise SuiteError(f"seeds {outside} are not buildings of suite {chosen.name!r}")
+    return tuple(s for s in chosen.seeds if s in set(seeds))
