@@ -148,3 +148,23 @@ def test_a_scan_turned_upside_down_is_said_to_look_so_and_the_real_one_is_not(tm
     sim, _ = simulated_scan(Lidar3DConfig(height=0.9))
     floor = estimate_floor(sim)
     assert hanging_ratio(sim @ floor.leveling.T, floor.height) < 1.0  # a simulated upright scan of the iiLab
+
+
+def test_a_scan_on_its_side_in_its_file_is_said_not_to_stand_z_up():
+    from pimm_agents.scans.upright import spin_axis, standing_off_faces, upright_warnings
+    from pimm_env.clouds.read import read_cloud
+    from tests.conftest import shared_file
+
+    def warnings(scan):
+        floor = estimate_floor(scan)
+        return upright_warnings(scan, standing_off_faces(scan @ floor.leveling.T), False)
+
+    room = read_cloud(shared_file("real", "scans", "room_scan1.pcd")).points.astype(float)
+    y_up, x_up = np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]]), np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]])
+    assert warnings(room) == []
+    for turn in (y_up, x_up, y_up.T):  # a full-sphere scanner: told by what stands off the floor it was levelled on
+        assert "may be a wall" in " ".join(warnings(room @ turn.T))
+    assert warnings(room @ y_up.T) != [] and upright_warnings(room @ y_up.T, {}, True) == []  # the mount was given
+    narrow, _ = simulated_scan(Lidar3DConfig(layers=16, vertical_fov_deg=30.0, height=0.9))  # a spinning LiDAR
+    assert spin_axis(narrow) == "z" and spin_axis(narrow @ y_up.T) == "y" and spin_axis(room) is None
+    assert "looks Y-up" in " ".join(upright_warnings(narrow @ y_up.T, {"floor": 0}, False))

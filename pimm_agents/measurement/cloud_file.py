@@ -33,6 +33,7 @@ def segment_file(
     from pimm_agents.perception.segmenter import load_segmenter
     from pimm_agents.results.cloud_figures import draw_labelled_cloud
     from pimm_agents.scans.segment import segment_cloud
+    from pimm_agents.scans.upright import standing_off_faces
     from pimm_env.clouds.read import read_cloud
     from pimm_env.errors import PerceptionError
 
@@ -41,6 +42,7 @@ def segment_file(
         result = segment_cloud(cloud.points, load_segmenter(weights), sensor_height, roll_pitch_deg, seed=seed)
     except PerceptionError as error:  # said of the user's file
         raise PerceptionError(f"{path}: {error}") from None
+    standing = standing_off_faces(result.level_points)
     out = new_folder(out, f"segment_{Path(path).stem}")  # only once the scan was read and segmented
     labels = np.full(cloud.total, -1, dtype=np.int8)
     labels[cloud.rows] = result.labels
@@ -64,7 +66,8 @@ def segment_file(
         "height_measured": result.height_measured,
         "tilt_deg": round(result.tilt_deg, 2),
         "hanging_ratio": round(result.hanging_ratio, 2),
-        "warnings": _warnings(result),
+        "standing_off": standing,  # returns just off each face (scans/upright.py)
+        "warnings": _warnings(result, cloud.points, standing, roll_pitch_deg is not None),
         "in_network_view": round(result.in_view, 3),
         "shares": {name: round(float(np.mean(result.labels == k)), 4) for k, name in enumerate(CLASS_NAMES)},
         "corners": corners,
@@ -94,10 +97,13 @@ def segment_file(
     return record
 
 
-def _warnings(result: Any) -> list[str]:
-    """What a user should look at: a scan that looks upside down, or was turned far to level it."""
-    found = []
-    if result.hanging_ratio > 1.0:
+def _warnings(result: Any, points: np.ndarray, standing: dict[str, int], mount_given: bool) -> list[str]:
+    """What a user should look at: a scan that did not stand z-up in its file (on its side, upside down), or was
+    turned far to level it."""
+    from pimm_agents.scans.upright import upright_warnings
+
+    found = upright_warnings(points, standing, mount_given)
+    if not found and result.hanging_ratio > 1.0:
         found.append(
             f"the scan looks upside down: {result.hanging_ratio:.1f} times as many returns within a metre under its"
             " top as within a metre over its floor (furniture stands on a floor); if it is, give its mount as"
