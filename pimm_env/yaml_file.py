@@ -20,9 +20,16 @@ def read_yaml_mapping(path: Path, what: str, error: type[PimmError], empty_ok: b
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as problem:
-        raise error(f"{path}: not valid YAML: {problem}") from None
+        raise error(f"{path}: not valid YAML: {yaml_problem(problem)}") from None
     if data is None and empty_ok:
         return {}
     if not isinstance(data, dict):
         raise error(f"{path}: a {what} holds a mapping, got {type(data).__name__}")
     return data
+
+
+def yaml_problem(problem: Exception) -> str:
+    """A YAML parser's error in one line, with the line and column it names."""
+    mark = getattr(problem, "problem_mark", None)
+    what = getattr(problem, "problem", None) or " ".join(str(problem).split())
+    return f"{what} (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else str(what)

@@ -51,6 +51,10 @@ def test_layouts_and_bad_lines(tmp_path):
         list(read_carmen(bad))
     with pytest.raises(FileNotFoundError, match="nope.log: no such CARMEN log"):
         list(read_carmen(Path(tmp_path / "nope.log")))
+    (tmp_path / "notes.log").write_text("# a header, no messages\n")
+    with pytest.raises(BagError, match=r"notes.log: no ODOM and FLASER .* lines to convert \(found: none\)"):
+        convert_carmen(tmp_path / "notes.log", tmp_path / "notes")
+    assert not (tmp_path / "notes").exists()
 
 
 ROBOT_LASER = """ODOM 0 0 0 0 0 0 20.0 h 20.0

@@ -168,3 +168,16 @@ def test_a_scan_on_its_side_in_its_file_is_said_not_to_stand_z_up():
     narrow, _ = simulated_scan(Lidar3DConfig(layers=16, vertical_fov_deg=30.0, height=0.9))  # a spinning LiDAR
     assert spin_axis(narrow) == "z" and spin_axis(narrow @ y_up.T) == "y" and spin_axis(room) is None
     assert "looks Y-up" in " ".join(upright_warnings(narrow @ y_up.T, {"floor": 0}, False))
+
+
+def test_a_scan_out_of_its_sensor_frame_or_scale_is_said_so_when_no_floor_is_found():
+    from pimm_agents.scans.segment import segment_cloud
+    from pimm_env.clouds.read import read_cloud
+    from pimm_env.errors import PerceptionError
+    from tests.conftest import shared_file
+
+    room = read_cloud(shared_file("real", "scans", "room_scan1.pcd")).points.astype(float)
+    with pytest.raises(PerceptionError, match=r"lie around \[0.0, 0.0, 50.0\], 50.0 m from the origin"):
+        segment_cloud(room + [0.0, 0.0, 50.0], None)  # type: ignore[arg-type]
+    with pytest.raises(PerceptionError, match=r"median range is 0.00\d+ m: is it in kilometres"):
+        segment_cloud(room / 1000.0, None)  # type: ignore[arg-type]

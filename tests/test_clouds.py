@@ -188,3 +188,22 @@ def test_a_kitti_file_without_reflectance_is_read_as_its_points(tmp_path):
     xyzr = np.column_stack([xyz, rng.uniform(0, 1, 400)]).astype("<f4")
     (tmp_path / "xyzr.bin").write_bytes(xyzr.tobytes())
     np.testing.assert_array_equal(read_cloud(tmp_path / "xyzr.bin").points, xyz)
+
+
+def test_a_short_ascii_ply_one_without_xyz_and_an_empty_kitti_file_are_refused(tmp_path, points):
+    import open3d as o3d
+
+    full = tmp_path / "full.ply"
+    o3d.io.write_point_cloud(str(full), _open3d_cloud(points), write_ascii=True)
+    assert len(read_cloud(full).points) == len(points)
+    cut = tmp_path / "cut.ply"
+    cut.write_text("\n".join(full.read_text().splitlines()[:-3]) + "\n")
+    with pytest.raises(CloudFileError, match=rf"cut.ply: {len(points) - 3} data rows, .* declare {len(points)}"):
+        read_cloud(cut)
+    header = "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float a\nproperty float b\nend_header\n"
+    (tmp_path / "ab.ply").write_bytes(header.encode() + np.zeros(4, "<f4").tobytes())
+    with pytest.raises(CloudFileError, match="ab.ply: no vertices with x, y, z"):
+        read_cloud(tmp_path / "ab.ply")
+    (tmp_path / "empty.bin").write_bytes(b"")
+    with pytest.raises(CloudFileError, match=r"empty.bin: an empty file \(0 bytes\)"):
+        read_cloud(tmp_path / "empty.bin")

@@ -112,9 +112,9 @@ def segment_cloud(
     found: Floor | None
     try:
         found = estimate_floor(points, floor, seed)
-    except PerceptionError:
+    except PerceptionError as error:
         if sensor_height is None:
-            raise
+            raise PerceptionError(f"{error}{_frame_hint(points)}") from None
         found = None  # the height is given; the scan is taken as level
     if roll_pitch_deg is not None:
         leveling = mount_leveling(*roll_pitch_deg)
@@ -151,6 +151,22 @@ def segment_cloud(
         in_view=in_view,
         leveling=leveling,
     )
+
+
+def _frame_hint(points: np.ndarray) -> str:
+    """What may be wrong with a scan whose floor cannot be found: its scale, or its frame."""
+    ranges = np.linalg.norm(points, axis=1)
+    median = float(np.median(ranges))
+    if median < 0.05:
+        return f" (the scan's median range is {median:.4f} m: is it in kilometres, or scaled?)"
+    centre = np.median(points, axis=0)
+    spread = float(np.median(np.linalg.norm(points - centre, axis=1)))
+    if np.linalg.norm(centre) > 2.0 * spread:
+        return (
+            f" (the returns lie around {np.round(centre, 1).tolist()}, {np.linalg.norm(centre):.1f} m from the origin:"
+            " a scan's returns are in the sensor's frame, the sensor at the origin)"
+        )
+    return ""
 
 
 def _through_grid(level: np.ndarray, height: float, segmenter: Segmenter) -> tuple[np.ndarray, np.ndarray, float]:

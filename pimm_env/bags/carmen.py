@@ -155,6 +155,14 @@ def convert_carmen(log: Path, out: Path, max_range: float = 80.0) -> dict[str, i
         raise BagError(f"{out}: a name ending in .bag is read as a ROS 1 bag; convert writes a rosbag2 folder: "
                        f"give --out {out.with_suffix('')}")  # fmt: skip
     lines = list(read_carmen(log))  # the whole log read (and checked) before anything is written
+    if not any(line.kind in ("laser", "robotlaser") for line in lines) or not any(
+        line.kind == "odom" for line in lines
+    ):
+        kinds = sorted({line.kind for line in lines})
+        raise BagError(
+            f"{log}: no ODOM and FLASER (or ROBOTLASER1) lines to convert (found: {', '.join(kinds) or 'none'});"
+            " is it a CARMEN log?"
+        )
     partial = out.with_name(f".{out.name}.partial")  # the bag is written inside, under its own name
     shutil.rmtree(partial, ignore_errors=True)
     try:

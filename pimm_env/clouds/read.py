@@ -146,7 +146,8 @@ def _check_ply_size(path: Path) -> None:
         raise CloudFileError(f"{path}: not a PLY file (no 'ply' ... 'end_header' header)")
     lines = head[:end].decode("ascii", errors="replace").splitlines()
     if not any(line.startswith("format binary") for line in lines):
-        return  # ASCII: open3d counts its rows
+        _check_ascii_ply_rows(path, lines, head.index(b"\n", end) + 1)
+        return
     need, count = head.index(b"\n", end) + 1, 0
     for words in (line.split() for line in lines):
         if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit():
@@ -160,13 +161,36 @@ def _check_ply_size(path: Path) -> None:
         raise CloudFileError(f"{path}: {size} bytes, its header's elements need {need} (the file is cut short)")
 
 
+def _check_ascii_ply_rows(path: Path, header: list[str], start: int) -> None:
+    """An ASCII PLY must hold a row for each element its header declares (read as it is, a short one gives
+    fewer points than it says, silently)."""
+    declared = sum(
+        int(words[2])
+        for words in (line.split() for line in header)
+        if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit()
+    )
+    rows = 0
+    with path.open("rb") as handle:
+        handle.seek(start)
+        for line in handle:
+            rows += bool(line.strip())
+    if rows < declared:
+        raise CloudFileError(
+            f"{path}: {rows} data rows, its header's elements declare {declared} (the file is cut short)"
+        )
+
+
 def _ply(path: Path) -> tuple[np.ndarray, None, None]:
     import open3d as o3d
 
     _check_ply_size(path)
-    with _quiet_open3d():
-        cloud = o3d.t.io.read_point_cloud(path, remove_nan_points=False, remove_infinite_points=False)
-    if "positions" not in cloud.point:
+    try:
+        with _quiet_open3d():
+            cloud = o3d.t.io.read_point_cloud(path, remove_nan_points=False, remove_infinite_points=False)
+        found = "positions" in cloud.point
+    except RuntimeError:  # Open3D asserts when the vertices carry no x, y, z
+        found = False
+    if not found:
         raise CloudFileError(f"{path}: no vertices with x, y, z could be read (not a PLY point set, or damaged)")
     return cloud.point.positions.numpy(), None, None
 
@@ -223,6 +247,8 @@ def _kitti(path: Path) -> tuple[np.ndarray, None, None]:
     """KITTI's float32 x, y, z, reflectance; a file of x, y, z alone (12 bytes a point) is told apart by its
     "reflectance" column, which would then hold coordinates: negative, or beyond any reflectance scale."""
     size = path.stat().st_size
+    if size == 0:
+        raise CloudFileError(f"{path}: an empty file (0 bytes), no points")
     raw = np.fromfile(path, dtype="<f4")
     if size % 16 == 0:
         rows = raw.reshape(-1, 4)

@@ -23,6 +23,7 @@ from pimm_env.world.files import World
 from pimm_env.world.grid import GridSpec
 from pimm_env.world.semantics import SemanticClass
 from pimm_env.world.shapes import Box, Cylinder, Mesh, Prism
+from pimm_env.yaml_file import yaml_problem
 
 FORMAT = "pimm-corners/1"
 
@@ -239,7 +240,7 @@ def load_corner_map(path: Path) -> CornerMap:
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as error:
-        raise WorldError(f"{path}: not valid YAML: {error}") from None
+        raise WorldError(f"{path}: not valid YAML: {yaml_problem(error)}") from None
     fields: tuple[tuple[str, ...], ...]
     if isinstance(data, dict) and "corners" in data:
         entries, fields = data["corners"] or [], (("x",), ("y",), ("z",), ("theta",))

@@ -38,6 +38,7 @@ from pimm_env.errors import MissingFileError, WorldFileError
 from pimm_env.world.model import Element, World
 from pimm_env.world.reader import FieldReader
 from pimm_env.world.semantics import SemanticClass, parse_class
+from pimm_env.yaml_file import yaml_problem
 
 FORMAT = "pimm-world/1"
 SHAPE_KEYS = ("box", "cylinder", "wall", "prism")
@@ -74,7 +75,7 @@ def load_world(world: str | Path) -> World:
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
-        raise WorldFileError(path, "(file)", f"not valid YAML: {exc}") from None
+        raise WorldFileError(path, "(file)", f"not valid YAML: {yaml_problem(exc)}") from None
     if not isinstance(data, Mapping):
         raise WorldFileError(path, "(file)", f"expected a mapping at the top level, got {type(data).__name__}")
     fmt = data.get("format")
