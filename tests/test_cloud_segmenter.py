@@ -178,6 +178,6 @@ def test_a_scan_out_of_its_sensor_frame_or_scale_is_said_so_when_no_floor_is_fou
 
     room = read_cloud(shared_file("real", "scans", "room_scan1.pcd")).points.astype(float)
     with pytest.raises(PerceptionError, match=r"lie around \[0.0, 0.0, 50.0\], 50.0 m from the origin"):
-        segment_cloud(room + [0.0, 0.0, 50.0], None)  # type: ignore[arg-type]
+        segment_cloud(room + np.array([0.0, 0.0, 50.0]), None)  # type: ignore[arg-type]
     with pytest.raises(PerceptionError, match=r"median range is 0.00\d+ m: is it in kilometres"):
         segment_cloud(room / 1000.0, None)  # type: ignore[arg-type]
