@@ -70,6 +70,7 @@ def run(
     driver: str = typer.Option(
         "route", help="route (the waypoints) or policy:NAME (random, greedy, trained or a policy's .zip)"
     ),
+    maps: str = typer.Option("", help="a world whose maps the localizers take (default: --world's own)"),
 ) -> None:
     """Run localizers on scenarios (one simulation per trial feeds them all) into a resumable results folder."""
     from pimm_agents.experiments import Execution, RunPlan, read_plan, resolve_localizers
@@ -79,7 +80,7 @@ def run(
         chosen = resolve_localizers(localizers, params, settings)
         plan = RunPlan(
             world, chosen, tuple(scenarios or ()), trials, seed, sensors, start, fault, walkers, unmapped, driver,
-            kidnaps,
+            kidnaps, maps,
         )  # fmt: skip
     _run_plan(plan, Execution(workers, backend, address, progress=not json_out), out, resume, video)
 

@@ -93,3 +93,35 @@ def test_kidnap_trials_replace_the_trials_of_each_route_and_leave_out_kidnap_sce
     assert first[0].faults != first[1].faults  # each trial's kidnap time is its seed's
     with pytest.raises(ExperimentError, match=r"without a kidnap of their own.*\['a_c_b_kidnap'\]"):
         RunPlan(localizers=localizers, scenarios=("a_c_b_kidnap",), kidnaps=1).checked()
+
+
+def test_maps_made_another_way_go_to_the_localizers_and_name_the_trials(room_file, tmp_path, monkeypatch):
+    import shutil
+
+    import pimm_agents.factory
+    from pimm_agents.experiments.runner import run_shared
+    from pimm_agents.experiments.trial_store import trial_key
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+    from tests.rooms import ROUTES
+
+    (room_file.parent / "scenarios.yaml").write_text(ROUTES)
+    ensure_derived_maps(load_world(room_file))
+    other = tmp_path / "scanned" / "world.yaml"
+    shutil.copytree(room_file.parent, other.parent)
+    with pytest.raises(ExperimentError, match="maps: no world .*nowhere.yaml"):
+        RunPlan(str(room_file), resolve_localizers(["amcl"]), maps=str(tmp_path / "nowhere.yaml")).checked()
+    plan = RunPlan(str(room_file), resolve_localizers(["amcl"]), ("there",), 1, maps=str(other)).checked()
+    spec = plan.specs()[0]
+    assert spec.maps == str(other) and trial_key(spec).endswith("__maps-scanned")
+    assert "maps" not in trial_key(RunPlan(str(room_file), resolve_localizers(["amcl"]), ("there",), 1).specs()[0])
+    given = []
+
+    def remember(name, world, **kwargs):
+        given.append(world.source)
+        raise ExperimentError("stop here")
+
+    monkeypatch.setattr(pimm_agents.factory, "make_localizer", remember)
+    with pytest.raises(ExperimentError, match="stop here"):
+        run_shared([spec])
+    assert [Path(p) for p in given] == [other]

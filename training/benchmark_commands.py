@@ -100,6 +100,11 @@ def suite(
             buildings = subset(chosen, _seed_list(seeds) if seeds else None)
         except SuiteError as error:
             raise typer.BadParameter(str(error), param_hint="--seeds") from None
+        if chosen.benchmark == "cloud-maps":
+            from training.cloud_maps import run_cloud_maps
+
+            run_cloud_maps(list(buildings), chosen.trials, workers, worlds, out / name, made, typer.echo)
+            return
         resolved = resolve_localizers(list(chosen.localizers))
         run_buildings(list(buildings), resolved, chosen.trials, 30, workers, worlds, out / name, [], made, typer.echo)
         return
@@ -139,6 +144,22 @@ def _run_commands(commands: tuple[tuple[str, ...], ...], workers: int, out: Path
     out.mkdir(parents=True, exist_ok=True)
     (out / "table.md").write_text("\n".join(tables))
     typer.echo(f"table: {out / 'table.md'}")
+
+
+@command_line.command(app, "cloud-maps")
+def cloud_maps(
+    seeds: str = typer.Option("1300-1303", help="building seeds (suites cloud-maps-development, cloud-maps-held-out)"),
+    trials: int = typer.Option(1, min=0, help="PIMM trials per route with each map (0: the maps' figures only)"),
+    workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
+    worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds (and the imports)"),
+    out: Path = typer.Option(Path("results/cloud_maps"), help="where the maps, runs and the table go"),
+) -> None:
+    """SLAM-like point-cloud maps of generated buildings, imported and scored against the buildings' own maps;
+    PIMM localizing in each building with the imported maps beside its own (training/cloud_maps.py)."""
+    from training.cloud_maps import run_cloud_maps
+
+    made = "python -m training " + shlex.join(sys.argv[1:])
+    run_cloud_maps(_seed_list(seeds), trials, workers, worlds, out, made, typer.echo)
 
 
 def _seed_list(text: str) -> list[int]:

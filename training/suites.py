@@ -27,6 +27,7 @@ class Suite:
     localizers: tuple[str, ...] = ("pimm",)
     trials: int = 1
     commands: tuple[tuple[str, ...], ...] = field(default=())  # evaluate.py commands, for suites of other data
+    benchmark: str = "localize"  # what is measured on the buildings: localize (heldout.py) or cloud-maps
 
 
 def parse_seeds(ranges: list[str] | tuple[str, ...], where: str = "seeds") -> tuple[int, ...]:
@@ -61,7 +62,11 @@ def suites(path: Path = SUITES_FILE) -> dict[str, Suite]:
         if bool(seeds) == bool(commands):
             raise SuiteError(f"{where}: give either 'seeds' (generated buildings) or 'commands', not both or neither")
         localizers = tuple(body.get("localizers", ("pimm",)))
-        out[name] = Suite(name, body["kind"], body["purpose"], seeds, localizers, int(body.get("trials", 1)), commands)
+        benchmark = str(body.get("benchmark", "localize"))
+        if benchmark not in ("localize", "cloud-maps"):
+            raise SuiteError(f"{where}.benchmark: expected localize or cloud-maps, got {benchmark!r}")
+        trials = int(body.get("trials", 1))
+        out[name] = Suite(name, body["kind"], body["purpose"], seeds, localizers, trials, commands, benchmark)
     return out
 
 

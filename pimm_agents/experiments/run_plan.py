@@ -53,6 +53,7 @@ class RunPlan:
     #: kidnapped once, at a time and to a place drawn from its seed (``faults.kidnap_trial_fault``: anywhere in
     #: the free space, half the time into a twin of the place left)
     kidnaps: int = 0
+    maps: str = ""  # the world whose maps the localizers take ("": the simulated world's; TrialSpec.maps)
 
     def checked(self) -> RunPlan:
         """This plan with its scenarios filled in from the world, after checking every field; a bad one raises a
@@ -75,6 +76,11 @@ class RunPlan:
         parse_faults(self.faults)
         check_driver(self.driver)
         known = load_scenarios(load_world(self.world))
+        if self.maps:
+            try:
+                load_world(self.maps)
+            except OSError as error:
+                raise ExperimentError(f"maps: no world {self.maps!r} to take maps from ({error.strerror})") from None
         available = [n for n, s in known.items() if not self.kidnaps or s.kidnap_to is None]
         unknown = [s for s in self.scenarios if s not in available]
         if unknown:
@@ -104,6 +110,7 @@ class RunPlan:
                 walkers=self.walkers,
                 unmapped=self.unmapped,
                 driver=self.driver,
+                maps=self.maps,
             )
             for trial in range(self.kidnaps or self.trials)
             for scenario in self.scenarios

@@ -51,7 +51,11 @@ def run_shared(specs: Sequence[TrialSpec], watch: Watcher | None = None) -> list
     scenario = get_scenario(first.scenario, world)
     from pimm_env.envs.sim_config import with_sensors
 
-    localizers = [make_localizer(spec.localizer, world, params=spec.params, sensors=spec.sensors) for spec in specs]
+    maps = {name: load_world(name) for name in {spec.maps for spec in specs} if name}  # maps made another way
+    localizers = [
+        make_localizer(spec.localizer, maps.get(spec.maps, world), params=spec.params, sensors=spec.sensors)
+        for spec in specs
+    ]
     config = replace(with_sensors(SimConfig(), first.sensors), walkers=first.walkers, unmapped=first.unmapped)
     if not any("cloud" in getattr(loc, "sensors", ("cloud",)) for loc in localizers):
         config = replace(config, lidar3d=replace(config.lidar3d, enabled=False))  # nobody reads it: skip 14 400 rays

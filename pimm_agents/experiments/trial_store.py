@@ -49,6 +49,8 @@ def trial_key(spec: TrialSpec) -> str:
         parts = (*parts, f"walkers{spec.walkers}-unmapped{spec.unmapped}")
     if spec.driver != "route":
         parts = (*parts, f"driver-{spec.driver}")
+    if spec.maps:
+        parts = (*parts, f"maps-{world_label(spec.maps)}")
     return "__".join("".join(c if c.isalnum() or c in "._-" else "-" for c in part) for part in parts)
 
 

@@ -27,6 +27,9 @@ class TrialSpec:
     #: who drives: "route" (the scenario's waypoints) or "policy:NAME" (pimm_agents/active/driver.py), which
     #: drives on this spec's localizer's belief, so such a spec has a simulation of its own
     driver: str = "route"
+    #: the world whose maps the localizers take ("": the simulated world's): a building's maps made another way
+    #: (``world import`` of its point-cloud map), judged in the building itself
+    maps: str = ""
 
     @property
     def name(self) -> str:

@@ -1,0 +1,269 @@
+"""Point-cloud maps of generated buildings made the way SLAM makes them, imported back with ``world import``, and
+scored against the building's own maps; then PIMM localizing in the building with the maps the import derived.
+
+A SLAM-like map (:func:`slam_like_cloud`): the simulated 3D LiDAR's clouds along every route of the building
+(rooms off the routes are seen only through their doorways, so the map has holes), laid at poses that drift a
+few centimetres and a few tenths of a degree from the truth (a smooth error of its own period on each axis), with
+people walking through while mapping (their ghosts are in the map) and the building's furniture, thinned to 5 cm
+voxels. The figures (:func:`score_import`):
+
+- what the map saw: rays of the LiDAR's range cast from the mapping poses across the building's walls at
+  ``WALL_HEIGHT`` (above its furniture, below its ceilings); the wall cells they first hit were seen;
+- corners: the building's own corner map against the imported one, matched within ``MATCH_M`` in the plane:
+  the share found of the building's corners the map saw (a seen wall cell within ``MATCH_M``) and of all; and
+  the share of imported corners that are none of the building's;
+- walls: both worlds cut at ``WALL_HEIGHT`` (people walking through and most furniture are lower): the import's
+  wall cells within reach of the seen ones against the seen ones, IoU cell for cell and within one cell (5 cm,
+  the grids' own step);
+- the import's time per 1 000 m² of the floor it found.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: a corner of the import within this of one of the building's (in the plane) is that corner (m)
+MATCH_M = 0.1
+#: the height the walls are compared and seen at (m): above desks, cabinets and people, below any ceiling
+WALL_HEIGHT = 2.0
+#: mapping poses this far apart cast the rays that tell what the map saw (m)
+POSE_SPACING_M = 0.5
+
+
+@dataclass(frozen=True)
+class SlamLike:
+    """How the SLAM-like maps are made (ours: the few centimetres of error a LiDAR SLAM map carries indoors)."""
+
+    walkers: int = 3  # people walking about while the map was made
+    pose_error_m: float = 0.03  # the largest drift of the mapping poses in x and y
+    yaw_error_deg: float = 0.3  # ... and in heading
+    every: int = 2  # one cloud in this many (a SLAM keyframe rate)
+    voxel_m: float = 0.05  # the map's voxel filter
+
+
+def slam_like_cloud(world: Any, seed: int, config: SlamLike = SlamLike()) -> tuple[np.ndarray, np.ndarray]:
+    """A SLAM-like point-cloud map (N, 3, world frame) of ``world`` (loaded), from its routes (see the module),
+    and the true poses its clouds were taken at (M, 3)."""
+    import open3d as o3d
+
+    from pimm_env.driving.rollout import run
+    from pimm_env.driving.scenarios import load_scenarios
+    from pimm_env.envs.iilab_env import IILabEnv
+    from pimm_env.envs.sim_config import SimConfig
+    from pimm_env.geometry import compose
+    from pimm_env.sim.lidar import to_robot_frame
+
+    rng = np.random.default_rng(seed)
+    env = IILabEnv(world=world, config=replace(SimConfig(), walkers=config.walkers), terminate_on_collision=False)
+    lidar = env.config.lidar3d
+    clouds: list[np.ndarray] = []
+    poses: list[np.ndarray] = []
+    scale = np.array([config.pose_error_m, config.pose_error_m, np.radians(config.yaw_error_deg)])
+    try:
+        for k, scenario in enumerate(s for s in load_scenarios(world).values() if s.kidnap_to is None):
+            amplitude = scale * rng.uniform(0.5, 1.0, 3)
+            period, phase = rng.uniform(20.0, 60.0, 3), rng.uniform(0.0, 2 * np.pi, 3)
+            fresh = [0]
+
+            def lay(
+                obs: dict[str, Any], info: dict[str, Any], amplitude=amplitude, period=period, phase=phase, fresh=fresh
+            ) -> None:
+                if not info.get("fresh_cloud"):
+                    return
+                fresh[0] += 1
+                if fresh[0] % config.every:
+                    return
+                drift = amplitude * np.sin(2 * np.pi * float(obs["time"][0]) / period + phase)
+                poses.append(np.asarray(info["true_pose"], dtype=float))
+                pose = poses[-1] + drift
+                mask = np.asarray(obs["cloud_mask"], dtype=bool)
+                points = to_robot_frame(np.asarray(obs["cloud"], dtype=float)[mask], lidar)
+                planar = compose(pose, np.column_stack([points[:, :2], np.zeros(len(points))]))[:, :2]
+                clouds.append(np.column_stack([planar, points[:, 2] + lidar.height]))
+
+            run(scenario, seed=seed + k, env=env, on_step=lay)
+    finally:
+        env.close()
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.vstack(clouds)))
+    return np.asarray(cloud.voxel_down_sample(config.voxel_m).points), np.array(poses)
+
+
+def corner_figures(truth: Any, found: Any, seen: np.ndarray) -> dict[str, float]:
+    """Corner maps ``truth`` (the building's) and ``found`` (the import's) matched within ``MATCH_M``; ``seen``
+    marks the building's corners in the part the map saw."""
+    from scipy.spatial import cKDTree
+
+    if not len(truth) or not len(found):
+        return {"corners": len(truth), "found": len(found), "recall_seen": 0.0, "recall_all": 0.0, "false": 1.0}
+    to_found, _ = cKDTree(found.xy).query(truth.xy)
+    to_truth, _ = cKDTree(truth.xy).query(found.xy)
+    hit = to_found <= MATCH_M
+    return {
+        "corners": len(truth),
+        "seen": int(seen.sum()),
+        "found": len(found),
+        "recall_seen": float(hit[seen].mean()) if seen.any() else 0.0,
+        "recall_all": float(hit.mean()),
+        "false": float(np.mean(to_truth > MATCH_M)),
+    }
+
+
+def seen_cells(occupied: np.ndarray, grid: Any, poses: np.ndarray, reach_m: float, beams: int = 720) -> np.ndarray:
+    """The occupied cells that rays from ``poses`` (every ``POSE_SPACING_M`` of them) first hit within
+    ``reach_m``: the walls a LiDAR driven there saw."""
+    keep = [0]
+    for k in range(1, len(poses)):
+        if np.hypot(*(poses[k, :2] - poses[keep[-1], :2])) >= POSE_SPACING_M:
+            keep.append(k)
+    angles = np.linspace(-np.pi, np.pi, beams, endpoint=False)
+    steps = np.arange(0.0, reach_m, grid.resolution / 2)
+    seen = np.zeros(occupied.shape, dtype=bool)
+    for pose in poses[keep]:
+        x = pose[0] + np.cos(angles)[:, None] * steps[None, :]
+        y = pose[1] + np.sin(angles)[:, None] * steps[None, :]
+        rows, cols, valid = grid.cells_of(np.column_stack([x.ravel(), y.ravel()]))
+        hit = np.zeros(rows.shape, dtype=bool)
+        hit[valid] = occupied[rows[valid], cols[valid]]
+        hit = hit.reshape(x.shape)
+        first = np.argmax(hit, axis=1)
+        beam = np.flatnonzero(hit[np.arange(beams), first])
+        cell = beam * len(steps) + first[beam]
+        seen[rows[cell], cols[cell]] = True
+    return seen
+
+
+def score_import(building: Path, imported: Path, poses: np.ndarray, reach_m: float = 10.0) -> dict[str, Any]:
+    """The imported world ``imported`` (its derived maps built) against the building ``building`` (world files)
+    that was mapped from ``poses`` with a LiDAR of ``reach_m``."""
+    from scipy import ndimage
+
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.mapping.occupancy import occupancy_from_world, resample_occupied, tolerant_iou
+    from pimm_env.world.files import load_world
+
+    own_world, made_world = load_world(building), load_world(imported)
+    own, made = load_derived_maps(own_world), load_derived_maps(made_world)
+    walls = occupancy_from_world(own_world, own.occupancy.grid.resolution, WALL_HEIGHT)
+    grid = walls.grid
+    seen = seen_cells(walls.occupied, grid, poses, reach_m)
+    made_walls = resample_occupied(occupancy_from_world(made_world, grid.resolution, WALL_HEIGHT), grid)
+    near_seen = ndimage.binary_dilation(seen, iterations=2)  # the import's cells are judged where the map saw
+    rows, cols, valid = grid.cells_of(own.corners.xy)
+    corner_seen = np.zeros(len(own.corners), dtype=bool)
+    reach = ndimage.binary_dilation(seen, iterations=round(MATCH_M / grid.resolution))
+    corner_seen[valid] = reach[rows[valid], cols[valid]]
+    return {
+        **corner_figures(own.corners, made.corners, corner_seen),
+        "wall_iou": tolerant_iou(seen, made_walls & near_seen, 0),
+        "wall_iou_5cm": tolerant_iou(seen, made_walls & near_seen, 1),
+        "floor_m2": float(made.occupancy.free.sum() * made.occupancy.grid.resolution**2),
+    }
+
+
+def import_cloud(cloud_file: Path, name: str, worlds: Path) -> tuple[Path, float]:
+    """``world import`` of ``cloud_file`` as ``worlds/name`` (replacing one there), prepared; the import's own
+    seconds (without the preparation's fingerprints and routes)."""
+    import shutil
+
+    from pimm_agents.preparation.prepare import prepare_world
+    from pimm_env.importers.world_import import import_world
+
+    shutil.rmtree(worlds / name, ignore_errors=True)
+    start = time.perf_counter()
+    path = import_world(cloud_file, name, worlds)
+    seconds = time.perf_counter() - start
+    prepare_world(path, progress=False)
+    return path, seconds
+
+
+def localize_with(building: Path, maps: Path | None, trials: int, workers: int, out: Path) -> dict[str, Any]:
+    """PIMM on the building's routes (its kidnap route aside: the map was made on the others), with the maps of
+    ``maps`` (a world) or the building's own: convergence rate, median time to a right ``localized`` and the
+    seconds ``localized`` while wrong, over all trials."""
+    from pimm_agents.experiments.experiment import Execution, Experiment
+    from pimm_agents.experiments.run_plan import RunPlan, resolve_localizers
+    from pimm_env.driving.scenarios import load_scenarios
+    from pimm_env.world.files import load_world
+
+    routes = tuple(n for n, s in load_scenarios(load_world(building)).items() if s.kidnap_to is None)
+    plan = RunPlan(str(building), resolve_localizers(["pimm"]), routes, trials, maps=str(maps) if maps else "")
+    outcome = Experiment.of_plan(plan, Execution(workers, progress=False)).run(out, resume=True)
+    rows = [by["pimm"] for by in outcome.summary["scenarios"].values()]
+    times = [r["time_to_localized_s"] for r in rows if r.get("time_to_localized_s") is not None]
+    return {
+        "convergence_rate": float(
+            np.average([r["convergence_rate"] for r in rows], weights=[r["trials"] for r in rows])
+        ),
+        "time_to_localized_s": float(np.median(times)) if times else None,
+        "false_localized_s": float(sum(r.get("false_localized_s") or 0.0 for r in rows)),
+    }
+
+
+def measure_cloud_map(seed: int, worlds: Path, out: Path, trials: int, workers: int) -> dict[str, Any]:
+    """One generated building: its SLAM-like map written (``out/gen-SEED.pcd``), imported as ``gen-SEED-cloud``
+    under ``worlds``, scored, and (``trials`` > 0) PIMM localizing in the building with those maps and its own."""
+    from pimm_env.clouds.pcd import write_pcd
+    from pimm_env.world.files import load_world
+    from training.heldout import ready_building
+
+    building = ready_building(seed, worlds)
+    out.mkdir(parents=True, exist_ok=True)
+    points, poses = slam_like_cloud(load_world(building), seed)
+    cloud_file = write_pcd(out / f"gen-{seed}.pcd", points)
+    imported, seconds = import_cloud(cloud_file, f"gen-{seed}-cloud", worlds)
+    figures = score_import(building, imported, poses)
+    figures.update(points=len(points), import_s=seconds, import_s_per_1000m2=1000.0 * seconds / figures["floor_m2"])
+    if trials:
+        figures["own_maps"] = localize_with(building, None, trials, workers, out / f"gen-{seed}" / "own")
+        figures["cloud_maps"] = localize_with(building, imported, trials, workers, out / f"gen-{seed}" / "cloud")
+    return figures
+
+
+def cloud_map_table(rows: dict[str, dict[str, Any]]) -> str:
+    """The figures of :func:`measure_cloud_map` per building, and over all (corners pooled, the rest means)."""
+
+    def pct(value: float | None) -> str:
+        return "-" if value is None else f"{100 * value:.0f} %"
+
+    def sec(value: float | None) -> str:
+        return "-" if value is None else f"{value:.1f}"
+
+    head = ("| building | points | floor m² | corners (seen) | found of seen | found of all | not the building's "
+            "| wall IoU | within 5 cm | import s / 1 000 m² | PIMM conv. own / cloud | time to localized s own / "
+            "cloud | localized while wrong s own / cloud |")  # fmt: skip
+    lines = [head, "|---|" + "---:|" * 12]
+    for name, r in rows.items():
+        own, cloud = r.get("own_maps", {}), r.get("cloud_maps", {})
+        lines.append(
+            f"| {name} | {r['points']} | {r['floor_m2']:.0f} | {r['corners']} ({r['seen']}) "
+            f"| {pct(r['recall_seen'])} "
+            f"| {pct(r['recall_all'])} | {pct(r['false'])} | {r['wall_iou']:.2f} | {r['wall_iou_5cm']:.2f} "
+            f"| {r['import_s_per_1000m2']:.0f} "
+            f"| {pct(own.get('convergence_rate'))} / {pct(cloud.get('convergence_rate'))} "
+            f"| {sec(own.get('time_to_localized_s'))} / {sec(cloud.get('time_to_localized_s'))} "
+            f"| {sec(own.get('false_localized_s'))} / {sec(cloud.get('false_localized_s'))} |"
+        )
+    return "\n".join(lines)
+
+
+def run_cloud_maps(seeds: list[int], trials: int, workers: int, worlds: Path, out: Path, made: str, echo: Any) -> None:
+    """:func:`measure_cloud_map` for each building, writing ``out/cloud_maps.json`` and ``out/cloud_maps.md``
+    (headed by the command ``made``, the commit and the machine) after each."""
+    import json
+
+    from tqdm import tqdm
+
+    from pimm_agents.results.markdown import provenance_here
+
+    out.mkdir(parents=True, exist_ok=True)
+    rows: dict[str, dict[str, Any]] = {}
+    for seed in tqdm(seeds, desc="buildings", unit="building"):
+        rows[f"gen-{seed}"] = measure_cloud_map(seed, worlds, out, trials, workers)
+        (out / "cloud_maps.json").write_text(json.dumps(rows, indent=1))
+        (out / "cloud_maps.md").write_text(f"{provenance_here(made)}\n\n{cloud_map_table(rows)}\n")
+    echo(cloud_map_table(rows))
