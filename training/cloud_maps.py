@@ -10,7 +10,8 @@ voxels. The figures (:func:`score_import`):
 - what the map saw: rays of the LiDAR's range cast from the mapping poses across the building's walls at
   ``WALL_HEIGHT`` (above its furniture, below its ceilings); the wall cells they first hit were seen;
 - corners: the building's own corner map against the imported one, matched within ``MATCH_M`` in the plane:
-  the share found of the building's corners the map saw (a seen wall cell within ``MATCH_M``) and of all; and
+  the share found of the building's corners the map saw (both faces: seen wall cells near it in two directions)
+  and of all; and
   the share of imported corners that are none of the building's;
 - walls: both worlds cut at ``WALL_HEIGHT`` (people walking through and most furniture are lower): the import's
   wall cells within reach of the seen ones against the seen ones, IoU cell for cell and within one cell (5 cm,
@@ -137,6 +138,28 @@ def seen_cells(occupied: np.ndarray, grid: Any, poses: np.ndarray, reach_m: floa
     return seen
 
 
+def faces_seen(corners: np.ndarray, seen: np.ndarray, grid: Any, reach_m: float = 0.2) -> np.ndarray:
+    """Which ``corners`` (K, 2) the map saw: seen wall cells within ``reach_m`` of each lie in two directions at
+    least 60 degrees apart from it (both its faces, not one face running past it)."""
+    from scipy.spatial import cKDTree
+
+    gx, gy = grid.cell_centers()
+    cells = np.column_stack([gx[seen], gy[seen]])
+    out = np.zeros(len(corners), dtype=bool)
+    if not len(cells):
+        return out
+    tree = cKDTree(cells)
+    for k, corner in enumerate(np.asarray(corners, dtype=float)):
+        near = cells[tree.query_ball_point(corner, reach_m)] - corner
+        near = near[np.hypot(near[:, 0], near[:, 1]) > grid.resolution]
+        if len(near) < 2:
+            continue
+        angle = np.arctan2(near[:, 1], near[:, 0])
+        apart = np.abs((angle[:, None] - angle[None, :] + np.pi) % (2 * np.pi) - np.pi)
+        out[k] = bool(apart.max() >= np.radians(60.0))
+    return out
+
+
 def score_import(building: Path, imported: Path, poses: np.ndarray, reach_m: float = 10.0) -> dict[str, Any]:
     """The imported world ``imported`` (its derived maps built) against the building ``building`` (world files)
     that was mapped from ``poses`` with a LiDAR of ``reach_m``."""
@@ -153,10 +176,7 @@ def score_import(building: Path, imported: Path, poses: np.ndarray, reach_m: flo
     seen = seen_cells(walls.occupied, grid, poses, reach_m)
     made_walls = resample_occupied(occupancy_from_world(made_world, grid.resolution, WALL_HEIGHT), grid)
     near_seen = ndimage.binary_dilation(seen, iterations=2)  # the import's cells are judged where the map saw
-    rows, cols, valid = grid.cells_of(own.corners.xy)
-    corner_seen = np.zeros(len(own.corners), dtype=bool)
-    reach = ndimage.binary_dilation(seen, iterations=round(MATCH_M / grid.resolution))
-    corner_seen[valid] = reach[rows[valid], cols[valid]]
+    corner_seen = faces_seen(own.corners.xy, seen, grid)
     return {
         **corner_figures(own.corners, made.corners, corner_seen),
         "wall_iou": tolerant_iou(seen, made_walls & near_seen, 0),

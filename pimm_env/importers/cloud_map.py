@@ -4,7 +4,9 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
 1. **Level** it on its floor: the lowest large level surface (points whose normal stands within 18 degrees of
    z, binned by height) fitted as a plane; the cloud is turned by that plane's tilt and moved so the floor lies
    at z = 0 (x and y stay the map's, so poses in the SLAM map frame stay valid). A second large level surface
-   more than ``max_storey_m`` above the floor is another storey: the map is refused, naming the heights.
+   more than ``storey_m`` above the floor with the map going on over it (more than ``over_storey`` of the points
+   a metre above it) is another storey's floor: the map is refused, naming the heights. The top of a tall hall
+   is its ceiling, with nothing over it, and is taken.
 2. **Voxels** of ``voxel_m``: a voxel with fewer than ``min_points`` points (people who walked through while
    mapping, stray returns) and a voxel with no occupied neighbour (outliers) are set aside and counted.
 3. **Classes per column** of voxels: floor within ``floor_band_m`` of the floor; in a column that rises at least
@@ -53,7 +55,8 @@ class CloudMapConfig:
     door_gap_m: float = 0.6  # a wall plane's voxels further apart along it than this are two walls (a doorway)
     min_wall_m: float = 0.5  # shorter pieces of a wall plane are not walls (a pillar's side, a shelf's end)
     corner_reach_m: float = 0.4  # two walls whose ends come this near their meeting line meet there
-    max_storey_m: float = 4.5  # a level surface higher above the floor is another storey
+    storey_m: float = 2.0  # a level surface higher above the floor, with the map going on over it, is a storey
+    over_storey: float = 0.02  # ... with this share of the points more than a metre above it
     min_area_m2: float = 2.0  # smaller patches of seen floor are not places the robot can be
 
 
@@ -92,7 +95,12 @@ def level_frame(points: np.ndarray, config: CloudMapConfig, source: Path | str) 
     counts, edges = np.histogram(level[:, 2], bins=bins) if len(bins) > 1 else (np.array([len(level)]), bins)
     strong = np.flatnonzero(counts >= 0.2 * counts.max())
     floor_at = float(edges[strong[0]] + 0.05) if len(bins) > 1 else float(np.median(level[:, 2]))
-    storeys = [float(edges[k] + 0.05) for k in strong if edges[k] + 0.05 - floor_at > config.max_storey_m]
+    zs = np.asarray(points, dtype=float)[:, 2]
+    storeys = [
+        float(edges[k] + 0.05)
+        for k in strong
+        if edges[k] + 0.05 - floor_at > config.storey_m and np.mean(zs > edges[k] + 1.05) > config.over_storey
+    ]
     if storeys:
         heights = ", ".join(f"{h:.2f}" for h in [floor_at, *storeys])
         raise MapFileError(
