@@ -210,6 +210,13 @@ def test_truth_as_pose_stamped_is_read_and_a_type_without_a_pose_is_named(tmp_pa
         BagError, match="/scan message 0: a .*LaserScan holds no pose; give a topic of nav_msgs/Odometry"
     ):
         planar_pose(msg, "/scan message 0")
+    quaternion = t["geometry_msgs/msg/Quaternion"]
+    longer = t["geometry_msgs/msg/Pose"](
+        position=pose.position, orientation=quaternion(x=0.0, y=0.0, z=3 * np.sin(half), w=3 * np.cos(half))
+    )
+    assert planar_pose(longer)[2] == pytest.approx(np.radians(30.0))  # a quaternion not normalized: the same yaw
+    none = t["geometry_msgs/msg/Pose"](position=pose.position, orientation=quaternion(x=0.0, y=0.0, z=0.0, w=0.0))
+    assert np.isnan(planar_pose(none)[2])  # no orientation: no yaw (the readers set it aside, counted)
 
 
 def drive_bag(bag: Path, odom_of, truth_from: int = 0, stamp_of=lambda i: 0.1 * i) -> Path:
@@ -251,6 +258,13 @@ def test_what_the_guard_sets_aside_is_counted_in_the_log_the_summary_and_the_pri
     assert summary_of([result])["scenarios"]["glitch"]["amcl"]["per_trial"][0]["set_aside"] == {"too_fast": 1}
     printed = format_set_aside([result])
     assert "amcl trial 0: 1 observation(s) set aside (too_fast 1), 0 odometry re-base(s)" in printed
+
+
+def test_a_bag_whose_every_odometry_message_is_set_aside_says_so(tmp_path):
+    bag = drive_bag(tmp_path / "no_yaw", lambda i, pose: np.array([pose[0], pose[1], np.nan]))
+    config = SimConfig()
+    with pytest.raises(BagError, match=r"no_yaw: /odom: no odometry message could be replayed \(set aside: 30 non_fi"):
+        list(read_steps(bag, BagTopics(), config.lidar2d, config.lidar3d))
 
 
 def test_a_topic_of_another_type_named_as_the_scan_or_cloud_is_a_bag_error():

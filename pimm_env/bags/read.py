@@ -103,6 +103,7 @@ def read_steps(
         tf_truth = TfTruth()
         fresh_scan = fresh_cloud = kidnapped = False
         counts: dict[str, int] = {}
+        served = 0  # steps yielded
         first_stamps: list[float] = []  # the first odometry times, to tell a clock that never advances
         first_received: list[float] = []
         by_receipt = topics.stamps == "receive"
@@ -166,6 +167,10 @@ def read_steps(
                 }
                 yield Step(obs, None if truth is None else truth.copy(), fresh_scan, fresh_cloud, kidnapped)
                 fresh_scan = fresh_cloud = kidnapped = False
+                served += 1
+        if not served:
+            said = ", ".join(f"{count} {kind}" for kind, count in aside.items()) or "none"
+            raise BagError(f"{path}: {topics.odom}: no odometry message could be replayed (set aside: {said})")
 
 
 def _stalled(path: Path, topic: str, stamps: str, t: float, received_span_s: float) -> str:
