@@ -101,7 +101,10 @@ def planar_pose(msg: Any, where: str = "message") -> np.ndarray:
     # the yaw of the quaternion whatever its length (some drivers do not normalize); one of no length has no
     # yaw: NaN, which the readers set aside and count as they do any value that is not finite
     norm = q.w**2 + q.x**2 + q.y**2 + q.z**2
-    yaw = np.arctan2(2 * (q.w * q.z + q.x * q.y), q.w**2 + q.x**2 - q.y**2 - q.z**2) if norm > 1e-12 else np.nan
+    if abs(norm - 1.0) < 1e-6:  # a unit quaternion, as nearly every message holds
+        yaw = np.arctan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y**2 + q.z**2))
+    else:
+        yaw = np.arctan2(2 * (q.w * q.z + q.x * q.y), q.w**2 + q.x**2 - q.y**2 - q.z**2) if norm > 1e-12 else np.nan
     return np.array([p.x, p.y, yaw])
 
 
