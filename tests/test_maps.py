@@ -137,3 +137,20 @@ def test_bad_map_server_and_corner_files_name_the_file_and_the_field(tmp_path):
             load_corner_map(corners)
     corners.write_text("corners:\n  - {x: 1, y: 2, theta: 90}\n")  # z may be left out
     assert load_corner_map(corners).z.tolist() == [0.0]
+
+
+def test_map_images_of_other_depths_read_as_map_server_reads_them_and_a_cut_header_is_refused(tmp_path):
+    from PIL import Image
+
+    from pimm_env.mapping.map_server import read_image
+    from pimm_env.mapping.occupancy import read_pgm
+
+    (tmp_path / "cut.pgm").write_bytes(b"P5\n4")
+    with pytest.raises(ValueError, match=r"cut.pgm: expected a binary PGM \(P5\) header"):
+        read_pgm(tmp_path / "cut.pgm")
+    (tmp_path / "low.pgm").write_bytes(b"P5 2 1 100\n" + bytes([100, 0]))  # maxval 100: 100 is white
+    assert read_pgm(tmp_path / "low.pgm").tolist() == [[255, 0]]
+    (tmp_path / "deep.pgm").write_bytes(b"P5 2 1 65535\n" + np.array([65535, 254], ">u2").tobytes())
+    assert read_pgm(tmp_path / "deep.pgm").tolist() == [[255, 1]]
+    Image.fromarray(np.array([[65535, 254]], np.uint16)).save(tmp_path / "deep.png")
+    assert read_image(tmp_path / "deep.png").tolist() == [[255, 1]]  # 254 of 65 535 is near black

@@ -48,7 +48,8 @@ def _number(meta: Mapping[str, Any], key: str, path: Path, default: float | None
 
 
 def read_image(path: Path) -> np.ndarray:
-    """8-bit grey pixels of a PGM (P5) or PNG, top row first; colour PNGs are averaged over RGB."""
+    """8-bit grey pixels of a PGM (P5) or PNG, top row first; colour PNGs are averaged over RGB, 16-bit ones scaled
+    to 8 bits (as map_server reads them: 254 of 65 535 is near black)."""
     if not path.is_file():
         raise MissingFileError(path)
     if path.suffix.lower() == ".pgm":
@@ -56,10 +57,13 @@ def read_image(path: Path) -> np.ndarray:
     from PIL import Image
 
     with Image.open(path) as image:
+        sixteen_bits = image.mode.startswith("I")  # a 16-bit grey PNG: map_server scales it to its full range
         pixels = np.asarray(image.convert("RGBA") if image.mode in ("P", "LA") else image)
     if pixels.ndim == 3:  # RGB(A): the mean of the colour channels, as map_server does
         pixels = pixels[..., :3].mean(axis=2)
-    if pixels.dtype != np.uint8:
+    if sixteen_bits:
+        pixels = np.round(np.clip(pixels, 0, 65535) / 257.0)
+    elif pixels.dtype != np.uint8:
         pixels = np.clip(pixels, 0, 255)
     return pixels.astype(np.uint8)
 

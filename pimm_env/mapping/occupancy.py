@@ -88,28 +88,42 @@ def save_map_server(occupancy: OccupancyGrid, yaml_path: Path) -> None:
 
 
 def read_pgm(path: Path) -> np.ndarray:
-    """Read a binary (P5) 8-bit PGM image, top row first."""
+    """Read a binary (P5) PGM image, top row first, as 8-bit grey: a ``maxval`` other than 255 (16-bit ones
+    included) is scaled to 0-255, as map_server's image library does."""
     data = Path(path).read_bytes()
     tokens: list[bytes] = []
     pos = 0
-    while len(tokens) < 4:
-        while data[pos : pos + 1].isspace():
+    while len(tokens) < 4 and pos < len(data):
+        if data[pos : pos + 1].isspace():
             pos += 1
-        if data[pos : pos + 1] == b"#":
-            pos = data.index(b"\n", pos)
-            continue
-        end = pos
-        while not data[end : end + 1].isspace():
-            end += 1
-        tokens.append(data[pos:end])
-        pos = end
-    if tokens[0] != b"P5" or int(tokens[3]) > 255:
-        raise WorldError(f"{path}: expected an 8-bit binary PGM (P5), got header {tokens!r}")
-    cols, rows = int(tokens[1]), int(tokens[2])
+        elif data[pos : pos + 1] == b"#":
+            newline = data.find(b"\n", pos)
+            pos = len(data) if newline < 0 else newline
+        else:
+            end = pos
+            while end < len(data) and not data[end : end + 1].isspace():
+                end += 1
+            tokens.append(data[pos:end])
+            pos = end
+    numbers = [t.decode("ascii", "replace") for t in tokens[1:]]
+    if (
+        len(tokens) < 4
+        or tokens[0] != b"P5"
+        or not all(n.isdigit() for n in numbers)
+        or not 0 < int(numbers[2]) < 65536
+    ):
+        raise WorldError(f"{path}: expected a binary PGM (P5) header 'P5 width height maxval', got {tokens!r}")
+    cols, rows, maxval = (int(n) for n in numbers)
+    size = 1 if maxval < 256 else 2
     have = len(data) - (pos + 1)
-    if have < rows * cols:
-        raise WorldError(f"{path}: truncated: {have} bytes of pixels, the header says {cols} x {rows} = {rows * cols}")
-    pixels = np.frombuffer(data, dtype=np.uint8, count=rows * cols, offset=pos + 1)
+    if have < rows * cols * size:
+        raise WorldError(
+            f"{path}: truncated: {have} bytes of pixels, the header says {cols} x {rows} = {rows * cols}"
+            + (f" of {size} bytes" if size > 1 else "")
+        )
+    pixels = np.frombuffer(data, dtype=np.uint8 if size == 1 else ">u2", count=rows * cols, offset=pos + 1)
+    if maxval != 255:
+        pixels = np.round(np.minimum(pixels, maxval) * (255.0 / maxval)).astype(np.uint8)
     return pixels.reshape(rows, cols)
 
 
