@@ -98,6 +98,10 @@ def test_bad_files_are_named_with_what_is_wrong(tmp_path, points):
         read_cloud(short)
     with pytest.raises(CloudFileError, match=r"noz.pcd: no z field \(fields: x, y, intensity\)"):
         read_cloud(_ascii_pcd(tmp_path / "noz.pcd", [[1, 2, 3]], fields="x y intensity"))
+    with pytest.raises(CloudFileError, match=r"twice.pcd: FIELDS names x more than once \(x x z\)"):
+        read_cloud(_ascii_pcd(tmp_path / "twice.pcd", [[1, 2, 3]], fields="x x z"))
+    padded = read_cloud(_ascii_pcd(tmp_path / "padded.pcd", [[1, 9, 2, 9, 3]], fields="x _ y _ z"))
+    assert padded.points.tolist() == [[1, 2, 3]]  # PCL's padding fields, named "_", may repeat
     nan_rows = _ascii_pcd(tmp_path / "nan.pcd", [[1, 2, 3], [float("nan"), 0, 0], [4, 5, 6]])
     with pytest.raises(CloudFileError, match=r"nan.pcd: 1 of 3 points have NaN .* \(first: row 1\).*--drop-invalid"):
         read_cloud(nan_rows)

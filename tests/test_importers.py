@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from pimm_env.errors import MapFileError, WorldFileError
+from pimm_env.errors import MapFileError
 from pimm_env.importers.world_import import import_world
 from pimm_env.mapping.corner_map import derive_corner_map
 from pimm_env.mapping.derived_maps import ensure_derived_maps
@@ -115,7 +115,7 @@ def test_bad_maps_are_named(tmp_path):
         import_world(source, "x", tmp_path / "maps")
     source, _ = write_map(tmp_path / "src", 0.0)
     source.write_text(source.read_text().replace("resolution: 0.05", "resolution: -0.05"))
-    with pytest.raises(MapFileError, match="resolution: must be positive"):
+    with pytest.raises(MapFileError, match="resolution: expected metres per pixel"):
         import_world(source, "x", tmp_path / "maps")
     source, _ = write_map(tmp_path / "src", 0.0)
     (source.parent / "plan.pgm").write_bytes(b"P5\n20 10\n255\n" + bytes([0] * 200))
@@ -143,6 +143,10 @@ def test_a_mesh_without_faces_is_named_as_the_users_file(tmp_path):
     source = tmp_path / "points.obj"
     source.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
     with pytest.raises(MapFileError, match=r"points.obj: the mesh has no faces"):
+        import_world(source, "x", tmp_path / "maps")
+    assert not (tmp_path / "maps" / "x").exists()
+    source.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n")  # one triangle, nothing to stand on
+    with pytest.raises(MapFileError, match=r"points.obj: imported as a world, areas: no areas given and no floor"):
         import_world(source, "x", tmp_path / "maps")
     assert not (tmp_path / "maps" / "x").exists()
 
@@ -189,7 +193,7 @@ def test_a_mesh_becomes_a_world_the_env_runs_in(tmp_path):
     no_floor = trimesh.Scene()
     no_floor.add_geometry(_box_mesh([0, 0, 0], [1, 1, 1]), node_name="Wall")
     no_floor.export(tmp_path / "bare.ply")
-    with pytest.raises(WorldFileError, match="no floor object"):
+    with pytest.raises(MapFileError, match=r"bare.ply: imported as a world, areas: .*no floor object"):
         import_world(tmp_path / "bare.ply", "bare", tmp_path / "maps")
 
 

@@ -112,8 +112,14 @@ def test_bad_map_server_and_corner_files_name_the_file_and_the_field(tmp_path):
     good = "image: map.pgm\nresolution: 0.05\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
     (tmp_path / "map.yaml").write_text(good)
     assert load_map_server(tmp_path / "map.yaml").grid.shape == (3, 4)
+    (tmp_path / "map.yaml").write_text(good.replace("0.05", "5e-2"))  # YAML 1.1 text; a number to ROS
+    assert load_map_server(tmp_path / "map.yaml").grid.shape == (3, 4)
     for bad, message in (
-        (good.replace("0.05", "-0.05"), "resolution: must be positive, got -0.05"),
+        (
+            good.replace("0.05", "-0.05"),
+            r"resolution: expected metres per pixel \(a positive number up to 10\), got -0.05",
+        ),
+        (good.replace("0.05", "1e9"), r"resolution: expected metres per pixel .*, got 1000000000.0"),
         (good.replace("[0, 0, 0]", "[0, .nan, 0]"), "origin: expected a finite number"),
         (good.replace("0.65", "1.5"), "free_thresh 0.196 and occupied_thresh 1.5"),
         ("image: [", r"not valid YAML: expected the node content, .* \(line 1, column 9\)$"),

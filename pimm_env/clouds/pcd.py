@@ -111,6 +111,9 @@ def _header(path: Path, entries: dict[str, list[str]]) -> PcdHeader:
         raise CloudFileError(f"{path}: VIEWPOINT {entries['VIEWPOINT']} is not 7 numbers") from None
     if len(viewpoint) != 7:
         raise CloudFileError(f"{path}: VIEWPOINT has {len(viewpoint)} numbers; it is tx ty tz qw qx qy qz")
+    twice = sorted({name for name in fields if name != "_" and fields.count(name) > 1})
+    if twice:
+        raise CloudFileError(f"{path}: FIELDS names {', '.join(twice)} more than once ({' '.join(fields)})")
     counts_int = tuple(_integer(path, "COUNT", c) for c in counts)
     return PcdHeader(fields, tuple(dtypes), counts_int, width, height, viewpoint, points, encoding)
 

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from pimm_env.errors import MapFileError
+from pimm_env.errors import MapFileError, WorldFileError
 from pimm_env.importers.floor_plan import CeilingArea, read_ceilings, world_spec, write_world
 from pimm_env.importers.furnish import furnish
 from pimm_env.importers.vectorize import vectorize
@@ -102,9 +102,12 @@ def import_world(
                 f"a mesh ({', '.join(MESH_SUFFIXES)}) or a point-cloud map ({', '.join(CLOUD_SUFFIXES)}, .ply)"
             )
         return write_world(spec, folder / "world.yaml")
-    except BaseException:
+    except BaseException as error:
         if not existed:
             shutil.rmtree(folder, ignore_errors=True)
+        if isinstance(error, WorldFileError) and Path(error.path).parent == folder:  # said of the user's file
+            said = str(error)[len(f"{error.path}: ") :]
+            raise MapFileError(f"{source}: imported as a world, {said}") from None
         raise
 
 

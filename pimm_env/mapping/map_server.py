@@ -42,6 +42,11 @@ class RasterMap:
 
 def _number(meta: Mapping[str, Any], key: str, path: Path, default: float | None = None) -> float:
     value = meta.get(key, default)
+    if isinstance(value, str):  # YAML 1.1 reads 1e-2 (no dot) as text; ROS's YAML reader takes it as a number
+        try:
+            value = float(value)
+        except ValueError:
+            pass
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
         raise MapFileError(f"{path}: {key}: expected a finite number, got {value!r}")
     return float(value)
@@ -79,8 +84,10 @@ def read_ros_map(yaml_path: Path) -> RasterMap:
         raise MapFileError(f"{yaml_path}: image: expected the image file's name, got {image_name!r}")
     image_path = (yaml_path.parent / image_name).resolve()
     resolution = _number(meta, "resolution", yaml_path)
-    if resolution <= 0:
-        raise MapFileError(f"{yaml_path}: resolution: must be positive, got {resolution}")
+    if not 1e-4 <= resolution <= 10.0:
+        raise MapFileError(
+            f"{yaml_path}: resolution: expected metres per pixel (a positive number up to 10), got {resolution}"
+        )
     origin = meta.get("origin")
     if not isinstance(origin, list) or len(origin) not in (2, 3):
         raise MapFileError(f"{yaml_path}: origin: expected [x, y, yaw], got {origin!r}")
