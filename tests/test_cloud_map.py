@@ -71,7 +71,9 @@ def test_a_map_of_two_storeys_or_of_no_floor_is_refused_before_anything_is_writt
         import_world(two, "two", tmp_path / "maps")
     hall = slam_like_room(rng)
     hall[:, 2] *= 5.5 / 3.0  # one storey, a hall 5.5 m high: its ceiling, with nothing over it, is no storey
-    import_world(write_pcd(tmp_path / "hall.pcd", hall), "hall", tmp_path / "halls")
+    beside = slam_like_room(rng) + np.array([6.0, 0.0, 0.0])
+    beside[:, 2] *= 2.5 / 3.0  # and beside it a room 2.5 m high: a hall's ceiling beside a ceiling is no storey
+    import_world(write_pcd(tmp_path / "hall.pcd", np.vstack([hall, beside])), "hall", tmp_path / "halls")
     walls = write_pcd(tmp_path / "walls.pcd", surface(rng, [0, 0, 0], [0, 4, 3], 20_000))
     with pytest.raises(MapFileError, match="walls.pcd: no level surface"):
         import_world(walls, "walls", tmp_path / "maps")

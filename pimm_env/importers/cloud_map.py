@@ -4,9 +4,9 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
 1. **Level** it on its floor: the lowest large level surface (points whose normal stands within 18 degrees of
    z, binned by height) fitted as a plane; the cloud is turned by that plane's tilt and moved so the floor lies
    at z = 0 (x and y stay the map's, so poses in the SLAM map frame stay valid). A second large level surface
-   more than ``storey_m`` above the floor with the map going on over it (more than ``over_storey`` of the points
-   a metre above it) is another storey's floor: the map is refused, naming the heights. The top of a tall hall
-   is its ceiling, with nothing over it, and is taken.
+   more than ``storey_m`` above the floor with the map going on a metre over it (over the surface itself) is
+   another storey's floor: the map is refused, naming the heights. A ceiling has nothing over it, however high,
+   and beside a higher one.
 2. **Voxels** of ``voxel_m``: a voxel with fewer than ``min_points`` points (people who walked through while
    mapping, stray returns) and a voxel with no occupied neighbour (outliers) are set aside and counted.
 3. **Classes per column** of voxels: floor within ``floor_band_m`` of the floor; in a column that rises at least
@@ -56,7 +56,7 @@ class CloudMapConfig:
     min_wall_m: float = 0.5  # shorter pieces of a wall plane are not walls (a pillar's side, a shelf's end)
     corner_reach_m: float = 0.4  # two walls whose ends come this near their meeting line meet there
     storey_m: float = 2.0  # a level surface higher above the floor, with the map going on over it, is a storey
-    over_storey: float = 0.02  # ... with this share of the points more than a metre above it
+    over_storey: float = 0.2  # ... with this many points a metre over it, for each point on it
     min_area_m2: float = 2.0  # smaller patches of seen floor are not places the robot can be
 
 
@@ -95,11 +95,10 @@ def level_frame(points: np.ndarray, config: CloudMapConfig, source: Path | str) 
     counts, edges = np.histogram(level[:, 2], bins=bins) if len(bins) > 1 else (np.array([len(level)]), bins)
     strong = np.flatnonzero(counts >= 0.2 * counts.max())
     floor_at = float(edges[strong[0]] + 0.05) if len(bins) > 1 else float(np.median(level[:, 2]))
-    zs = np.asarray(points, dtype=float)[:, 2]
     storeys = [
         float(edges[k] + 0.05)
         for k in strong
-        if edges[k] + 0.05 - floor_at > config.storey_m and np.mean(zs > edges[k] + 1.05) > config.over_storey
+        if edges[k] + 0.05 - floor_at > config.storey_m and _built_over(level, thin, edges[k], config.over_storey)
     ]
     if storeys:
         heights = ", ".join(f"{h:.2f}" for h in [floor_at, *storeys])
@@ -121,6 +120,17 @@ def level_frame(points: np.ndarray, config: CloudMapConfig, source: Path | str) 
     floor_z = float(np.median((near @ turn.T)[:, 2])) if len(near) else floor_at
     levelled[:, 2] -= floor_z
     return levelled, float(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0)))), floor_z
+
+
+def _built_over(level: np.ndarray, thin: np.ndarray, height: float, share: float) -> bool:
+    """Whether the map goes on a metre over the level surface at ``height`` (its 10 cm bin of ``level`` points),
+    over that surface itself (0.5 m cells): more than ``share`` as many points as it holds. A storey's floor has its
+    walls and ceiling over it; a ceiling, seen from below, has nothing (a hall's higher ceiling is beside it)."""
+    on = level[(level[:, 2] >= height) & (level[:, 2] < height + 0.1)]
+    cells = {(int(x), int(y)) for x, y in np.floor(on[:, :2] / 0.5)}
+    above = thin[thin[:, 2] > height + 1.05]
+    over = sum((int(x), int(y)) in cells for x, y in np.floor(above[:, :2] / 0.5))
+    return over > share * len(on)
 
 
 def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), source: Path | str = "cloud") -> CloudMap:
