@@ -124,3 +124,26 @@ def test_a_map_without_a_matching_record_is_refused(tmp_path):
     write_record(scaled, FINGERPRINTS, "pimm-fingerprints/1", dtype="float32", shape=[21, 8], weights_sha256="ab" * 32)
     with pytest.raises(ValueError, match=r"scaled.npz: descriptors of shape \(20, 8\), the record says \[21, 8\]"):
         FingerprintMap.load(scaled)
+
+
+def test_places_that_see_nothing_within_range_get_no_fingerprint_and_are_counted(tmp_path):
+    from pimm_agents.perception.files import SHIPPED_WEIGHTS
+    from pimm_agents.perception.segmenter import load_segmenter
+    from pimm_agents.preparation.fingerprints import build_fingerprint_map
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+
+    world = tmp_path / "far" / "world.yaml"  # a floor seen only near its one room: 20 m of it beyond the LiDAR
+    world.parent.mkdir()
+    world.write_text(
+        "format: pimm-world/1\nname: far\nfloor_z: 0.0\nareas:\n  all: [[0, 0], [26, 0], [26, 4], [0, 4]]\n"
+        "elements:\n"
+        "  - {name: floor, class: floor, box: {min: [-0.5, -0.5, -0.1], max: [6.5, 4.5, 0.0]}}\n"
+        "  - {name: ceiling, class: ceiling, box: {min: [-0.5, -0.5, 3.0], max: [6.5, 4.5, 3.1]}}\n"
+        "  - {name: west, class: wall, box: {min: [-0.2, 0.0, 0.0], max: [0.0, 4.0, 3.0]}}\n"
+        "  - {name: south, class: wall, box: {min: [-0.2, -0.2, 0.0], max: [6.2, 0.0, 3.0]}}\n"
+    )
+    ensure_derived_maps(load_world(world))
+    with pytest.warns(UserWarning, match=r"world 'far': \d+ of \d+ fingerprint places saw nothing"):
+        fmap = build_fingerprint_map(str(world), load_segmenter(SHIPPED_WEIGHTS), 2.0, progress=False)
+    assert 3 <= len(fmap) and fmap.positions[:, 0].max() < 17.0 and np.isfinite(fmap.descriptors).all()

@@ -47,7 +47,19 @@ def build_fingerprint_map(
     jobs = [(world, segmenter, poses[c], noise_seeds[c], progress and serial) for c in chunks if len(c)]
     with tqdm(total=len(poses), desc="fingerprints", disable=not progress or serial, unit="scan") as bar:
         parts = run_jobs(_descriptors, jobs, workers, backend, address, lambda i, _: bar.update(len(jobs[i][2])))
-    return FingerprintMap(np.vstack(parts), positions, headings, source=f"fingerprint map of {name}")
+    descriptors = np.vstack(parts)
+    seen = np.isfinite(descriptors).all(axis=1)  # a place whose scan returned nothing has no fingerprint
+    if not seen.all():
+        import warnings
+
+        warnings.warn(
+            f"world {name!r}: {int((~seen).sum())} of {len(seen)} fingerprint places saw nothing within the LiDAR's"
+            " range (no surface around them in the world) and were left out",
+            stacklevel=2,
+        )
+    if seen.sum() < 3:
+        raise PerceptionError(f"world {name!r}: only {int(seen.sum())} fingerprint places saw a surface")
+    return FingerprintMap(descriptors[seen], positions[seen], headings[seen], source=f"fingerprint map of {name}")
 
 
 def _descriptors(job: tuple[Any, Segmenter | CloudSegmenter, np.ndarray, np.ndarray, bool]) -> np.ndarray:
@@ -67,6 +79,9 @@ def _descriptors(job: tuple[Any, Segmenter | CloudSegmenter, np.ndarray, np.ndar
     try:
         for i in tqdm(range(len(poses)), desc="fingerprints", disable=not progress, unit="scan"):
             obs, _ = env.reset(seed=int(noise_seeds[i]), options={"pose": list(poses[i])})
+            if not np.asarray(obs["cloud_mask"], dtype=bool).any():
+                out[i] = np.nan  # nothing within range: no fingerprint here (left out by the caller, counted)
+                continue
             out[i] = segmenter.describe(obs["cloud"], obs["cloud_mask"])
     finally:
         env.close()
