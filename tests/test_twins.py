@@ -228,3 +228,33 @@ def test_local_peaks_are_the_maximum_filters_peaks_to_the_cell(seed):
     rows, cols = local_peaks(score, 0.6)
     assert np.array_equal(rows, expected[0]) and np.array_equal(cols, expected[1])
     assert all(len(a) == 0 for a in local_peaks(score, 1.5))
+
+
+def test_world_prepare_writes_a_table_of_twins_the_localizer_takes_whatever_the_maps_origin(tmp_path):
+    from pimm_agents.preparation.prepare import prepare_world
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.mapping.twins import world_twins
+    from pimm_env.world.files import load_world
+
+    x = y = 0.7  # the maps' grid starts at 0.30000000000000004, which occupancy.yaml gives back as 0.3
+    boxes = {  # name: class, min, max (the room of the other tests, moved)
+        "floor": ("floor", (-0.5, -0.5, -0.1), (6.5, 4.5, 0.0)),
+        "ceiling": ("ceiling", (-0.5, -0.5, 3.0), (6.5, 4.5, 3.1)),
+        "south": ("wall", (-0.2, -0.2, 0.0), (6.2, 0.0, 3.0)),
+        "north": ("wall", (-0.2, 4.0, 0.0), (6.2, 4.2, 3.0)),
+        "west": ("wall", (-0.2, 0.0, 0.0), (0.0, 4.0, 3.0)),
+        "east": ("wall", (6.0, 0.0, 0.0), (6.2, 4.0, 3.0)),
+        "cabinet": ("clutter", (1.0, 3.0, 0.0), (2.0, 4.0, 1.8)),
+    }
+    world = tmp_path / "odd" / "world.yaml"
+    world.parent.mkdir()
+    lines = [f"format: pimm-world/1\nname: odd\nfloor_z: 0.0\nareas:\n  room: [[{x}, {y}], [{x + 6}, {y}], "
+             f"[{x + 6}, {y + 4}], [{x}, {y + 4}]]\nelements:"]  # fmt: skip
+    for name, (kind, lo, hi) in boxes.items():
+        low, high = [lo[0] + x, lo[1] + y, lo[2]], [hi[0] + x, hi[1] + y, hi[2]]
+        lines.append(f"  - {{name: {name}, class: {kind}, box: {{min: {low}, max: {high}}}}}")
+    world.write_text("\n".join(lines) + "\n")
+    prepare_world(world, progress=False)
+    loaded = load_world(world)
+    _, stale = world_twins(loaded, load_derived_maps(loaded).occupancy)
+    assert stale is None and (world.parent / "twins.npz").is_file()

@@ -41,7 +41,7 @@ def prepare_world(
     from pimm_agents.preparation.fingerprints import build_fingerprint_map
     from pimm_env.driving.routes import plan_routes, scenarios_document
     from pimm_env.driving.scenarios import load_scenarios, scenarios_path
-    from pimm_env.mapping.derived_maps import build_derived_maps
+    from pimm_env.mapping.derived_maps import build_derived_maps, load_derived_maps
     from pimm_env.mapping.twins import TWINS_FILE, MapTwins, TwinConfig
     from pimm_env.world.files import load_world, world_dir
 
@@ -52,7 +52,9 @@ def prepare_world(
     maps = build_derived_maps(loaded)
     seconds["maps"] = time.perf_counter() - start
     start = time.perf_counter()
-    twins = MapTwins(maps.occupancy, TwinConfig())  # PIMM's ambiguity check's, worked out once per cell
+    # PIMM's ambiguity check's, worked out once per cell, on the map as the localizers read it back (a grid whose
+    # origin is not a round number comes back from occupancy.yaml a few ulps away, and the table would not be taken)
+    twins = MapTwins(load_derived_maps(loaded).occupancy, TwinConfig())
     twins.precompute(progress)
     twins.save(world_dir(loaded) / TWINS_FILE)
     seconds["twins"] = time.perf_counter() - start
