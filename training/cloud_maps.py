@@ -117,24 +117,23 @@ def corner_figures(truth: Any, found: Any, seen: np.ndarray) -> dict[str, float]
 def seen_cells(occupied: np.ndarray, grid: Any, poses: np.ndarray, reach_m: float, beams: int = 720) -> np.ndarray:
     """The occupied cells that rays from ``poses`` (every ``POSE_SPACING_M`` of them) first hit within
     ``reach_m``: the walls a LiDAR driven there saw."""
+    from pimm_agents.active.views import cast_ranges
+
     keep = [0]
     for k in range(1, len(poses)):
         if np.hypot(*(poses[k, :2] - poses[keep[-1], :2])) >= POSE_SPACING_M:
             keep.append(k)
-    angles = np.linspace(-np.pi, np.pi, beams, endpoint=False)
-    steps = np.arange(0.0, reach_m, grid.resolution / 2)
+    origins = np.ascontiguousarray(poses[keep, :2], dtype=float)
+    bearings = np.linspace(-np.pi, np.pi, beams, endpoint=False)
+    x0, y0 = grid.origin
+    ranges = cast_ranges(origins, np.zeros(len(origins)), bearings, occupied, x0, y0, grid.resolution, reach_m)
+    hit = ranges < reach_m
+    # where each ray stopped, a hair short (the march adds its steps up; this multiplies them, a few ulps apart)
+    reach = np.maximum(ranges - 1e-6, 0.0)
+    ends = origins[:, None, :] + reach[:, :, None] * np.stack([np.cos(bearings), np.sin(bearings)], axis=1)[None]
+    rows, cols, valid = grid.cells_of(ends[hit])
     seen = np.zeros(occupied.shape, dtype=bool)
-    for pose in poses[keep]:
-        x = pose[0] + np.cos(angles)[:, None] * steps[None, :]
-        y = pose[1] + np.sin(angles)[:, None] * steps[None, :]
-        rows, cols, valid = grid.cells_of(np.column_stack([x.ravel(), y.ravel()]))
-        hit = np.zeros(rows.shape, dtype=bool)
-        hit[valid] = occupied[rows[valid], cols[valid]]
-        hit = hit.reshape(x.shape)
-        first = np.argmax(hit, axis=1)
-        beam = np.flatnonzero(hit[np.arange(beams), first])
-        cell = beam * len(steps) + first[beam]
-        seen[rows[cell], cols[cell]] = True
+    seen[rows[valid], cols[valid]] = occupied[rows[valid], cols[valid]]
     return seen
 
 
