@@ -25,3 +25,5 @@ def test_corners_are_matched_within_ten_centimetres_and_the_rest_counted_both_wa
     figures = corner_figures(truth, found, np.array([True, True, False, False]))
     assert figures["recall_seen"] == 0.5 and figures["recall_all"] == 0.25
     assert figures["false"] == 2 / 3 and figures["seen"] == 2
+    none = corner_figures(truth, corners(np.zeros((0, 2))), np.array([True, True, False, False]))
+    assert (none["seen"], none["found"], none["recall_seen"], none["false"]) == (2, 0, 0.0, 0.0)

@@ -100,7 +100,8 @@ def corner_figures(truth: Any, found: Any, seen: np.ndarray) -> dict[str, float]
     from scipy.spatial import cKDTree
 
     if not len(truth) or not len(found):
-        return {"corners": len(truth), "found": len(found), "recall_seen": 0.0, "recall_all": 0.0, "false": 1.0}
+        nothing = {"recall_seen": 0.0, "recall_all": 0.0, "false": 1.0 if len(found) else 0.0}
+        return {"corners": len(truth), "seen": int(seen.sum()), "found": len(found), **nothing}
     to_found, _ = cKDTree(found.xy).query(truth.xy)
     to_truth, _ = cKDTree(truth.xy).query(found.xy)
     hit = to_found <= MATCH_M
