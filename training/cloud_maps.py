@@ -50,14 +50,11 @@ class SlamLike:
 def slam_like_cloud(world: Any, seed: int, config: SlamLike = SlamLike()) -> tuple[np.ndarray, np.ndarray]:
     """A SLAM-like point-cloud map (N, 3, world frame) of ``world`` (loaded), from its routes (see the module),
     and the true poses its clouds were taken at (M, 3)."""
-    import open3d as o3d
-
+    from pimm_env.bags.cloud_map import laid_at, thinned
     from pimm_env.driving.rollout import run
     from pimm_env.driving.scenarios import load_scenarios
     from pimm_env.envs.iilab_env import IILabEnv
     from pimm_env.envs.sim_config import SimConfig
-    from pimm_env.geometry import compose
-    from pimm_env.sim.lidar import to_robot_frame
 
     rng = np.random.default_rng(seed)
     env = IILabEnv(world=world, config=replace(SimConfig(), walkers=config.walkers), terminate_on_collision=False)
@@ -81,17 +78,12 @@ def slam_like_cloud(world: Any, seed: int, config: SlamLike = SlamLike()) -> tup
                     return
                 drift = amplitude * np.sin(2 * np.pi * float(obs["time"][0]) / period + phase)
                 poses.append(np.asarray(info["true_pose"], dtype=float))
-                pose = poses[-1] + drift
-                mask = np.asarray(obs["cloud_mask"], dtype=bool)
-                points = to_robot_frame(np.asarray(obs["cloud"], dtype=float)[mask], lidar)
-                planar = compose(pose, np.column_stack([points[:, :2], np.zeros(len(points))]))[:, :2]
-                clouds.append(np.column_stack([planar, points[:, 2] + lidar.height]))
+                clouds.append(laid_at(obs["cloud"], obs["cloud_mask"], poses[-1] + drift, lidar))
 
             run(scenario, seed=seed + k, env=env, on_step=lay)
     finally:
         env.close()
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.vstack(clouds)))
-    return np.asarray(cloud.voxel_down_sample(config.voxel_m).points), np.array(poses)
+    return thinned(np.vstack(clouds), config.voxel_m), np.array(poses)
 
 
 def corner_figures(truth: Any, found: Any, seen: np.ndarray) -> dict[str, float]:
@@ -245,7 +237,7 @@ def measure_cloud_map(seed: int, worlds: Path, out: Path, trials: int, workers: 
 
 
 def cloud_map_table(rows: dict[str, dict[str, Any]]) -> str:
-    """The figures of :func:`measure_cloud_map` per building, and over all (corners pooled, the rest means)."""
+    """The figures of :func:`measure_cloud_map`, a row per building."""
 
     def pct(value: float | None) -> str:
         return "-" if value is None else f"{100 * value:.0f} %"

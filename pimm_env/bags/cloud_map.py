@@ -21,7 +21,6 @@ def cloud_map_from_bag(
 ) -> tuple[np.ndarray, int]:
     """The bag's clouds at its true poses, one point (the mean) per ``voxel_m`` voxel, and how many clouds
     (``lidar2d``: the bag's 2D layout, None where it has no scans)."""
-    import open3d as o3d
 
     from pimm_env.sim.lidar import Lidar2DConfig
 
@@ -29,18 +28,26 @@ def cloud_map_from_bag(
     for step in read_steps(Path(bag), topics, lidar2d or Lidar2DConfig(), lidar3d):
         if not (step.fresh_cloud and step.true_pose is not None):
             continue
-        cloud, mask = np.asarray(step.obs["cloud"], dtype=float), np.asarray(step.obs["cloud_mask"], dtype=bool)
-        points = to_robot_frame(cloud[mask], lidar3d)
-        planar = compose(step.true_pose, np.column_stack([points[:, :2], np.zeros(len(points))]))[:, :2]
-        pending.append(np.column_stack([planar, points[:, 2] + lidar3d.height]))
+        pending.append(laid_at(step.obs["cloud"], step.obs["cloud_mask"], step.true_pose, lidar3d))
         clouds += 1
         if len(pending) >= THIN_EVERY:
-            taken, pending = _thin(np.vstack([taken, *pending]), voxel_m, o3d), []
+            taken, pending = thinned(np.vstack([taken, *pending]), voxel_m), []
     if not clouds:
         raise BagError(f"{bag}: no cloud ({topics.points}) arrived with a true pose ({topics.truth}): no map to build")
-    return _thin(np.vstack([taken, *pending]), voxel_m, o3d), clouds
+    return thinned(np.vstack([taken, *pending]), voxel_m), clouds
 
 
-def _thin(points: np.ndarray, voxel_m: float, o3d) -> np.ndarray:
+def laid_at(cloud: np.ndarray, mask: np.ndarray, pose: np.ndarray, lidar3d: Lidar3DConfig) -> np.ndarray:
+    """A cloud's returns (sensor frame, ``mask``: which are returns) in the map frame, the robot at ``pose``
+    (x, y, heading), z above the floor."""
+    points = to_robot_frame(np.asarray(cloud, dtype=float)[np.asarray(mask, dtype=bool)], lidar3d)
+    planar = compose(pose, np.column_stack([points[:, :2], np.zeros(len(points))]))[:, :2]
+    return np.column_stack([planar, points[:, 2] + lidar3d.height])
+
+
+def thinned(points: np.ndarray, voxel_m: float) -> np.ndarray:
+    """One point (the mean) per ``voxel_m`` voxel, as a SLAM map's voxel filter keeps."""
+    import open3d as o3d
+
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     return np.asarray(cloud.voxel_down_sample(voxel_m).points)

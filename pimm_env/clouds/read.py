@@ -137,38 +137,41 @@ PLY_SIZES = {
 
 
 def _check_ply_size(path: Path) -> None:
-    """A binary PLY whose elements all have rows of one size must hold them all: a truncated one is refused (read
-    as it is, its missing rows would be whatever memory held)."""
+    """A PLY must hold every row its header declares: a truncated binary one (whose elements all have rows of one
+    size) is refused, as is an ASCII one with fewer rows (read as they are, a binary one's missing rows would be
+    whatever memory held, an ASCII one's points fewer than it says)."""
     with path.open("rb") as handle:
         head = handle.read(65536)
     end = head.find(b"end_header")
     if not head.startswith(b"ply") or end < 0:
         raise CloudFileError(f"{path}: not a PLY file (no 'ply' ... 'end_header' header)")
     lines = head[:end].decode("ascii", errors="replace").splitlines()
+    start = head.index(b"\n", end) + 1
+    elements = _ply_elements(lines)
     if not any(line.startswith("format binary") for line in lines):
-        _check_ascii_ply_rows(path, lines, head.index(b"\n", end) + 1)
+        _check_ascii_ply_rows(path, sum(count for count, _ in elements), start)
         return
-    need, count = head.index(b"\n", end) + 1, 0
-    for words in (line.split() for line in lines):
-        if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit():
-            count = int(words[2])
-        elif words[:1] == ["property"] and len(words) >= 3:
-            if words[1] == "list" or words[1] not in PLY_SIZES:
-                return  # rows of varying size (faces): the reader checks what it can
-            need += count * PLY_SIZES[words[1]]
+    if any(kind == "list" or kind not in PLY_SIZES for _, kinds in elements for kind in kinds):
+        return  # rows of varying size (faces): the reader checks what it can
+    need = start + sum(count * sum(PLY_SIZES[kind] for kind in kinds) for count, kinds in elements)
     size = path.stat().st_size
     if size < need:
         raise CloudFileError(f"{path}: {size} bytes, its header's elements need {need} (the file is cut short)")
 
 
-def _check_ascii_ply_rows(path: Path, header: list[str], start: int) -> None:
-    """An ASCII PLY must hold a row for each element its header declares (read as it is, a short one gives
-    fewer points than it says, silently)."""
-    declared = sum(
-        int(words[2])
-        for words in (line.split() for line in header)
-        if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit()
-    )
+def _ply_elements(header: list[str]) -> list[tuple[int, list[str]]]:
+    """Each element a PLY header declares: its row count and its properties' types (``list`` for a list)."""
+    elements: list[tuple[int, list[str]]] = [(0, [])]  # properties before any element count for none
+    for words in (line.split() for line in header):
+        if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit():
+            elements.append((int(words[2]), []))
+        elif words[:1] == ["property"] and len(words) >= 3:
+            elements[-1][1].append(words[1])
+    return elements
+
+
+def _check_ascii_ply_rows(path: Path, declared: int, start: int) -> None:
+    """An ASCII PLY must hold the ``declared`` rows after its header (from byte ``start``)."""
     rows = 0
     with path.open("rb") as handle:
         handle.seek(start)
