@@ -114,3 +114,41 @@ def test_a_corner_under_two_ceilings_of_nearly_one_height_is_one_corner(tmp_path
     corners = derive_corner_map(world)
     assert len(corners) == 8
     assert len({(round(x, 2), round(y, 2)) for x, y in corners.xy}) == 8
+
+
+def test_walls_at_a_slant_under_a_mesh_ceiling_give_the_corners_of_their_outline(tmp_path):
+    """A point-cloud import's kind of world: box walls at any angle beside a mesh ceiling at two heights."""
+    import yaml
+
+    turn = np.radians(20.0)
+    along, across = np.array([np.cos(turn), np.sin(turn)]), np.array([-np.sin(turn), np.cos(turn)])
+    walls = []
+    for k, (centre, length, yaw) in enumerate(
+        [(2 * along - 0.1 * across, 4.4, turn), (2 * along + 4.1 * across, 4.4, turn),
+         (-0.1 * along + 2 * across, 4.4, turn + np.pi / 2), (4.1 * along + 2 * across, 4.4, turn + np.pi / 2)]
+    ):  # fmt: skip
+        box = {"center": [*np.round(centre, 4).tolist(), 1.5], "size": [length, 0.2, 3.0], "yaw": float(yaw)}
+        walls.append({"name": f"wall_{k}", "class": "wall", "box": box})
+    room = np.array([[0, 0], [4, 0], [4, 4], [0, 4]]) @ np.array([along, across])
+    low = _plane(2.5, -2.0, 1.5, -1.0, 6.0, facing_up=False)  # the room's west part lower: two heights
+    high = _plane(3.0, 1.5, 5.0, -1.0, 6.0, facing_up=False)
+    import trimesh
+
+    scene = trimesh.Scene()
+    scene.add_geometry(_box([-2, -2, -0.1], [6, 7, 0]), node_name="floor")
+    scene.add_geometry(trimesh.util.concatenate([low, high]), node_name="ceiling")
+    scene.export(tmp_path / "room.glb")
+    spec = {
+        "format": "pimm-mesh-world/1", "name": "slanted", "mesh": "room.glb", "up_axis": "z",
+        "rules": [{"match": "*", "class": "clutter"}, {"match": "floor", "class": "floor"},
+                  {"match": "ceiling", "class": "ceiling"}],
+        "areas": {"room": room.round(4).tolist()}, "elements": walls,
+    }  # fmt: skip
+    (tmp_path / "world.yaml").write_text(yaml.safe_dump(spec))
+    corners = derive_corner_map(load_world(tmp_path / "world.yaml"))
+    assert len(corners) == 4
+    gaps = np.hypot(*(corners.xy[:, None, :] - room[None, :, :]).transpose(2, 0, 1)).min(axis=0)
+    assert gaps.max() < 0.02
+    west = room[:, 0] < 1.5  # each corner at the height of the ceiling over it
+    order = np.argmin(np.hypot(*(corners.xy[:, None, :] - room[None, :, :]).transpose(2, 0, 1)), axis=0)
+    assert np.allclose(corners.z[order], np.where(west, 2.5, 3.0))

@@ -95,3 +95,19 @@ def test_iilab_mesh_world_is_available_with_the_reference_data():
     classes = {e.name: e.semantic for e in world.elements}
     assert classes["Cealing_004"] == SemanticClass.CEILING and classes["Wall1"] == SemanticClass.WALL
     assert classes["RoundedPosts"] == SemanticClass.CLUTTER and classes["Floor"] == SemanticClass.FLOOR
+
+
+def test_a_mesh_world_takes_solid_elements_beside_its_objects(mesh_world_file):
+    text = mesh_world_file.read_text()
+    mesh_world_file.write_text(
+        text + "elements:\n  - {name: post, class: clutter, cylinder: {center: [1, 1], radius: 0.2, z: [0, 3]}}\n"
+    )
+    post = {e.name: e for e in load_world(mesh_world_file).elements}["post"]
+    assert post.semantic == SemanticClass.CLUTTER and post.occupancy
+    twice = "elements:\n  - {name: Wall1, class: wall, box: {min: [0, 0, 0], max: [1, 1, 1]}}\n"
+    mesh_world_file.write_text(text + twice)
+    with pytest.raises(WorldFileError, match=r"elements\[0\] \(Wall1\)\.name: duplicate element name"):
+        load_world(mesh_world_file)
+    mesh_world_file.write_text(text + "elements: {post: 1}\n")
+    with pytest.raises(WorldFileError, match="elements: expected a list of world elements"):
+        load_world(mesh_world_file)

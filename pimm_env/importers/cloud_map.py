@@ -14,10 +14,12 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    a real ceiling is not flat); a column filled from ``wall_from_m`` (above desks and chairs, which hide a
    wall's foot) to near its top, over at least ``wall_min_span_m``, is wall; the rest is clutter. Ceiling gaps
    of up to three columns between seen ceiling (a LiDAR's rings leave stripes) are filled in.
-4. **Surfaces**: walls are upright planes fitted to the wall voxels (``cloud_walls.py``), each a box behind the
-   surface the LiDAR saw; the ceiling is a downward face at each column's top, smoothed over 5 x 5 columns;
-   floor and clutter are the faces of their voxels that border empty space. One mesh per class (named
-   ``floor``, ``ceiling``, ``wall``, ``clutter``), written as one GLB that the mesh import reads as any building.
+4. **Surfaces**: walls are upright planes fitted to the wall voxels (``cloud_walls.py``), each a box element of
+   the world standing behind the surface the LiDAR saw (so the corner map reads the walls' outlines, at the
+   slant they were fitted at, not a raster of it); the ceiling is a downward face at each column's top,
+   smoothed over 5 x 5 columns; floor and clutter are the faces of their voxels that border empty space. One
+   mesh per other class (named ``floor``, ``ceiling``, ``clutter``), written as one GLB that the mesh import
+   reads as any building.
 5. **Where the robot can be**: the outline of the floor that was seen (a room seen only through its doorway has
    no floor in the map and is left out), as the world's areas.
 """
@@ -32,7 +34,7 @@ import numpy as np
 
 from pimm_env.errors import MapFileError
 from pimm_env.geometry import rotation_onto_z
-from pimm_env.importers.cloud_walls import wall_box, wall_planes
+from pimm_env.importers.cloud_walls import wall_planes
 
 #: The surface classes of a cloud map's voxels, in the order of ``CLASSES`` indices.
 CLASSES = ("floor", "ceiling", "wall", "clutter")
@@ -232,7 +234,6 @@ def _classes(voxels: np.ndarray, config: CloudMapConfig) -> tuple[np.ndarray, np
 
 def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
     """One trimesh per class: the faces of its voxels that border empty space, each facing out."""
-    import trimesh
 
     v = cloud_map.voxel_m
     keys = np.sort(_keys(cloud_map.voxels))
@@ -244,9 +245,7 @@ def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
     }  # fmt: skip
     meshes = {}
     for k, name in enumerate(CLASSES):
-        if k == WALL:
-            if len(cloud_map.walls):
-                meshes[name] = trimesh.util.concatenate([wall_box(w) for w in cloud_map.walls])
+        if k == WALL:  # the walls are the world's boxes (cloud_walls.wall_elements)
             continue
         own = cloud_map.voxels[cloud_map.classes == k]
         if k == CEILING:

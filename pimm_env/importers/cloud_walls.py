@@ -108,12 +108,13 @@ def meet(walls: np.ndarray, reach: float) -> np.ndarray:
     return walls
 
 
-def wall_box(wall: np.ndarray):
-    """A wall's line, thickness, bottom and top as a box mesh."""
-    import trimesh
-
-    x0, y0, x1, y1, thickness, bottom, top = wall
-    length = float(np.hypot(x1 - x0, y1 - y0))
-    transform = trimesh.transformations.rotation_matrix(float(np.arctan2(y1 - y0, x1 - x0)), [0, 0, 1])
-    transform[:3, 3] = [(x0 + x1) / 2, (y0 + y1) / 2, (bottom + top) / 2]
-    return trimesh.creation.box([length, thickness, top - bottom], transform)
+def wall_elements(walls: np.ndarray) -> list[dict[str, Any]]:
+    """The walls (W, 7: line, thickness, bottom, top) as world elements ``wall_1``, ...: boxes along their lines,
+    so that the corner map reads their outlines (corner_map.py), not a raster of their slant."""
+    elements = []
+    for k, (x0, y0, x1, y1, thickness, bottom, top) in enumerate(walls):
+        centre = [round((x0 + x1) / 2, 4), round((y0 + y1) / 2, 4), round((bottom + top) / 2, 4)]
+        size = [round(float(np.hypot(x1 - x0, y1 - y0)), 4), round(thickness, 4), round(top - bottom, 4)]
+        box = {"center": centre, "size": size, "yaw": round(float(np.arctan2(y1 - y0, x1 - x0)), 6)}
+        elements.append({"name": f"wall_{k + 1}", "class": "wall", "box": box})
+    return elements

@@ -149,6 +149,7 @@ def _from_mesh(
 def _from_cloud(source: Path, name: str, folder: Path, rules: list[dict[str, str]], wall_line: bool) -> dict[str, Any]:
     from pimm_env.clouds.read import read_cloud
     from pimm_env.importers.cloud_map import CloudMapConfig, classify, floor_areas, write_cloud_world_mesh
+    from pimm_env.importers.cloud_walls import wall_elements
 
     config = CloudMapConfig()
     cloud = read_cloud(source)
@@ -156,7 +157,8 @@ def _from_cloud(source: Path, name: str, folder: Path, rules: list[dict[str, str
     areas = floor_areas(cloud_map, config, source)
     folder.mkdir(parents=True, exist_ok=True)
     mesh = write_cloud_world_mesh(cloud_map, folder / f"{source.stem}.glb")
-    spec = _mesh_spec(mesh.name, name, folder, rules, "z", None, source, wall_line)
+    walls = wall_elements(cloud_map.walls)
+    spec = _mesh_spec(mesh.name, name, folder, rules, "z", None, source, wall_line, walls)
     spec["areas"] = areas
     spec["cloud_map"] = {
         "points": cloud_map.points,
@@ -203,6 +205,7 @@ def _mesh_spec(
     ceiling: float | None,
     source: Path,
     wall_line: bool,
+    elements: list[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     from pimm_env.importers.mesh_checks import check_mesh_world, floor_height
     from pimm_env.importers.wall_line import wall_line_objects
@@ -216,6 +219,8 @@ def _mesh_spec(
         "rules": rules,
         "occupancy": ["wall", "clutter"],
     }
+    if elements:
+        spec["elements"] = elements
     world = world_from_mesh_spec(spec, folder / "world.yaml")  # refuses a mesh with no floor, naming the file
     spec["floor_z"] = round(floor_height(world), 4)
     left_out = check_mesh_world(world, spec["floor_z"], source, ceiling is not None)

@@ -89,16 +89,20 @@ def _as_map(found: list[tuple[float, float, float, float]]) -> CornerMap:
 
 def _vector_corner_map(world: World, config: CornerMapConfig) -> CornerMap:
     """Vertices of the walls' cross-section just under each ceiling where the outline turns by at least
-    ``min_turn_deg``, both edges run ``min_face``, and the free side is under that ceiling and in an area."""
+    ``min_turn_deg``, both edges run ``min_face``, and the free side is under that ceiling and in an area (a
+    mesh ceiling's heights and cover as the raster map reads them: :mod:`pimm_env.mapping.ceilings`)."""
     import shapely
     from shapely.geometry import Point, Polygon
 
     areas = shapely.unary_union([Polygon(p) for p in world.areas.values()]).buffer(config.area_margin)
     found: list[tuple[float, float, float, float]] = []
     straight = np.cos(np.radians(180.0 - config.min_turn_deg))
-    for height in world.ceiling_heights():
+    meshes = any(isinstance(e.shape, Mesh) for e in world.elements if e.semantic == SemanticClass.CEILING)
+    grid = world.grid(config.resolution) if meshes else None
+    for height in ceiling_levels(world) if meshes else world.ceiling_heights():
         walls = shapely.simplify(_section(world, SemanticClass.WALL, height - config.below_ceiling), 1e-3)
-        ceiling = _section(world, SemanticClass.CEILING, height + 0.01)
+        covered = _under(ceiling_cover(world, grid, height), grid) if grid else None
+        ceiling = None if grid else _section(world, SemanticClass.CEILING, height + 0.01)
         for ring in _rings(walls):
             coords = np.asarray(ring.coords)[:-1]
             for i, vertex in enumerate(coords):
@@ -110,9 +114,20 @@ def _vector_corner_map(world: World, config: CornerMapConfig) -> CornerMap:
                 bisector /= np.hypot(*bisector)
                 probes = [Point(vertex + s * config.resolution * bisector) for s in (1.0, -1.0)]
                 free = [p for p in probes if not walls.covers(p)]
-                if free and ceiling.covers(free[0]) and areas.covers(free[0]):
+                under = bool(free) and (covered(free[0]) if covered else bool(ceiling and ceiling.covers(free[0])))
+                if under and areas.covers(free[0]):
                     found.append((float(vertex[0]), float(vertex[1]), height, float(np.arctan2(*bisector[::-1]))))
     return _as_map(found)
+
+
+def _under(cover: np.ndarray, grid: GridSpec):
+    """Whether a shapely point lies in a cell of ``cover``."""
+
+    def covered(point) -> bool:
+        rows, cols, valid = grid.cells_of(np.array([[point.x, point.y]]))
+        return bool(valid[0] and cover[rows[0], cols[0]])
+
+    return covered
 
 
 def _section(world: World, semantic: SemanticClass, z: float):

@@ -35,14 +35,11 @@ from pathlib import Path
 from typing import Any
 
 from pimm_env.errors import MissingFileError, WorldFileError
-from pimm_env.world.model import Element, World
+from pimm_env.world.model import World
 from pimm_env.world.reader import FieldReader
-from pimm_env.world.semantics import SemanticClass, parse_class
 from pimm_env.yaml_file import yaml_problem
 
 FORMAT = "pimm-world/1"
-SHAPE_KEYS = ("box", "cylinder", "wall", "prism")
-ELEMENT_KEYS = frozenset({"name", "class", "occupancy"})
 MAPS_DIR = Path(__file__).resolve().parents[2] / "maps"
 
 
@@ -100,35 +97,5 @@ def world_from_spec(data: Mapping[str, Any], path: Path | str = "<dict>") -> Wor
     elements_raw = data.get("elements")
     if not isinstance(elements_raw, list) or not elements_raw:
         raise WorldFileError(path, "elements", f"expected a non-empty list, got {elements_raw!r}")
-    elements: list[Element] = []
-    seen: set[str] = set()
-    for i, raw in enumerate(elements_raw):
-        where = f"elements[{i}]"
-        if not isinstance(raw, Mapping):
-            raise WorldFileError(path, where, f"expected a mapping, got {raw!r}")
-        el_name = reader.string(raw, "name", where)
-        where = f"elements[{i}] ({el_name})"
-        if el_name in seen:
-            raise WorldFileError(path, f"{where}.name", f"duplicate element name {el_name!r}")
-        seen.add(el_name)
-        try:
-            semantic = parse_class(str(raw.get("class")))
-        except ValueError as exc:
-            raise WorldFileError(path, f"{where}.class", str(exc)) from None
-        occupancy = raw.get("occupancy", semantic in (SemanticClass.WALL, SemanticClass.CLUTTER))
-        if not isinstance(occupancy, bool):
-            raise WorldFileError(path, f"{where}.occupancy", f"expected true or false, got {occupancy!r}")
-        shapes = [key for key in SHAPE_KEYS if key in raw]
-        if len(shapes) != 1:
-            raise WorldFileError(
-                path, where, f"expected exactly one of {', '.join(SHAPE_KEYS)}; got {shapes or 'none'}"
-            )
-        unknown = sorted(set(raw) - set(SHAPE_KEYS) - ELEMENT_KEYS)
-        if unknown:
-            valid = ", ".join(sorted(ELEMENT_KEYS | set(SHAPE_KEYS)))
-            raise WorldFileError(path, f"{where}.{unknown[0]}", f"unknown key; valid keys: {valid}")
-        kind = shapes[0]
-        for j, shape in enumerate(reader.shapes(kind, raw[kind], f"{where}.{kind}")):
-            suffix = f"#{j}" if kind == "wall" and j else ""
-            elements.append(Element(el_name + suffix, semantic, shape, occupancy))
+    elements = reader.elements(elements_raw)
     return World(name=name, elements=elements, areas=areas, floor_z=floor_z, source=Path(path))

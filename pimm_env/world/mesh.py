@@ -21,6 +21,8 @@ Mesh world file::
     wall_line: [name, ...]     # optional: objects classed wall whatever the rules say (set by the import: those
                                # standing in a wall's line, windows and closed doors; see importers/wall_line.py)
     ceiling_height: 2.5        # optional: add a flat ceiling this high above floor_z over the floor's extent
+    elements: [...]            # optional: solid elements beside the mesh's objects, as in a world file (the
+                               # point-cloud import writes its walls so: importers/cloud_walls.py)
     areas: {...}               # optional named polygons, as in a world file; default: the floor's outline
 
 Name rules: a ``match`` with a wildcard (``*?[``) is an fnmatch pattern on the whole object name
@@ -182,6 +184,11 @@ def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
         if semantic is None:
             raise WorldFileError(path, "rules", f"no rule matches object {name!r} of {mesh_path.name}")
         elements.append(Element(name, semantic, mesh, semantic in occupancy_classes))
+    extra = data.get("elements")
+    if extra is not None:
+        if not isinstance(extra, list):
+            raise WorldFileError(path, "elements", f"expected a list of world elements, got {extra!r}")
+        elements += FieldReader(path).elements(extra, frozenset(meshes))
     floor_z = float(data.get("floor_z", 0.0))
     if data.get("ceiling_height") is not None:
         elements.append(_added_ceiling(elements, floor_z, data["ceiling_height"], path))

@@ -10,7 +10,13 @@ from typing import Any
 import numpy as np
 
 from pimm_env.errors import WorldFileError
+from pimm_env.world.model import Element
+from pimm_env.world.semantics import SemanticClass, parse_class
 from pimm_env.world.shapes import Box, Cylinder, Prism, Shape
+
+#: An element's shape keys (exactly one) and its other keys (world file format: pimm_env/world/files.py).
+SHAPE_KEYS = ("box", "cylinder", "wall", "prism")
+ELEMENT_KEYS = frozenset({"name", "class", "occupancy"})
 
 
 class FieldReader:
@@ -54,6 +60,39 @@ class FieldReader:
         if not isinstance(value, Sequence) or len(value) < 3:
             raise self.fail(field_name, f"expected a polygon of at least 3 [x, y] points, got {value!r}")
         return np.array([self.vector(p, 2, f"{field_name}[{k}]") for k, p in enumerate(value)])
+
+    def elements(self, raw_list: list[Any], taken: frozenset[str] = frozenset()) -> list[Element]:
+        """The ``elements`` list of a world file; names must be unique (and not among ``taken``)."""
+        elements: list[Element] = []
+        seen: set[str] = set(taken)
+        for i, raw in enumerate(raw_list):
+            where = f"elements[{i}]"
+            if not isinstance(raw, Mapping):
+                raise self.fail(where, f"expected a mapping, got {raw!r}")
+            el_name = self.string(raw, "name", where)
+            where = f"elements[{i}] ({el_name})"
+            if el_name in seen:
+                raise self.fail(f"{where}.name", f"duplicate element name {el_name!r}")
+            seen.add(el_name)
+            try:
+                semantic = parse_class(str(raw.get("class")))
+            except ValueError as exc:
+                raise self.fail(f"{where}.class", str(exc)) from None
+            occupancy = raw.get("occupancy", semantic in (SemanticClass.WALL, SemanticClass.CLUTTER))
+            if not isinstance(occupancy, bool):
+                raise self.fail(f"{where}.occupancy", f"expected true or false, got {occupancy!r}")
+            shapes = [key for key in SHAPE_KEYS if key in raw]
+            if len(shapes) != 1:
+                raise self.fail(where, f"expected exactly one of {', '.join(SHAPE_KEYS)}; got {shapes or 'none'}")
+            unknown = sorted(set(raw) - set(SHAPE_KEYS) - ELEMENT_KEYS)
+            if unknown:
+                valid = ", ".join(sorted(ELEMENT_KEYS | set(SHAPE_KEYS)))
+                raise self.fail(f"{where}.{unknown[0]}", f"unknown key; valid keys: {valid}")
+            kind = shapes[0]
+            for j, shape in enumerate(self.shapes(kind, raw[kind], f"{where}.{kind}")):
+                suffix = f"#{j}" if kind == "wall" and j else ""
+                elements.append(Element(el_name + suffix, semantic, shape, occupancy))
+        return elements
 
     def shapes(self, kind: str, spec: Any, where: str) -> list[Shape]:
         if not isinstance(spec, Mapping):
