@@ -69,8 +69,7 @@ def _ring(coords: Any) -> list[list[float]]:
     return [[round(float(x), 4), round(float(y), 4)] for x, y in points]
 
 
-def prism_spec(polygon: Any, z0: float, z1: float) -> dict[str, Any]:
-    """A shapely polygon (holes allowed) stood from ``z0`` to ``z1``: a world element's ``prism``."""
+def _prism(polygon: Any, z0: float, z1: float) -> dict[str, Any]:
     spec: dict[str, Any] = {"outline": _ring(polygon.exterior.coords), "z": [z0, z1]}
     holes = [_ring(h.coords) for h in polygon.interiors]
     if holes:
@@ -98,16 +97,16 @@ def world_spec(name: str, plan: FloorPlan, ceiling: float, ceilings: list[Ceilin
         for k, part in enumerate(getattr(piece, "geoms", [piece])):
             if part.geom_type == "Polygon" and not part.is_empty:
                 spec = {"name": f"ceiling_{area.name}_{k}", "class": "ceiling"}
-                elements.append({**spec, "prism": prism_spec(part, area.height, area.height + SLAB)})
+                elements.append({**spec, "prism": _prism(part, area.height, area.height + SLAB)})
     for k, part in enumerate(getattr(rest, "geoms", [rest])):
         if part.geom_type == "Polygon" and not part.is_empty:
             elements.append(
-                {"name": f"ceiling_{k}", "class": "ceiling", "prism": prism_spec(part, ceiling, ceiling + SLAB)}
+                {"name": f"ceiling_{k}", "class": "ceiling", "prism": _prism(part, ceiling, ceiling + SLAB)}
             )
     for k, wall in enumerate(plan.walls):
-        elements.append({"name": f"walls_{k}", "class": "wall", "prism": prism_spec(wall, 0.0, top)})
+        elements.append({"name": f"walls_{k}", "class": "wall", "prism": _prism(wall, 0.0, top)})
     for k, piece in enumerate(plan.clutter):
-        elements.append({"name": f"fixture_{k}", "class": "clutter", "prism": prism_spec(piece, 0.0, top)})
+        elements.append({"name": f"fixture_{k}", "class": "clutter", "prism": _prism(piece, 0.0, top)})
     areas = {f"space_{k + 1}": _ring(space.exterior.coords) for k, space in enumerate(plan.spaces)}
     return {"format": "pimm-world/1", "name": name, "floor_z": 0.0, "areas": areas, "elements": elements}
 

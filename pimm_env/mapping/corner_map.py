@@ -101,8 +101,10 @@ def _vector_corner_map(world: World, config: CornerMapConfig) -> CornerMap:
     grid = world.grid(config.resolution) if meshes else None
     for height in ceiling_levels(world) if meshes else world.ceiling_heights():
         walls = shapely.simplify(_section(world, SemanticClass.WALL, height - config.below_ceiling), 1e-3)
-        covered = _under(ceiling_cover(world, grid, height), grid) if grid else None
-        ceiling = None if grid else _section(world, SemanticClass.CEILING, height + 0.01)
+        if grid is None:
+            covered = _section(world, SemanticClass.CEILING, height + 0.01).covers
+        else:
+            covered = _under(ceiling_cover(world, grid, height), grid)
         for ring in _rings(walls):
             coords = np.asarray(ring.coords)[:-1]
             for i, vertex in enumerate(coords):
@@ -114,8 +116,7 @@ def _vector_corner_map(world: World, config: CornerMapConfig) -> CornerMap:
                 bisector /= np.hypot(*bisector)
                 probes = [Point(vertex + s * config.resolution * bisector) for s in (1.0, -1.0)]
                 free = [p for p in probes if not walls.covers(p)]
-                under = bool(free) and (covered(free[0]) if covered else bool(ceiling and ceiling.covers(free[0])))
-                if under and areas.covers(free[0]):
+                if free and covered(free[0]) and areas.covers(free[0]):
                     found.append((float(vertex[0]), float(vertex[1]), height, float(np.arctan2(*bisector[::-1]))))
     return _as_map(found)
 
