@@ -15,9 +15,11 @@ def wall_planes(
     """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
     voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
     ``door_gap_m``: the walls, (W, 7) as ``CloudMap.walls``, each up to the ceiling over it (its columns'
-    ``tops``) and standing behind its surface, on the side away from the seen ``floor`` (voxel columns); and
-    which centres lie on one. ``config``: cloud_map.CloudMapConfig."""
+    ``tops``) and standing behind its surface, on the side away from the seen ``floor`` (voxel columns) or, with
+    floor on both sides, towards its other face (a wall seen from both rooms); and which centres lie on one.
+    ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
+    cells = {(int(x), int(y)) for x, y in np.floor(centres[:, :2] / config.voxel_m)}
     walls: list[list[float]] = []
     on_plane = np.zeros(len(centres), dtype=bool)
     remaining = np.arange(len(centres))
@@ -39,11 +41,16 @@ def wall_planes(
                 continue
             offset = float(np.median(points[piece, :2] @ normal[:2] / np.hypot(normal[0], normal[1])))
             n2 = normal[:2] / np.hypot(normal[0], normal[1])
-            offset += _behind(offset * n2 + (lo + hi) / 2 * along, n2, floor, config.voxel_m) * config.voxel_m / 2
+            side = _behind(offset * n2 + (lo + hi) / 2 * along, n2, floor, config.voxel_m)
+            thickness = config.voxel_m
+            if side == 0:  # floor seen on both sides (or neither): the body is towards the wall's other face
+                side, depth = _other_face(offset, n2, along, lo, hi, cells, config.voxel_m)
+                thickness = max(thickness, depth / 2 + config.voxel_m / 2)
+            offset += side * thickness / 2
             a = offset * n2 + (lo - config.voxel_m / 2) * along
             b = offset * n2 + (hi + config.voxel_m / 2) * along
             top = float(tops[inliers[piece]].max())
-            walls.append([a[0], a[1], b[0], b[1], config.voxel_m, 0.0, top])
+            walls.append([a[0], a[1], b[0], b[1], thickness, 0.0, top])
             on_plane[inliers[piece]] = True
         remaining = np.setdiff1d(remaining, inliers)
     return meet(np.array(walls).reshape(-1, 7), config.corner_reach_m), on_plane
@@ -84,9 +91,35 @@ def _behind(middle: np.ndarray, normal: np.ndarray, floor: set[tuple[int, int]],
     return 0 if seen[0] == seen[1] else (1 if seen[1] else -1)
 
 
+#: how far behind a wall's face its other face is looked for (m): the thickest interior wall
+OTHER_FACE_M = (0.15, 0.25, 0.35)
+
+
+def _other_face(
+    offset: float, normal: np.ndarray, along: np.ndarray, lo: float, hi: float, cells: set, voxel_m: float
+) -> tuple[int, float]:
+    """+1 or -1: the side of a wall face (its line at ``offset`` along ``normal``, from ``lo`` to ``hi`` along
+    ``along``) where wall voxels (``cells``, voxel columns) stand within ``OTHER_FACE_M`` of it, over the face's
+    length: its other face, seen from the other room; and how far (m). 0, 0.0 when neither side or both."""
+    found = {}
+    for side in (1, -1):
+        for depth in OTHER_FACE_M:
+            probes = [(offset + side * depth) * normal + s * along for s in np.linspace(lo, hi, 7)]
+            hits = sum((int(x), int(y)) in cells for x, y in np.floor(np.array(probes) / voxel_m))
+            if hits >= 3:
+                found[side] = depth
+                break
+    if len(found) != 1:
+        return 0, 0.0
+    side, depth = next(iter(found.items()))
+    return side, depth
+
+
 def meet(walls: np.ndarray, reach: float) -> np.ndarray:
     """``walls`` with the ends of each two that turn by 45 degrees or more and end within ``reach`` of their
-    meeting point moved onto it (furniture in a room's corner hides where its walls meet)."""
+    meeting point moved onto it (furniture in a room's corner hides where its walls meet), and the end of one
+    that stops within ``reach`` of another running past it (a T: a partition's last metre is seen at a grazing
+    angle, in voxels too sparse to keep)."""
     walls = walls.copy()
     for i in range(len(walls)):
         for j in range(i + 1, len(walls)):
@@ -102,9 +135,14 @@ def meet(walls: np.ndarray, reach: float) -> np.ndarray:
                 gaps = [np.hypot(*(point - p0)), np.hypot(*(point - p1))]
                 end = int(np.argmin(gaps))
                 ends.append((k, end, gaps[end]))
-            if all(gap <= reach for _, _, gap in ends):
-                for k, end, _ in ends:
-                    walls[k, 2 * end : 2 * end + 2] = point
+            near = [(k, end) for k, end, gap in ends if gap <= reach]
+            if len(near) == 1:  # a T: the other wall runs past the meeting point, only this one ends there
+                other = j if near[0][0] == i else i
+                p0, p1 = walls[other, 0:2], walls[other, 2:4]
+                along = float(np.dot(point - p0, p1 - p0) / np.dot(p1 - p0, p1 - p0))
+                near = near if 0.0 <= along <= 1.0 else []
+            for k, end in near:
+                walls[k, 2 * end : 2 * end + 2] = point
     return walls
 
 
