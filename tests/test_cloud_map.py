@@ -118,3 +118,26 @@ def test_a_ply_without_faces_is_read_as_a_point_cloud_map(tmp_path):
     world = load_world(import_world(source, "ply_room", tmp_path / "maps"))
     assert "cloud_map" in (tmp_path / "maps" / "ply_room" / "world.yaml").read_text()
     assert {e.semantic.name.lower() for e in world.elements} >= {"floor", "ceiling", "wall"}
+
+
+def test_the_ghost_of_a_person_who_walked_by_is_set_aside_and_a_cabinet_kept():
+    """A person walked along y = 2 while the room was mapped (the floor under the path was seen before and after);
+    a cabinet stands in the south-east corner (the floor under it never seen)."""
+    from pimm_env.importers.cloud_map import CLUTTER, classify
+
+    rng = np.random.default_rng(1)
+    room = slam_like_room(rng)
+    cabinet = (room[:, 0] > 5.0) & (room[:, 1] < 1.1) & (room[:, 2] < 0.05)  # its footprint: no floor seen
+    trail = rng.uniform([1.0, 1.8, 0.0], [4.0, 2.2, 1.7], (6000, 3))  # a person's sweep, 0 to 1.7 m
+    sides = [
+        surface(rng, [5.0, 0.2, 0.0], [5.0, 1.1, 1.9], 3000),  # its front
+        surface(rng, [5.0, 1.1, 0.0], [5.45, 1.1, 1.9], 1500),  # its side
+        surface(rng, [5.0, 0.2, 1.9], [5.45, 1.1, 1.9], 1500),  # its top
+    ]
+    cloud = classify(np.vstack([room[~cabinet], trail, *sides]))
+    ghosts = next(n for key, n in cloud.set_aside.items() if key.startswith("ghosts"))
+    clutter = (cloud.voxels[cloud.classes == CLUTTER] + 0.5) * cloud.voxel_m
+    on_trail = (clutter[:, 0] > 1.2) & (clutter[:, 0] < 3.8) & (np.abs(clutter[:, 1] - 2.0) < 0.2)
+    at_cabinet = (clutter[:, 0] > 4.9) & (clutter[:, 0] < 5.5) & (clutter[:, 1] < 1.2)
+    assert ghosts > 100 and not on_trail.any()  # the trail is set aside, counted
+    assert at_cabinet.sum() > 50  # the cabinet stays

@@ -13,7 +13,9 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    ``ceiling_min_m``, the voxels within ``ceiling_band_m`` of its top are ceiling (each column at its own height:
    a real ceiling is not flat); a column filled from ``wall_from_m`` (above desks and chairs, which hide a
    wall's foot) to near its top, over at least ``wall_min_span_m``, is wall; the rest is clutter. Ceiling gaps
-   of up to three columns between seen ceiling (a LiDAR's rings leave stripes) are filled in.
+   of up to three columns between seen ceiling (a LiDAR's rings leave stripes) are filled in. Clutter rising
+   from the floor to no more than a person's height over floor the map saw under it is the ghost of someone who
+   walked by while mapping (a thing standing there hides its floor): set aside and counted.
 4. **Surfaces**: walls are upright planes fitted to the wall voxels (``cloud_walls.py``), each a box element of
    the world standing behind the surface the LiDAR saw (so the corner map reads the walls' outlines, at the
    slant they were fitted at, not a raster of it); the ceiling is a downward face at each column's top,
@@ -57,6 +59,8 @@ class CloudMapConfig:
     door_gap_m: float = 0.6  # a wall plane's voxels further apart along it than this are two walls (a doorway)
     min_wall_m: float = 0.5  # shorter pieces of a wall plane are not walls (a pillar's side, a shelf's end)
     corner_reach_m: float = 0.4  # two walls whose ends come this near their meeting line meet there
+    person_m: float = 2.0  # clutter rising from the floor to no more than this, over seen floor, is a ghost ...
+    ghost_floor: float = 0.75  # ... when the floor under its column was seen over this share of it
     storey_m: float = 2.0  # a level surface higher above the floor, with the map going on over it, is a storey
     over_storey: float = 0.2  # ... with this many points a metre over it, for each point on it
     min_area_m2: float = 2.0  # smaller patches of seen floor are not places the robot can be
@@ -153,6 +157,11 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
     if not len(voxels):
         raise MapFileError(f"{source}: no surface left in the map after setting aside {set_aside}")
     classes, tops = _classes(voxels, config)
+    ghosts = _ghosts(voxels, classes, levelled, config)
+    set_aside["ghosts (clutter over seen floor, as high as a person: people who walked by while mapping)"] = int(
+        np.count_nonzero(ghosts)
+    )
+    voxels, classes, means, tops = voxels[~ghosts], classes[~ghosts], means[~ghosts], tops[~ghosts]
     filled = _closed_ceiling(voxels, classes)
     set_aside["ceiling voxels filled in (gaps between seen ceiling)"] = len(filled)
     voxels, classes = np.vstack([voxels, filled]), np.concatenate([classes, np.full(len(filled), CEILING, np.int8)])
@@ -163,6 +172,32 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
     classes[loose] = CLUTTER  # upright structure on no wall plane: a cabinet's side, a pillar
     set_aside["wall voxels on no wall plane (taken as clutter)"] = len(loose)
     return CloudMap(voxels, classes, config.voxel_m, tilt, floor_z, len(points), set_aside, walls)
+
+
+def _ghosts(voxels: np.ndarray, classes: np.ndarray, levelled: np.ndarray, config: CloudMapConfig) -> np.ndarray:
+    """Which voxels are the ghosts of people who walked by while the map was made: the clutter of a column that
+    rises from the floor (below 0.5 m) to above 1 m but no higher than ``person_m``, over floor the map saw
+    under it (its points at the floor over ``ghost_floor`` of the column's half-voxel cells). A thing that
+    stands there hides the floor under it; a person walked on, and the floor was seen after."""
+    v = config.voxel_m
+    clutter = np.flatnonzero(classes == CLUTTER)
+    if not len(clutter):
+        return np.zeros(len(voxels), dtype=bool)
+    column, inverse = np.unique(voxels[clutter, :2], axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    z = voxels[clutter, 2] * v
+    low, high = np.full(len(column), np.inf), np.full(len(column), -np.inf)
+    np.minimum.at(low, inverse, z)
+    np.maximum.at(high, inverse, z + v)
+    on_floor = levelled[np.abs(levelled[:, 2]) < v / 2, :2]
+    cells = np.unique(np.floor(on_floor / (v / 2)).astype(np.int64), axis=0)  # the half-voxel cells seen
+    under, seen = np.unique(np.floor(cells / 2).astype(np.int64), axis=0, return_counts=True)
+    seen_in = dict(zip(map(tuple, under.tolist()), seen.tolist(), strict=True))
+    share = np.array([seen_in.get(tuple(c), 0) / 4 for c in column.tolist()])
+    ghost = (low < 0.5) & (high > 1.0) & (high <= config.person_m + 1e-9) & (share >= config.ghost_floor)
+    out = np.zeros(len(voxels), dtype=bool)
+    out[clutter[ghost[inverse]]] = True
+    return out
 
 
 def _closed_ceiling(voxels: np.ndarray, classes: np.ndarray, gap: int = 3) -> np.ndarray:
