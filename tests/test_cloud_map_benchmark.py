@@ -27,3 +27,19 @@ def test_corners_are_matched_within_ten_centimetres_and_the_rest_counted_both_wa
     assert figures["false"] == 2 / 3 and figures["seen"] == 2
     none = corner_figures(truth, corners(np.zeros((0, 2))), np.array([True, True, False, False]))
     assert (none["seen"], none["found"], none["recall_seen"], none["false"]) == (2, 0, 0.0, 0.0)
+
+
+def test_the_figure_shows_the_map_beside_its_import_over_the_building(room_file, tmp_path):
+    from pimm_env.clouds.pcd import write_pcd
+    from pimm_env.importers.world_import import import_world
+    from pimm_env.mapping.derived_maps import ensure_derived_maps
+    from pimm_env.world.files import load_world
+    from tests.test_cloud_map import slam_like_room
+    from training.cloud_maps import cloud_map_figure
+
+    points = slam_like_room(np.random.default_rng(0))
+    imported = import_world(write_pcd(tmp_path / "room.pcd", points), "room_map", tmp_path / "maps")
+    for world in (room_file, imported):
+        ensure_derived_maps(load_world(world))
+    figure = cloud_map_figure(points, room_file, imported, tmp_path / "room.png")
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and figure.stat().st_size > 20_000

@@ -177,6 +177,49 @@ def score_import(building: Path, imported: Path, poses: np.ndarray, reach_m: flo
     }
 
 
+def cloud_map_figure(points: np.ndarray, building: Path, imported: Path, path: Path) -> Path:
+    """The SLAM-like map (seen from above, coloured by height) beside what the import made of it: its walls cut at
+    ``WALL_HEIGHT`` over the building's own (grey), the building's corners and the imported corner map's."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from shapely.geometry import Polygon
+
+    from pimm_env.mapping.corner_map import _rings, _section
+    from pimm_env.mapping.derived_maps import load_derived_maps
+    from pimm_env.mapping.occupancy import occupancy_from_world
+    from pimm_env.world.files import load_world
+    from pimm_env.world.semantics import SemanticClass
+
+    own_world, made_world = load_world(building), load_world(imported)
+    own, made = load_derived_maps(own_world), load_derived_maps(made_world)
+    walls = occupancy_from_world(own_world, 0.05, WALL_HEIGHT)
+    x0, y0 = walls.grid.origin
+    rows, cols = walls.occupied.shape
+    extent = (x0, x0 + cols * 0.05, y0, y0 + rows * 0.05)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(14, 6), sharex=True, sharey=True)
+    shown = points[(points[:, 2] > 0.2) & (points[:, 2] < 3.0)]
+    shown = shown[np.random.default_rng(0).permutation(len(shown))[:60_000]]
+    left.scatter(shown[:, 0], shown[:, 1], c=shown[:, 2], s=0.3, cmap="viridis")
+    left.set_title(f"the point-cloud map ({building.parent.name}, coloured by height, people's ghosts included)")
+    right.imshow(walls.occupied, origin="lower", extent=extent, cmap="Greys", vmax=2.5, interpolation="nearest")
+    for k, ring in enumerate(_rings(_section(made_world, SemanticClass.WALL, WALL_HEIGHT))):
+        right.fill(*np.asarray(Polygon(ring).exterior.coords).T, fc="none", ec="tab:red", lw=1,
+                   label="imported walls" if k == 0 else None)  # fmt: skip
+    right.scatter(*own.corners.xy.T, s=60, facecolors="none", edgecolors="tab:green", label="the building's corners")
+    right.scatter(*made.corners.xy.T, s=30, c="tab:blue", marker="x", label="corners of the imported map")
+    right.set_title("imported: walls and corners over the building's own walls (grey)")
+    right.legend(loc="upper right", fontsize=8)
+    for axis in (left, right):
+        axis.set_aspect("equal")
+        axis.set_xlabel("x (m)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
 def import_cloud(cloud_file: Path, name: str, worlds: Path) -> tuple[Path, float]:
     """``world import`` of ``cloud_file`` as ``worlds/name`` (replacing one there), prepared; the import's own
     seconds (without the preparation's fingerprints and routes)."""
@@ -218,7 +261,8 @@ def localize_with(building: Path, maps: Path | None, trials: int, workers: int, 
 
 def measure_cloud_map(seed: int, worlds: Path, out: Path, trials: int, workers: int) -> dict[str, Any]:
     """One generated building: its SLAM-like map written (``out/gen-SEED.pcd``), imported as ``gen-SEED-cloud``
-    under ``worlds``, scored, and (``trials`` > 0) PIMM localizing in the building with those maps and its own."""
+    under ``worlds``, scored (a figure, ``out/gen-SEED.png``), and (``trials`` > 0) PIMM localizing in the
+    building with those maps and its own."""
     from pimm_env.clouds.pcd import write_pcd
     from pimm_env.world.files import load_world
     from training.heldout import ready_building
@@ -229,6 +273,7 @@ def measure_cloud_map(seed: int, worlds: Path, out: Path, trials: int, workers: 
     cloud_file = write_pcd(out / f"gen-{seed}.pcd", points)
     imported, seconds = import_cloud(cloud_file, f"gen-{seed}-cloud", worlds)
     figures = score_import(building, imported, poses)
+    cloud_map_figure(points, building, imported, out / f"gen-{seed}.png")
     figures.update(points=len(points), import_s=seconds, import_s_per_1000m2=1000.0 * seconds / figures["floor_m2"])
     if trials:
         figures["own_maps"] = localize_with(building, None, trials, workers, out / f"gen-{seed}" / "own")
