@@ -152,3 +152,34 @@ def test_walls_at_a_slant_under_a_mesh_ceiling_give_the_corners_of_their_outline
     west = room[:, 0] < 1.5  # each corner at the height of the ceiling over it
     order = np.argmin(np.hypot(*(corners.xy[:, None, :] - room[None, :, :]).transpose(2, 0, 1)), axis=0)
     assert np.allclose(corners.z[order], np.where(west, 2.5, 3.0))
+
+
+def test_a_mesh_ceiling_drawn_a_little_short_of_the_walls_still_covers_their_corners(tmp_path):
+    """A point-cloud import's ceiling is drawn column by column: beside a wall it can stop a cell or two short."""
+    import shapely
+    import trimesh
+    import yaml
+    from shapely.geometry import Polygon
+
+    turn = np.radians(20.0)
+    along, across = np.array([np.cos(turn), np.sin(turn)]), np.array([-np.sin(turn), np.cos(turn)])
+    room = np.array([[0, 0], [4, 0], [4, 4], [0, 4]]) @ np.array([along, across])
+    walls = Polygon([tuple(p) for p in room]).buffer(0.2, join_style="mitre").difference(Polygon(room))
+    short = np.asarray(shapely.orient_polygons(Polygon(room).buffer(-0.08, join_style="mitre")).exterior.coords)[:4]
+    lid = trimesh.Trimesh(np.column_stack([short, np.full(4, 2.5)]), [[0, 2, 1], [0, 3, 2]], process=False)
+    scene = trimesh.Scene()
+    scene.add_geometry(_box([-3, -1, -0.1], [5, 6, 0]), node_name="floor")
+    scene.add_geometry(lid, node_name="ceiling")
+    scene.export(tmp_path / "room.glb")
+    prism = {"outline": np.asarray(walls.exterior.coords)[:-1].round(4).tolist(),
+             "holes": [np.asarray(walls.interiors[0].coords)[:-1].round(4).tolist()], "z": [0.0, 2.5]}  # fmt: skip
+    spec = {
+        "format": "pimm-mesh-world/1", "name": "short", "mesh": "room.glb", "up_axis": "z",
+        "rules": [{"match": "*", "class": "clutter"}, {"match": "floor", "class": "floor"},
+                  {"match": "ceiling", "class": "ceiling"}],
+        "areas": {"room": room.round(4).tolist()}, "elements": [{"name": "walls", "class": "wall", "prism": prism}],
+    }  # fmt: skip
+    (tmp_path / "world.yaml").write_text(yaml.safe_dump(spec))
+    corners = derive_corner_map(load_world(tmp_path / "world.yaml"))
+    assert len(corners) == 4 and np.allclose(corners.z, 2.5)
+    assert np.hypot(*(corners.xy[:, None, :] - room[None, :, :]).transpose(2, 0, 1)).min(axis=0).max() < 0.02

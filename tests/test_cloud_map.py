@@ -141,3 +141,26 @@ def test_the_ghost_of_a_person_who_walked_by_is_set_aside_and_a_cabinet_kept():
     at_cabinet = (clutter[:, 0] > 4.9) & (clutter[:, 0] < 5.5) & (clutter[:, 1] < 1.2)
     assert ghosts > 100 and not on_trail.any()  # the trail is set aside, counted
     assert at_cabinet.sum() > 50  # the cabinet stays
+
+
+def test_a_far_wall_seen_only_as_the_lidars_rings_is_a_wall_and_a_cabinet_is_not():
+    """The room's east wall seen from far (through a doorway): its points lie on the rings of a 16-beam LiDAR,
+    0.3 m apart in height; a 1.9 m cabinet stands against the north wall, under the 3 m ceiling."""
+    from pimm_env.importers.cloud_map import CLUTTER, WALL, classify
+
+    rng = np.random.default_rng(2)
+    room = slam_like_room(rng)
+    east = room[:, 0] > 5.95
+    rings = np.vstack([surface(rng, [6.0, 0.0, z], [6.0, 4.0, z], 400, noise=0.01) for z in np.arange(0.4, 2.9, 0.3)])
+    cabinet = [
+        surface(rng, [2.0, 3.5, 0.0], [3.0, 3.5, 1.9], 4000),
+        surface(rng, [2.0, 3.5, 1.9], [3.0, 4.0, 1.9], 2000),
+    ]
+    under = (room[:, 0] > 2.0) & (room[:, 0] < 3.0) & (room[:, 1] > 3.5) & (room[:, 2] < 0.05)  # hidden floor
+    cloud = classify(np.vstack([room[~east & ~under], rings, *cabinet]))
+    centres = (cloud.voxels + 0.5) * cloud.voxel_m
+    high = (centres[:, 2] > 1.2) & (centres[:, 2] < 2.7)
+    far = high & (centres[:, 0] > 5.9) & (centres[:, 1] > 0.3) & (centres[:, 1] < 3.7)
+    front = high & (np.abs(centres[:, 1] - 3.5) < 0.06) & (centres[:, 0] > 2.1) & (centres[:, 0] < 2.9)
+    assert np.mean(cloud.classes[far] == WALL) > 0.8
+    assert front.any() and np.all(cloud.classes[front] == CLUTTER)

@@ -11,8 +11,9 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    mapping, stray returns) and a voxel with no occupied neighbour (outliers) are set aside and counted.
 3. **Classes per column** of voxels: floor within ``floor_band_m`` of the floor; in a column that rises at least
    ``ceiling_min_m``, the voxels within ``ceiling_band_m`` of its top are ceiling (each column at its own height:
-   a real ceiling is not flat); a column filled from ``wall_from_m`` (above desks and chairs, which hide a
-   wall's foot) to near its top, over at least ``wall_min_span_m``, is wall; the rest is clutter. Ceiling gaps
+   a real ceiling is not flat); a column whose voxels stand stacked from ``wall_from_m`` (above desks and
+   chairs, which hide a wall's foot) to near its top, over at least ``wall_min_span_m`` and with gaps no wider
+   than ``wall_gap_m`` (a wall seen from afar shows only the LiDAR's rings), is wall; the rest is clutter. Ceiling gaps
    of up to three columns between seen ceiling (a LiDAR's rings leave stripes) are filled in. Clutter rising
    from the floor to no more than a person's height over floor the map saw under it is the ghost of someone who
    walked by while mapping (a thing standing there hides its floor): set aside and counted.
@@ -53,11 +54,11 @@ class CloudMapConfig:
     ceiling_min_m: float = 1.8  # a column rising this high ends in a ceiling
     ceiling_band_m: float = 0.2  # below a column's top: ceiling
     wall_from_m: float = 1.2  # a wall column is judged from this height up (furniture hides its foot)
-    wall_min_span_m: float = 0.8  # ... over at least this much
-    wall_fill: float = 0.7  # the share of its voxels there a wall column fills
+    wall_min_span_m: float = 0.6  # ... over at least this much (so to 2 m or more: above cabinets and people)
+    wall_gap_m: float = 0.4  # ... with gaps no wider than this (a far wall is seen as the LiDAR's rings)
     wall_plane_m: float = 0.08  # a wall voxel within this of a wall plane belongs to it
     door_gap_m: float = 0.6  # a wall plane's voxels further apart along it than this are two walls (a doorway)
-    min_wall_m: float = 0.5  # shorter pieces of a wall plane are not walls (a pillar's side, a shelf's end)
+    min_wall_m: float = 0.6  # shorter pieces of a wall plane are not walls (a pillar's side, a shelf's end)
     corner_reach_m: float = 0.4  # two walls whose ends come this near their meeting line meet there
     person_m: float = 2.0  # clutter rising from the floor to no more than this, over seen floor, is a ghost ...
     ghost_floor: float = 0.75  # ... when the floor under its column was seen over this share of it
@@ -257,14 +258,28 @@ def _classes(voxels: np.ndarray, config: CloudMapConfig) -> tuple[np.ndarray, np
     above_floor = z > config.floor_band_m
     # a wall is judged on its upper part, above desks and chairs, which hide its foot from a LiDAR
     band = above_floor & (z >= config.wall_from_m) & (z < top[inverse] - config.ceiling_band_m)
-    filled = np.bincount(inverse, weights=band, minlength=len(column))
-    span = np.maximum(top - config.ceiling_band_m - config.wall_from_m, 0.0)
-    wall_column = (span >= config.wall_min_span_m) & (filled >= config.wall_fill * span / v)
+    wall_column = _stacked(inverse[band], z[band], len(column), config.wall_from_m, top - config.ceiling_band_m, config)
     ceiling = (top[inverse] >= config.ceiling_min_m) & (z >= top[inverse] - config.ceiling_band_m)
     classes[wall_column[inverse] & above_floor] = WALL
     classes[ceiling & above_floor] = CEILING  # a wall's column ends in the ceiling it holds up
     classes[~above_floor] = FLOOR
     return classes, top[inverse]
+
+
+def _stacked(column: np.ndarray, z: np.ndarray, columns: int, bottom: float, top: np.ndarray, config: CloudMapConfig):
+    """Which of ``columns`` hold voxels (their ``column`` and heights ``z``) stacked from ``bottom`` to their
+    ``top`` over at least ``wall_min_span_m``, no two (nor an end and its nearest) further apart than
+    ``wall_gap_m``."""
+    order = np.lexsort((z, column))
+    column, z = column[order], z[order]
+    half = config.voxel_m / 2
+    low, high, gap = np.full(columns, np.inf), np.full(columns, -np.inf), np.zeros(columns)
+    np.minimum.at(low, column, z - half)
+    np.maximum.at(high, column, z + half)
+    same = column[1:] == column[:-1]
+    np.maximum.at(gap, column[1:][same], np.diff(z)[same] - config.voxel_m)
+    gap = np.maximum(gap, np.maximum(low - bottom, top - high))
+    return (high - low >= config.wall_min_span_m) & (gap <= config.wall_gap_m)
 
 
 def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:

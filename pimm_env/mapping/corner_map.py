@@ -87,6 +87,10 @@ def _as_map(found: list[tuple[float, float, float, float]]) -> CornerMap:
     return CornerMap(arr[:, :2], arr[:, 2], arr[:, 3])
 
 
+#: cells (of ``CornerMapConfig.resolution``) a corner's free side may lie off a mesh ceiling's cover
+MESH_CEILING_REACH = 2
+
+
 def _vector_corner_map(world: World, config: CornerMapConfig) -> CornerMap:
     """Vertices of the walls' cross-section just under each ceiling where the outline turns by at least
     ``min_turn_deg``, both edges run ``min_face``, and the free side is under that ceiling and in an area (a
@@ -104,7 +108,10 @@ def _vector_corner_map(world: World, config: CornerMapConfig) -> CornerMap:
         if grid is None:
             covered = _section(world, SemanticClass.CEILING, height + 0.01).covers
         else:
-            covered = _under(ceiling_cover(world, grid, height), grid)
+            # a mesh ceiling's cover is a raster of its faces, at the heights its columns were drawn at: beside a
+            # wall that rises to a higher ceiling its edge can stand a cell or two off the wall's face
+            near = ndimage.binary_dilation(ceiling_cover(world, grid, height), iterations=MESH_CEILING_REACH)
+            covered = _under(near, grid)
         for ring in _rings(walls):
             coords = np.asarray(ring.coords)[:-1]
             for i, vertex in enumerate(coords):
