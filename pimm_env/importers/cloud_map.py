@@ -187,9 +187,7 @@ def _ghosts(voxels: np.ndarray, classes: np.ndarray, levelled: np.ndarray, confi
     column, inverse = np.unique(voxels[clutter, :2], axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)
     z = voxels[clutter, 2] * v
-    low, high = np.full(len(column), np.inf), np.full(len(column), -np.inf)
-    np.minimum.at(low, inverse, z)
-    np.maximum.at(high, inverse, z + v)
+    low, high = _extent(inverse, z, z + v, len(column))
     on_floor = levelled[np.abs(levelled[:, 2]) < v / 2, :2]
     cells = np.unique(np.floor(on_floor / (v / 2)).astype(np.int64), axis=0)  # the half-voxel cells seen
     under, seen = np.unique(np.floor(cells / 2).astype(np.int64), axis=0, return_counts=True)
@@ -266,16 +264,22 @@ def _classes(voxels: np.ndarray, config: CloudMapConfig) -> tuple[np.ndarray, np
     return classes, top[inverse]
 
 
+def _extent(column: np.ndarray, bottom: np.ndarray, top: np.ndarray, columns: int) -> tuple[np.ndarray, np.ndarray]:
+    """The lowest ``bottom`` and the highest ``top`` of each of ``columns`` (its voxels' ``column``)."""
+    low, high = np.full(columns, np.inf), np.full(columns, -np.inf)
+    np.minimum.at(low, column, bottom)
+    np.maximum.at(high, column, top)
+    return low, high
+
+
 def _stacked(column: np.ndarray, z: np.ndarray, columns: int, bottom: float, top: np.ndarray, config: CloudMapConfig):
     """Which of ``columns`` hold voxels (their ``column`` and heights ``z``) stacked from ``bottom`` to their
     ``top`` over at least ``wall_min_span_m``, no two (nor an end and its nearest) further apart than
     ``wall_gap_m``."""
     order = np.lexsort((z, column))
     column, z = column[order], z[order]
-    half = config.voxel_m / 2
-    low, high, gap = np.full(columns, np.inf), np.full(columns, -np.inf), np.zeros(columns)
-    np.minimum.at(low, column, z - half)
-    np.maximum.at(high, column, z + half)
+    low, high = _extent(column, z - config.voxel_m / 2, z + config.voxel_m / 2, columns)
+    gap = np.zeros(columns)
     same = column[1:] == column[:-1]
     np.maximum.at(gap, column[1:][same], np.diff(z)[same] - config.voxel_m)
     gap = np.maximum(gap, np.maximum(low - bottom, top - high))
