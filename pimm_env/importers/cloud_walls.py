@@ -41,11 +41,14 @@ def wall_planes(
                 continue
             offset = float(np.median(points[piece, :2] @ normal[:2] / np.hypot(normal[0], normal[1])))
             n2 = normal[:2] / np.hypot(normal[0], normal[1])
-            side = _behind(offset * n2 + (lo + hi) / 2 * along, n2, floor, config.voxel_m)
-            thickness = config.voxel_m
-            if side == 0:  # floor seen on both sides (or neither): the body is towards the wall's other face
-                side, depth = _other_face(offset, n2, along, lo, hi, cells, config.voxel_m)
-                thickness = max(thickness, depth / 2 + config.voxel_m / 2)
+            # the body is towards the wall's other face (seen from the other room); failing that, away from the
+            # floor seen in front of it
+            own = {(int(x), int(y)) for x, y in np.floor(points[piece, :2] / config.voxel_m)}
+            side, depth = _other_face(offset, n2, along, lo, hi, cells - own, config.voxel_m)
+            thickness = max(config.voxel_m, depth)
+            if side == 0:
+                side = _behind(offset * n2 + (lo + hi) / 2 * along, n2, floor, config.voxel_m)
+                thickness = ONE_FACED_M if side else config.voxel_m
             offset += side * thickness / 2
             a = offset * n2 + (lo - config.voxel_m / 2) * along
             b = offset * n2 + (hi + config.voxel_m / 2) * along
@@ -86,33 +89,33 @@ def _behind(middle: np.ndarray, normal: np.ndarray, floor: set[tuple[int, int]],
     it, where the wall's body stands; 0 when the floor is seen on both sides or neither."""
     seen = []
     for side in (1, -1):
-        probe = np.floor((middle + side * 0.3 * normal) / voxel_m).astype(int)
+        probe = np.floor((middle + side * 0.25 * normal) / voxel_m).astype(int)
         seen.append((int(probe[0]), int(probe[1])) in floor)
     return 0 if seen[0] == seen[1] else (1 if seen[1] else -1)
 
 
-#: how far behind a wall's face its other face is looked for (m): the thickest interior wall
-OTHER_FACE_M = (0.15, 0.25, 0.35)
+#: the body of a wall seen from one side only (m): as thick as an outer wall, so that the corners of its back
+#: lie outside the building
+ONE_FACED_M = 0.2
+#: how far behind a wall's face its other face is looked for (m): the thinnest and thickest interior walls
+OTHER_FACE_M = (0.15, 0.4)
 
 
 def _other_face(
     offset: float, normal: np.ndarray, along: np.ndarray, lo: float, hi: float, cells: set, voxel_m: float
 ) -> tuple[int, float]:
     """+1 or -1: the side of a wall face (its line at ``offset`` along ``normal``, from ``lo`` to ``hi`` along
-    ``along``) where wall voxels (``cells``, voxel columns) stand within ``OTHER_FACE_M`` of it, over the face's
-    length: its other face, seen from the other room; and how far (m). 0, 0.0 when neither side or both."""
-    found = {}
-    for side in (1, -1):
-        for depth in OTHER_FACE_M:
-            probes = [(offset + side * depth) * normal + s * along for s in np.linspace(lo, hi, 7)]
-            hits = sum((int(x), int(y)) in cells for x, y in np.floor(np.array(probes) / voxel_m))
-            if hits >= 3:
-                found[side] = depth
-                break
-    if len(found) != 1:
-        return 0, 0.0
-    side, depth = next(iter(found.items()))
-    return side, depth
+    ``along``) where wall voxels (``cells``, voxel columns) stand parallel to it within ``OTHER_FACE_M``, over a
+    third of the face's length and 0.3 m at least: its other face, seen from the other room; and how far (m), face to face.
+    0, 0.0 when neither side; the nearer when both."""
+    steps = np.linspace(lo, hi, 11)[1:-1]  # not at its ends, where the walls it meets stand
+    for depth in np.arange(OTHER_FACE_M[0], OTHER_FACE_M[1] + 1e-9, voxel_m / 2):
+        for side in (1, -1):
+            probes = (offset + side * depth) * normal + steps[:, None] * along
+            hit = np.array([(int(x), int(y)) in cells for x, y in np.floor(probes / voxel_m)])
+            if hit.sum() >= 4 and np.ptp(steps[hit]) >= max(0.3, (hi - lo) / 3):  # not a wall across its end
+                return side, float(depth)
+    return 0, 0.0
 
 
 def meet(walls: np.ndarray, reach: float) -> np.ndarray:
@@ -141,8 +144,12 @@ def meet(walls: np.ndarray, reach: float) -> np.ndarray:
                 p0, p1 = walls[other, 0:2], walls[other, 2:4]
                 along = float(np.dot(point - p0, p1 - p0) / np.dot(p1 - p0, p1 - p0))
                 near = near if 0.0 <= along <= 1.0 else []
-            for k, end in near:
-                walls[k, 2 * end : 2 * end + 2] = point
+            for k, end in near:  # onto the meeting point and on by half the other's thickness: its far face
+                other = j if k == i else i
+                start = walls[k, 2 - 2 * end : 4 - 2 * end]
+                walls[k, 2 * end : 2 * end + 2] = point + (point - start) / np.hypot(*(point - start)) * (
+                    walls[other, 4] / 2
+                )
     return walls
 
 
