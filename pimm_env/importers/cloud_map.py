@@ -346,7 +346,8 @@ def floor_areas(
     cloud_map: CloudMap, config: CloudMapConfig, source: Path | str = "cloud"
 ) -> dict[str, list[list[float]]]:
     """The outlines of the floor's patches of at least ``min_area_m2`` (the floor seen, and hidden under a seen
-    ceiling with nothing standing there; small gaps under furniture closed), as named areas ``floor_1``, ``floor_2``, ... in metres."""
+    ceiling with nothing standing there; small gaps under furniture closed), as named areas ``floor_1``,
+    ``floor_2``, ... in metres."""
     from scipy import ndimage
 
     from pimm_env.importers.vectorize import traced_polygons

@@ -19,13 +19,16 @@ def wall_planes(
     floor on both sides, towards its other face (a wall seen from both rooms); and which centres lie on one.
     ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
-    cells = {(int(x), int(y)) for x, y in np.floor(centres[:, :2] / config.voxel_m)}
     walls: list[list[float]] = []
     on_plane = np.zeros(len(centres), dtype=bool)
     remaining = np.arange(len(centres))
     tops = np.asarray(tops, dtype=float)
+    square = None  # the building's square: the direction of its longest wall, the first plane found
     while len(remaining) >= 20:
         inliers, normal = _ransac_line(centres[remaining, :2], config.wall_plane_m, rng)
+        if square is None:
+            square = float(np.arctan2(normal[1], normal[0]))
+        inliers, normal = _squared(centres[remaining, :2], inliers, normal, square, config.wall_plane_m)
         inliers = remaining[inliers]
         if len(inliers) < 20:
             break
@@ -43,8 +46,9 @@ def wall_planes(
             n2 = normal[:2] / np.hypot(normal[0], normal[1])
             # the body is towards the wall's other face (seen from the other room); failing that, away from the
             # floor seen in front of it
-            own = {(int(x), int(y)) for x, y in np.floor(points[piece, :2] / config.voxel_m)}
-            side, depth = _other_face(offset, n2, along, lo, hi, cells - own, config.voxel_m)
+            others = np.ones(len(centres), dtype=bool)
+            others[inliers[piece]] = False
+            side, depth = _other_face(offset, n2, along, lo, hi, centres[others, :2], config.voxel_m)
             thickness = max(config.voxel_m, depth)
             if side == 0:
                 side = _behind(offset * n2 + (lo + hi) / 2 * along, n2, floor, config.voxel_m)
@@ -84,6 +88,28 @@ def _ransac_line(xy: np.ndarray, within: float, rng: np.random.Generator, draws:
     return np.flatnonzero(np.abs(xy @ normal - offset) < within), normal
 
 
+#: a wall plane this near (deg) to the building's own square is tried square to it
+SQUARE_DEG = 10.0
+
+
+def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: float, within: float) -> tuple:
+    """The plane (``inliers`` of ``xy``, unit ``normal``) turned square to the building (``square``: a wall's
+    normal, rad) where it lies within ``SQUARE_DEG`` of it and holds at least as many points so (a thin wall's
+    two faces, fitted on a slant across both, are one plane square to the building), else as it is."""
+    angle = np.arctan2(normal[1], normal[0])
+    turn = (angle - square + np.pi / 4) % (np.pi / 2) - np.pi / 4
+    if abs(turn) > np.radians(SQUARE_DEG) or not len(inliers):
+        return inliers, normal
+    snapped = np.array([np.cos(angle - turn), np.sin(angle - turn)])
+    offset = float(np.median(xy[inliers] @ snapped))
+    for _ in range(2):
+        kept = np.flatnonzero(np.abs(xy @ snapped - offset) < within)
+        if not len(kept):
+            return inliers, normal
+        offset = float(np.median(xy[kept] @ snapped))
+    return (kept, snapped) if len(kept) >= len(inliers) else (inliers, normal)
+
+
 def _behind(middle: np.ndarray, normal: np.ndarray, floor: set[tuple[int, int]], voxel_m: float) -> int:
     """+1 or -1: the side of a wall surface through ``middle`` (along ``normal``) with no seen floor in front of
     it, where the wall's body stands; 0 when the floor is seen on both sides or neither."""
@@ -101,20 +127,24 @@ ONE_FACED_M = 0.2
 OTHER_FACE_M = (0.15, 0.4)
 
 
-def _other_face(
-    offset: float, normal: np.ndarray, along: np.ndarray, lo: float, hi: float, cells: set, voxel_m: float
-) -> tuple[int, float]:
+def _other_face(offset: float, normal: np.ndarray, along: np.ndarray, lo: float, hi: float, xy: np.ndarray, v: float):
     """+1 or -1: the side of a wall face (its line at ``offset`` along ``normal``, from ``lo`` to ``hi`` along
-    ``along``) where wall voxels (``cells``, voxel columns) stand parallel to it within ``OTHER_FACE_M``, over a
-    third of the face's length and 0.3 m at least: its other face, seen from the other room; and how far (m), face to face.
-    0, 0.0 when neither side; the nearer when both."""
-    steps = np.linspace(lo, hi, 11)[1:-1]  # not at its ends, where the walls it meets stand
-    for depth in np.arange(OTHER_FACE_M[0], OTHER_FACE_M[1] + 1e-9, voxel_m / 2):
+    ``along``) where other wall voxels' points (``xy``) lie parallel to it, within ``OTHER_FACE_M`` and a voxel
+    (``v``) of one depth, along a third of the face's length and 0.3 m at least: its other face, seen from the
+    other room, with fewer points between the two (the wall's body) than on it; and how far it is (m, their
+    median). 0, 0.0 when neither side; the nearer when both."""
+    depth = xy @ normal - offset
+    s = xy @ along
+    inside = (s > lo + v) & (s < hi - v)  # not at its ends, where the walls it meets stand
+    for probe in np.arange(OTHER_FACE_M[0], OTHER_FACE_M[1] + 1e-9, v / 4):
         for side in (1, -1):
-            probes = (offset + side * depth) * normal + steps[:, None] * along
-            hit = np.array([(int(x), int(y)) in cells for x, y in np.floor(probes / voxel_m)])
-            if hit.sum() >= 4 and np.ptp(steps[hit]) >= max(0.3, (hi - lo) / 3):  # not a wall across its end
-                return side, float(depth)
+            band = inside & (np.abs(side * depth - probe) < v / 2)
+            count = np.count_nonzero(band)
+            # the wall's body between its faces is empty: a face's own scatter thins out, it does not come back
+            body = np.count_nonzero(inside & (side * depth > v / 2) & (side * depth < probe - v / 2))
+            along_it = len(np.unique(np.floor(s[band] / v)))  # walls across it fill a voxel or two each
+            if body < count / 2 and along_it >= max(3, (hi - lo) / v / 3):
+                return side, float(np.median(side * depth[band]))
     return 0, 0.0
 
 
