@@ -195,3 +195,13 @@ def test_a_rooms_floor_hidden_from_the_lidar_under_its_seen_ceiling_is_floor():
     assert floor[0].covers(Point(5.7, 3.7))  # the far corner the LiDAR did not see the floor of
     assert not floor[0].covers(Point(6.2, 2.0)) and not floor[0].covers(Point(3.0, -0.2))
     assert 21.0 < floor[0].area < 26.5  # the room, and the rim of voxels its walls stand in
+
+
+def test_the_ceiling_stops_at_the_walls_faces():
+    """The ceiling's points scatter a voxel past the walls' faces; over a wall's body it is no ceiling (the
+    corners behind a wall would stand under it)."""
+    from pimm_env.importers.cloud_map import CloudMapConfig, classify, surface_meshes
+
+    cloud_map = classify(slam_like_room(np.random.default_rng(4)), CloudMapConfig())
+    low, high = surface_meshes(cloud_map)["ceiling"].bounds
+    assert low[0] > -0.01 and low[1] > -0.01 and high[0] < 6.01 and high[1] < 4.01

@@ -37,7 +37,7 @@ def test_a_wall_seen_from_both_rooms_stands_between_its_two_faces():
     x = rng.uniform(0.0, 5.0, 400)
     faces = np.column_stack([x, np.where(np.arange(400) % 2, 0.1, -0.1), rng.uniform(1.2, 2.5, 400)])
     floor = {(i, j) for i in range(-5, 55) for j in range(-20, 20) if abs(j + 0.5) > 2}
-    walls, on_plane = wall_planes(faces, np.full(400, 2.6), floor, config)
+    walls, on_plane = wall_planes(faces, np.full(400, 2.6), (floor, floor), config)
     assert on_plane.all() and len(walls) == 2
     covered = []
     for _, y0, _, y1, thickness, _, _ in walls:
@@ -57,7 +57,7 @@ def test_a_wall_seen_from_one_room_stands_behind_its_face():
     an outer wall, so that the corners of its back lie outside the building."""
     rng = np.random.default_rng(1)
     floor = {(i, j) for i in range(0, 50) for j in range(-40, -1)}
-    walls, _ = wall_planes(_face(rng, 300, 0.0, 5.0, 0.0), np.full(300, 2.6), floor, CloudMapConfig())
+    walls, _ = wall_planes(_face(rng, 300, 0.0, 5.0, 0.0), np.full(300, 2.6), (floor, floor), CloudMapConfig())
     assert len(walls) == 1
     _, y0, _, _, thickness, _, _ = walls[0]
     assert thickness == ONE_FACED_M and abs(y0 - thickness / 2) < 0.02  # its room-side face on the points
@@ -76,7 +76,7 @@ def test_a_thin_walls_two_faces_seen_unevenly_are_one_wall_square_to_the_buildin
     ]
     centres = np.vstack(parts)
     floor = {(i, j) for i in range(-10, 90) for j in range(-29, 20) if abs(j + 0.5) > 2}
-    walls, _ = wall_planes(centres, np.full(len(centres), 2.6), floor, CloudMapConfig())
+    walls, _ = wall_planes(centres, np.full(len(centres), 2.6), (floor, floor), CloudMapConfig())
     partition = [w for w in walls if abs((w[1] + w[3]) / 2) < 0.5]
     longest = max(walls, key=lambda w: np.hypot(w[2] - w[0], w[3] - w[1]))
     assert len(partition) == 1

@@ -168,8 +168,9 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
     voxels, classes = np.vstack([voxels, filled]), np.concatenate([classes, np.full(len(filled), CEILING, np.int8)])
     wall = np.flatnonzero(classes == WALL)
     plan, lo = _open_floor(voxels, classes)
-    floor = {(int(x + lo[0]), int(y + lo[1])) for y, x in zip(*np.nonzero(plan), strict=True)}
-    walls, on_plane = wall_planes(means[wall], tops[wall] + config.voxel_m / 2, floor, config)
+    seen = {(int(x), int(y)) for x, y in voxels[classes == FLOOR, :2]}
+    open_floor = {(int(x + lo[0]), int(y + lo[1])) for y, x in zip(*np.nonzero(plan), strict=True)}
+    walls, on_plane = wall_planes(means[wall], tops[wall] + config.voxel_m / 2, (seen, open_floor), config)
     loose = wall[~on_plane]
     classes[loose] = CLUTTER  # upright structure on no wall plane: a cabinet's side, a pillar
     set_aside["wall voxels on no wall plane (taken as clutter)"] = len(loose)
@@ -304,6 +305,7 @@ def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
             continue
         own = cloud_map.voxels[cloud_map.classes == k]
         if k == CEILING:
+            own = own[~_in_walls((own[:, :2] + 0.5) * v, cloud_map.walls)]  # the ceiling stops at the walls' faces
             if len(own):
                 meshes[name] = _ceiling_underside(own, v)
             continue
@@ -315,6 +317,20 @@ def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
             continue
         meshes[name] = _quads_mesh(np.concatenate(quads).reshape(-1, 4, 3).astype(float) * v)
     return meshes
+
+
+def _in_walls(xy: np.ndarray, walls: np.ndarray) -> np.ndarray:
+    """Which points ``xy`` (K, 2) lie in the plan of one of ``walls`` (as ``CloudMap.walls``)."""
+    inside = np.zeros(len(xy), dtype=bool)
+    for x0, y0, x1, y1, thickness, _, _ in walls:
+        line = np.array([x1 - x0, y1 - y0])
+        length = float(np.hypot(*line))
+        if length < 1e-9:
+            continue
+        along = (xy - [x0, y0]) @ line / length
+        across = (xy - [x0, y0]) @ np.array([-line[1], line[0]]) / length
+        inside |= (along >= 0.0) & (along <= length) & (np.abs(across) < thickness / 2)
+    return inside
 
 
 def _ceiling_underside(ceiling: np.ndarray, v: float):

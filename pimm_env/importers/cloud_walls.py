@@ -10,14 +10,15 @@ import numpy as np
 
 
 def wall_planes(
-    centres: np.ndarray, tops: np.ndarray, floor: set[tuple[int, int]], config: Any
+    centres: np.ndarray, tops: np.ndarray, floors: tuple[set, set], config: Any
 ) -> tuple[np.ndarray, np.ndarray]:
     """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
     voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
     ``door_gap_m``: the walls, (W, 7) as ``CloudMap.walls``, each up to the ceiling over it (its columns'
-    ``tops``) and standing behind its surface, on the side away from the seen ``floor`` (voxel columns) or, with
-    floor on both sides, towards its other face (a wall seen from both rooms); and which centres lie on one.
-    ``config``: cloud_map.CloudMapConfig."""
+    ``tops``) and standing behind its surface: towards its other face (a wall seen from both rooms), else away
+    from the floor in front of it (``floors``: the voxel columns of the floor seen and of the open floor,
+    :func:`_behind`); and which centres lie on one. Planes within ``SQUARE_DEG`` of the first (the longest
+    wall) are fitted square to it where that holds as many points. ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
     walls: list[list[float]] = []
     on_plane = np.zeros(len(centres), dtype=bool)
@@ -51,7 +52,7 @@ def wall_planes(
             side, depth = _other_face(offset, n2, along, lo, hi, centres[others, :2], config.voxel_m)
             thickness = max(config.voxel_m, depth)
             if side == 0:
-                side = _behind(offset * n2 + (lo + hi) / 2 * along, n2, floor, config.voxel_m)
+                side = _behind((offset * n2 + lo * along, offset * n2 + hi * along), n2, floors, config.voxel_m)
                 thickness = ONE_FACED_M if side else config.voxel_m
             offset += side * thickness / 2
             a = offset * n2 + (lo - config.voxel_m / 2) * along
@@ -110,19 +111,23 @@ def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: fl
     return (kept, snapped) if len(kept) >= len(inliers) else (inliers, normal)
 
 
-def _behind(middle: np.ndarray, normal: np.ndarray, floor: set[tuple[int, int]], voxel_m: float) -> int:
-    """+1 or -1: the side of a wall surface through ``middle`` (along ``normal``) with no seen floor in front of
-    it, where the wall's body stands; 0 when the floor is seen on both sides or neither."""
-    seen = []
-    for side in (1, -1):
-        probe = np.floor((middle + side * 0.25 * normal) / voxel_m).astype(int)
-        seen.append((int(probe[0]), int(probe[1])) in floor)
-    return 0 if seen[0] == seen[1] else (1 if seen[1] else -1)
+def _behind(face: tuple[np.ndarray, np.ndarray], normal: np.ndarray, floors: tuple[set, set], voxel_m: float) -> int:
+    """+1 or -1: the side of a wall face (from ``face[0]`` to ``face[1]``, facing along ``normal``) where its body
+    stands: away from the floor seen right at its foot (``floors[0]``, voxel columns: the LiDAR saw that side),
+    else away from the open floor a little further out (``floors[1]``); 0 when neither tells."""
+    for floor, reach in zip(floors, (0.15, 0.25), strict=True):
+        counts = []
+        for side in (1, -1):
+            probes = [face[0] + t * (face[1] - face[0]) + side * reach * normal for t in np.linspace(0.1, 0.9, 5)]
+            counts.append(sum((int(x), int(y)) in floor for x, y in np.floor(np.array(probes) / voxel_m)))
+        if counts[0] != counts[1]:
+            return 1 if counts[1] > counts[0] else -1
+    return 0
 
 
 #: the body of a wall seen from one side only (m): as thick as an outer wall, so that the corners of its back
 #: lie outside the building
-ONE_FACED_M = 0.2
+ONE_FACED_M = 0.15
 #: how far behind a wall's face its other face is looked for (m): the thinnest and thickest interior walls
 OTHER_FACE_M = (0.15, 0.4)
 
