@@ -24,7 +24,7 @@ def test_a_corner_is_in_sight_from_its_room_not_from_behind_a_thin_wall():
     walls[[0, -1], :] = walls[:, [0, -1]] = True
     walls[:60, 80:82] = True  # the wall, up to the door at y = 3 m
     poses = np.column_stack([np.linspace(1.0, 3.0, 9), np.full(9, 3.5), np.zeros(9)])
-    corners = np.array([[0.05, 0.05], [3.95, 0.05], [4.15, 0.05], [4.15, 2.9], [9.95, 4.95]])
+    corners = np.array([[0.05, 0.05], [3.95, 0.05], [4.15, 0.05], [4.15, 2.0], [9.95, 4.95]])
     assert in_sight(corners, walls, grid, poses, 10.0).tolist() == [True, True, False, False, True]
 
 
