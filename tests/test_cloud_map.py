@@ -164,3 +164,44 @@ def test_a_far_wall_seen_only_as_the_lidars_rings_is_a_wall_and_a_cabinet_is_not
     front = high & (np.abs(centres[:, 1] - 3.5) < 0.06) & (centres[:, 0] > 2.1) & (centres[:, 0] < 2.9)
     assert np.mean(cloud.classes[far] == WALL) > 0.8
     assert front.any() and np.all(cloud.classes[front] == CLUTTER)
+
+
+def test_a_rooms_floor_hidden_from_the_lidar_under_its_seen_ceiling_is_floor():
+    """A room mapped through its doorway: the floor seen only near the door (x < 2), the ceiling over all of it.
+    Its floor area reaches the far walls (where the corners are), not only the floor the LiDAR saw, and stops
+    at the walls."""
+    from shapely.geometry import Point, Polygon
+
+    from pimm_env.importers.cloud_map import CloudMapConfig, classify, floor_areas
+
+    rng = np.random.default_rng(3)
+    parts = [
+        surface(rng, [0, 0, 0], [2, 4, 0], 20_000),  # the floor seen
+        surface(rng, [0, 0, 3], [6, 4, 3], 60_000),  # the ceiling, all of it
+        surface(rng, [0, 0, 0], [2, 0, 3], 15_000),  # the walls: their foot seen near the door only
+        surface(rng, [0, 4, 0], [2, 4, 3], 15_000),
+        surface(rng, [0, 0, 0], [0, 4, 3], 30_000),
+        surface(rng, [2, 0, 0.5], [6, 0, 3], 25_000),
+        surface(rng, [2, 4, 0.5], [6, 4, 3], 25_000),
+        surface(rng, [6, 0, 0.5], [6, 4, 3], 25_000),
+        surface(rng, [5.0, 0.0, 0.0], [5.0, 1.0, 1.9], 3000),  # a cabinet's front in the far corner ...
+        surface(rng, [5.0, 1.0, 0.0], [6.0, 1.0, 1.9], 3000),  # ... and its side
+        surface(rng, [5.0, 0.0, 1.9], [6.0, 1.0, 1.9], 3000),  # ... and its top
+    ]
+    config = CloudMapConfig()
+    areas = floor_areas(classify(np.vstack(parts), config), config)
+    floor = [Polygon(ring) for ring in areas.values()]
+    assert len(floor) == 1
+    assert floor[0].covers(Point(5.7, 3.7))  # the far corner the LiDAR did not see the floor of
+    assert not floor[0].covers(Point(6.2, 2.0)) and not floor[0].covers(Point(3.0, -0.2))
+    assert 21.0 < floor[0].area < 26.5  # the room, and the rim of voxels its walls stand in
+
+
+def test_the_ceiling_stops_at_the_walls_faces():
+    """The ceiling's points scatter a voxel past the walls' faces; over a wall's body it is no ceiling (the
+    corners behind a wall would stand under it)."""
+    from pimm_env.importers.cloud_map import CloudMapConfig, classify, surface_meshes
+
+    cloud_map = classify(slam_like_room(np.random.default_rng(4)), CloudMapConfig())
+    low, high = surface_meshes(cloud_map)["ceiling"].bounds
+    assert low[0] > -0.01 and low[1] > -0.01 and high[0] < 6.01 and high[1] < 4.01

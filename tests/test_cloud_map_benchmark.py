@@ -2,7 +2,7 @@ import numpy as np
 
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.world.grid import GridSpec
-from training.cloud_maps import MATCH_M, corner_figures, seen_cells
+from training.cloud_maps import MATCH_M, corner_figures, in_sight, seen_cells
 
 
 def test_rays_from_the_mapping_poses_see_the_faces_in_front_of_them_not_the_rooms_behind():
@@ -13,6 +13,19 @@ def test_rays_from_the_mapping_poses_see_the_faces_in_front_of_them_not_the_room
     seen = seen_cells(walls, grid, np.array([[1.0, 2.0, 0.0], [2.0, 2.0, 0.0]]), reach_m=10.0)
     assert seen[1:-1, 80].sum() > 60 and not seen[1:-1, 81].any()  # the near face, not its back
     assert not seen[1:-1, 82:].any()  # nothing of the room behind it
+
+
+def test_a_corner_is_in_sight_from_its_room_not_from_behind_a_thin_wall():
+    """A 10 cm wall at x = 4.0-4.1 m between two rooms, a door at y = 3-4 m; the mapping poses in the left room.
+    The corners of the right room beside the wall lie 10 cm from the wall cells seen from the left, but no ray
+    reaches them; its far corner is seen through the door."""
+    grid = GridSpec(origin=(0.0, 0.0), resolution=0.05, shape=(100, 200))  # 10 m x 5 m
+    walls = np.zeros(grid.shape, dtype=bool)
+    walls[[0, -1], :] = walls[:, [0, -1]] = True
+    walls[:60, 80:82] = True  # the wall, up to the door at y = 3 m
+    poses = np.column_stack([np.linspace(1.0, 3.0, 9), np.full(9, 3.5), np.zeros(9)])
+    corners = np.array([[0.05, 0.05], [3.95, 0.05], [4.15, 0.05], [4.15, 2.0], [9.95, 4.95]])
+    assert in_sight(corners, walls, grid, poses, 10.0).tolist() == [True, True, False, False, True]
 
 
 def test_corners_are_matched_within_ten_centimetres_and_the_rest_counted_both_ways():

@@ -1,9 +1,10 @@
-"""The walls of a point-cloud map: ends met at L corners and T junctions, a wall seen from both rooms made whole."""
+"""The walls of a point-cloud map: ends met at L corners and T junctions, a wall seen from both rooms made whole,
+a wall seen from one room stood behind its face, a thin wall's two faces fitted square to the building."""
 
 import numpy as np
 
 from pimm_env.importers.cloud_map import CloudMapConfig
-from pimm_env.importers.cloud_walls import meet, wall_planes
+from pimm_env.importers.cloud_walls import ONE_FACED_M, meet, wall_planes
 
 
 def _wall(x0, y0, x1, y1):
@@ -14,7 +15,7 @@ def test_a_partition_stopping_short_of_the_wall_it_meets_is_carried_to_it():
     walls = np.array([_wall(0.0, 0.0, 8.0, 0.0), _wall(3.0, -0.25, 3.0, -5.0)])  # a T, 0.25 m short
     met = meet(walls, 0.4)
     assert np.allclose(met[0], walls[0])  # the wall running past is left as it was
-    assert np.allclose(met[1, :4], [3.0, 0.0, 3.0, -5.0])
+    assert np.allclose(met[1, :4], [3.0, 0.05, 3.0, -5.0])  # to its far face: no notch beside the partition
     far = np.array([_wall(0.0, 0.0, 8.0, 0.0), _wall(3.0, -0.6, 3.0, -5.0)])  # further than reach: a doorway
     assert np.allclose(meet(far, 0.4), far)
     beside = np.array([_wall(0.0, 0.0, 2.0, 0.0), _wall(3.0, -0.25, 3.0, -5.0)])  # the line runs, the wall not
@@ -22,8 +23,10 @@ def test_a_partition_stopping_short_of_the_wall_it_meets_is_carried_to_it():
 
 
 def test_an_l_corner_hidden_by_furniture_is_closed_on_both_walls():
+    """Each wall runs on past the meeting point of their middle lines by half the other's thickness: the boxes
+    fill the corner's outer square, so that their outline turns once on each side (no 5 cm notch)."""
     met = meet(np.array([_wall(0.0, 0.3, 0.0, 5.0), _wall(0.3, 0.0, 6.0, 0.0)]), 0.4)
-    assert np.allclose(met[0, :2], [0.0, 0.0]) and np.allclose(met[1, :2], [0.0, 0.0])
+    assert np.allclose(met[0, :2], [0.0, -0.05]) and np.allclose(met[1, :2], [-0.05, 0.0])
 
 
 def test_a_wall_seen_from_both_rooms_stands_between_its_two_faces():
@@ -34,7 +37,7 @@ def test_a_wall_seen_from_both_rooms_stands_between_its_two_faces():
     x = rng.uniform(0.0, 5.0, 400)
     faces = np.column_stack([x, np.where(np.arange(400) % 2, 0.1, -0.1), rng.uniform(1.2, 2.5, 400)])
     floor = {(i, j) for i in range(-5, 55) for j in range(-20, 20) if abs(j + 0.5) > 2}
-    walls, on_plane = wall_planes(faces, np.full(400, 2.6), floor, config)
+    walls, on_plane = wall_planes(faces, np.full(400, 2.6), (floor, floor), config)
     assert on_plane.all() and len(walls) == 2
     covered = []
     for _, y0, _, y1, thickness, _, _ in walls:
@@ -43,3 +46,41 @@ def test_a_wall_seen_from_both_rooms_stands_between_its_two_faces():
     low, high = min(c[0] for c in covered), max(c[1] for c in covered)
     assert -0.12 < low < -0.08 and 0.08 < high < 0.12  # the wall's own faces, within 2 cm
     assert sorted(covered)[0][1] >= sorted(covered)[1][0] - 1e-9  # no slot between the two boxes
+
+
+def _face(rng, n, x0, x1, y):
+    return np.column_stack([rng.uniform(x0, x1, n), y + rng.normal(0.0, 0.01, n), rng.uniform(1.2, 2.5, n)])
+
+
+def test_a_wall_seen_from_one_room_stands_behind_its_face():
+    """An outer wall's face at y = 0, the room's floor seen on the side y < 0: its body lies at y > 0, as thick as
+    an outer wall, so that the corners of its back lie outside the building."""
+    rng = np.random.default_rng(1)
+    floor = {(i, j) for i in range(0, 50) for j in range(-40, -1)}
+    walls, _ = wall_planes(_face(rng, 300, 0.0, 5.0, 0.0), np.full(300, 2.6), (floor, floor), CloudMapConfig())
+    assert len(walls) == 1
+    _, y0, _, _, thickness, _, _ = walls[0]
+    assert thickness == ONE_FACED_M and abs(y0 - thickness / 2) < 0.02  # its room-side face on the points
+
+
+def test_a_thin_walls_two_faces_seen_unevenly_are_one_wall_square_to_the_building():
+    """A 0.1 m partition along x (faces at y = -0.05 and 0.05), one face seen at one end and the other at the
+    other end, beside a long square wall: a slanted line across both faces holds more of them, but the wall
+    is fitted square to the building, between its faces."""
+    rng = np.random.default_rng(2)
+    parts = [
+        _face(rng, 800, -1.0, 9.0, 2.0),  # the long wall that sets the building's square
+        _face(rng, 800, 0.0, 9.0, -3.0),
+        _face(rng, 150, 0.0, 3.0, -0.05),  # the partition: its lower face at the left end ...
+        _face(rng, 150, 2.0, 5.0, 0.05),  # ... its upper face at the right end
+    ]
+    centres = np.vstack(parts)
+    floor = {(i, j) for i in range(-10, 90) for j in range(-29, 20) if abs(j + 0.5) > 2}
+    walls, _ = wall_planes(centres, np.full(len(centres), 2.6), (floor, floor), CloudMapConfig())
+    partition = [w for w in walls if abs((w[1] + w[3]) / 2) < 0.5]
+    longest = max(walls, key=lambda w: np.hypot(w[2] - w[0], w[3] - w[1]))
+    assert len(partition) == 1
+    x0, y0, x1, y1, thickness, _, _ = partition[0]
+    slant = np.arctan2(y1 - y0, x1 - x0) - np.arctan2(longest[3] - longest[1], longest[2] - longest[0])
+    assert abs(np.sin(slant)) < 1e-9  # square to the building, not on a slant across the faces
+    assert y0 - thickness / 2 <= -0.03 and y0 + thickness / 2 >= 0.03  # the wall between its faces

@@ -10,12 +10,12 @@ voxels. The figures (:func:`score_import`):
 - what the map saw: rays of the LiDAR's range cast from the mapping poses across the building's walls at
   ``WALL_HEIGHT`` (above its furniture, below its ceilings); the wall cells they first hit were seen;
 - corners: the building's own corner map against the imported one, matched within ``MATCH_M`` in the plane:
-  the share found of the building's corners the map saw (both faces: seen wall cells near it in two directions)
-  and of all; and
+  the share found of the building's corners the map saw (in sight of a mapping pose, and both faces: seen wall
+  cells near it in two directions) and of all; and
   the share of imported corners that are none of the building's;
-- walls: both worlds cut at ``WALL_HEIGHT`` (people walking through and most furniture are lower): the import's
-  wall cells within reach of the seen ones against the seen ones, IoU cell for cell and within one cell (5 cm,
-  the grids' own step);
+- walls: both worlds cut at ``WALL_HEIGHT`` (people walking through and most furniture are lower), each within
+  two cells of a seen wall cell (the face the map saw and the wall's body behind it): IoU cell for cell and within
+  one cell (5 cm, the grids' own step);
 - the import's time per 1 000 m² of the floor it found.
 """
 
@@ -112,11 +112,7 @@ def seen_cells(occupied: np.ndarray, grid: Any, poses: np.ndarray, reach_m: floa
     ``reach_m``: the walls a LiDAR driven there saw."""
     from pimm_agents.active.views import cast_ranges
 
-    keep = [0]
-    for k in range(1, len(poses)):
-        if np.hypot(*(poses[k, :2] - poses[keep[-1], :2])) >= POSE_SPACING_M:
-            keep.append(k)
-    origins = np.ascontiguousarray(poses[keep, :2], dtype=float)
+    origins = _spaced(poses)
     bearings = np.linspace(-np.pi, np.pi, beams, endpoint=False)
     x0, y0 = grid.origin
     ranges = cast_ranges(origins, np.zeros(len(origins)), bearings, occupied, x0, y0, grid.resolution, reach_m)
@@ -152,6 +148,43 @@ def faces_seen(corners: np.ndarray, seen: np.ndarray, grid: Any, reach_m: float 
     return out
 
 
+def in_sight(corners: np.ndarray, occupied: np.ndarray, grid: Any, poses: np.ndarray, reach_m: float) -> np.ndarray:
+    """Which ``corners`` (K, 2) a ray from one of ``poses`` (every ``POSE_SPACING_M``) reaches within ``reach_m``
+    unblocked by ``occupied``: at a point 7 cm off the corner on each diagonal that is free (the room's side),
+    not only the wall cells beside it (the far side of a thin wall lies as near)."""
+    from pimm_agents.active.views import cast_ranges
+
+    origins = _spaced(poses)
+    x0, y0 = grid.origin
+    out = np.zeros(len(corners), dtype=bool)
+    for k, corner in enumerate(np.asarray(corners, dtype=float)):
+        for dx, dy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+            probe = corner + 0.07 * np.array([dx, dy])
+            rows, cols, valid = grid.cells_of(probe[None])
+            if not valid[0] or occupied[rows[0], cols[0]]:
+                continue
+            gap = probe - origins
+            far = np.hypot(gap[:, 0], gap[:, 1])
+            near = far < reach_m
+            if not near.any():
+                continue
+            heading = np.arctan2(gap[near, 1], gap[near, 0])
+            ranges = cast_ranges(origins[near], heading, np.zeros(1), occupied, x0, y0, grid.resolution, reach_m)
+            if np.any(ranges[:, 0] >= far[near] - grid.resolution):
+                out[k] = True
+                break
+    return out
+
+
+def _spaced(poses: np.ndarray) -> np.ndarray:
+    """The (x, y) of ``poses`` at least ``POSE_SPACING_M`` apart, in order."""
+    keep = [0]
+    for k in range(1, len(poses)):
+        if np.hypot(*(poses[k, :2] - poses[keep[-1], :2])) >= POSE_SPACING_M:
+            keep.append(k)
+    return np.ascontiguousarray(poses[keep, :2], dtype=float)
+
+
 def score_import(building: Path, imported: Path, poses: np.ndarray, reach_m: float = 10.0) -> dict[str, Any]:
     """The imported world ``imported`` (its derived maps built) against the building ``building`` (world files)
     that was mapped from ``poses`` with a LiDAR of ``reach_m``."""
@@ -168,11 +201,13 @@ def score_import(building: Path, imported: Path, poses: np.ndarray, reach_m: flo
     seen = seen_cells(walls.occupied, grid, poses, reach_m)
     made_walls = resample_occupied(occupancy_from_world(made_world, grid.resolution, WALL_HEIGHT), grid)
     near_seen = ndimage.binary_dilation(seen, iterations=2)  # the import's cells are judged where the map saw
-    corner_seen = faces_seen(own.corners.xy, seen, grid)
+    corner_seen = faces_seen(own.corners.xy, seen, grid) & in_sight(
+        own.corners.xy, walls.occupied, grid, poses, reach_m
+    )
     return {
         **corner_figures(own.corners, made.corners, corner_seen),
-        "wall_iou": tolerant_iou(seen, made_walls & near_seen, 0),
-        "wall_iou_5cm": tolerant_iou(seen, made_walls & near_seen, 1),
+        "wall_iou": tolerant_iou(walls.occupied & near_seen, made_walls & near_seen, 0),
+        "wall_iou_5cm": tolerant_iou(walls.occupied & near_seen, made_walls & near_seen, 1),
         "floor_m2": float(made.occupancy.free.sum() * made.occupancy.grid.resolution**2),
     }
 

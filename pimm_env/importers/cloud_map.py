@@ -167,8 +167,10 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
     set_aside["ceiling voxels filled in (gaps between seen ceiling)"] = len(filled)
     voxels, classes = np.vstack([voxels, filled]), np.concatenate([classes, np.full(len(filled), CEILING, np.int8)])
     wall = np.flatnonzero(classes == WALL)
-    floor = {(int(x), int(y)) for x, y in voxels[classes == FLOOR, :2]}
-    walls, on_plane = wall_planes(means[wall], tops[wall] + config.voxel_m / 2, floor, config)
+    plan, lo = _open_floor(voxels, classes)
+    seen = {(int(x), int(y)) for x, y in voxels[classes == FLOOR, :2]}
+    open_floor = {(int(x + lo[0]), int(y + lo[1])) for y, x in zip(*np.nonzero(plan), strict=True)}
+    walls, on_plane = wall_planes(means[wall], tops[wall] + config.voxel_m / 2, (seen, open_floor), config)
     loose = wall[~on_plane]
     classes[loose] = CLUTTER  # upright structure on no wall plane: a cabinet's side, a pillar
     set_aside["wall voxels on no wall plane (taken as clutter)"] = len(loose)
@@ -303,6 +305,7 @@ def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
             continue
         own = cloud_map.voxels[cloud_map.classes == k]
         if k == CEILING:
+            own = own[~_in_walls((own[:, :2] + 0.5) * v, cloud_map.walls)]  # the ceiling stops at the walls' faces
             if len(own):
                 meshes[name] = _ceiling_underside(own, v)
             continue
@@ -314,6 +317,20 @@ def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
             continue
         meshes[name] = _quads_mesh(np.concatenate(quads).reshape(-1, 4, 3).astype(float) * v)
     return meshes
+
+
+def _in_walls(xy: np.ndarray, walls: np.ndarray) -> np.ndarray:
+    """Which points ``xy`` (K, 2) lie in the plan of one of ``walls`` (as ``CloudMap.walls``)."""
+    inside = np.zeros(len(xy), dtype=bool)
+    for x0, y0, x1, y1, thickness, _, _ in walls:
+        line = np.array([x1 - x0, y1 - y0])
+        length = float(np.hypot(*line))
+        if length < 1e-9:
+            continue
+        along = (xy - [x0, y0]) @ line / length
+        across = (xy - [x0, y0]) @ np.array([-line[1], line[0]]) / length
+        inside |= (along >= 0.0) & (along <= length) & (np.abs(across) < thickness / 2)
+    return inside
 
 
 def _ceiling_underside(ceiling: np.ndarray, v: float):
@@ -344,18 +361,16 @@ def _quads_mesh(quad: np.ndarray):
 def floor_areas(
     cloud_map: CloudMap, config: CloudMapConfig, source: Path | str = "cloud"
 ) -> dict[str, list[list[float]]]:
-    """The outlines of the seen floor's patches of at least ``min_area_m2`` (small gaps under furniture closed),
-    as named areas ``floor_1``, ``floor_2``, ... in metres."""
+    """The outlines of the floor's patches of at least ``min_area_m2`` (the floor seen, and hidden under a seen
+    ceiling with nothing standing there; small gaps under furniture closed), as named areas ``floor_1``,
+    ``floor_2``, ... in metres."""
     from scipy import ndimage
 
     from pimm_env.importers.vectorize import traced_polygons
 
-    floor = cloud_map.voxels[cloud_map.classes == FLOOR]
-    if not len(floor):
+    if not np.any(cloud_map.classes == FLOOR):
         raise MapFileError(f"{source}: the map shows no floor under its surfaces: a robot has nowhere to stand")
-    lo = floor[:, :2].min(axis=0)
-    mask = np.zeros(tuple(floor[:, :2].max(axis=0) - lo + 1)[::-1], dtype=bool)
-    mask[floor[:, 1] - lo[1], floor[:, 0] - lo[0]] = True
+    mask, lo = _open_floor(cloud_map.voxels, cloud_map.classes)
     mask = ndimage.binary_closing(np.pad(mask, 3), iterations=3)[3:-3, 3:-3]
     mask = ndimage.binary_fill_holes(mask)
     v = cloud_map.voxel_m
@@ -368,6 +383,23 @@ def floor_areas(
     if not areas:
         raise MapFileError(f"{source}: the map's seen floor has no patch of {config.min_area_m2} m² or more")
     return areas
+
+
+def _open_floor(voxels: np.ndarray, classes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The plan (rows y, columns x, a voxel a cell) of the floor seen and of where the ceiling was seen over
+    nothing standing (floor hidden from the LiDAR: the far corners of rooms seen through their doorways), and the
+    voxel column of its cell (0, 0)."""
+    from scipy import ndimage
+
+    lo, hi = voxels[:, :2].min(axis=0), voxels[:, :2].max(axis=0)
+
+    def plan(of: np.ndarray) -> np.ndarray:
+        out = np.zeros(tuple(hi - lo + 1)[::-1], dtype=bool)
+        out[of[:, 1] - lo[1], of[:, 0] - lo[0]] = True
+        return out
+
+    standing = ndimage.binary_dilation(plan(voxels[(classes == WALL) | (classes == CLUTTER)]))
+    return plan(voxels[classes == FLOOR]) | (plan(voxels[classes == CEILING]) & ~standing), lo
 
 
 def write_cloud_world_mesh(cloud_map: CloudMap, path: Path) -> Path:

@@ -10,22 +10,26 @@ import numpy as np
 
 
 def wall_planes(
-    centres: np.ndarray, tops: np.ndarray, floor: set[tuple[int, int]], config: Any
+    centres: np.ndarray, tops: np.ndarray, floors: tuple[set, set], config: Any
 ) -> tuple[np.ndarray, np.ndarray]:
     """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
     voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
     ``door_gap_m``: the walls, (W, 7) as ``CloudMap.walls``, each up to the ceiling over it (its columns'
-    ``tops``) and standing behind its surface, on the side away from the seen ``floor`` (voxel columns) or, with
-    floor on both sides, towards its other face (a wall seen from both rooms); and which centres lie on one.
-    ``config``: cloud_map.CloudMapConfig."""
+    ``tops``) and standing behind its surface: towards its other face (a wall seen from both rooms), else away
+    from the floor in front of it (``floors``: the voxel columns of the floor seen and of the open floor,
+    :func:`_behind`); and which centres lie on one. Planes within ``SQUARE_DEG`` of the first (the longest
+    wall) are fitted square to it where that holds as many points. ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
-    cells = {(int(x), int(y)) for x, y in np.floor(centres[:, :2] / config.voxel_m)}
     walls: list[list[float]] = []
     on_plane = np.zeros(len(centres), dtype=bool)
     remaining = np.arange(len(centres))
     tops = np.asarray(tops, dtype=float)
+    square = None  # the building's square: the direction of its longest wall, the first plane found
     while len(remaining) >= 20:
         inliers, normal = _ransac_line(centres[remaining, :2], config.wall_plane_m, rng)
+        if square is None:
+            square = float(np.arctan2(normal[1], normal[0]))
+        inliers, normal = _squared(centres[remaining, :2], inliers, normal, square, config.wall_plane_m)
         inliers = remaining[inliers]
         if len(inliers) < 20:
             break
@@ -41,11 +45,15 @@ def wall_planes(
                 continue
             offset = float(np.median(points[piece, :2] @ normal[:2] / np.hypot(normal[0], normal[1])))
             n2 = normal[:2] / np.hypot(normal[0], normal[1])
-            side = _behind(offset * n2 + (lo + hi) / 2 * along, n2, floor, config.voxel_m)
-            thickness = config.voxel_m
-            if side == 0:  # floor seen on both sides (or neither): the body is towards the wall's other face
-                side, depth = _other_face(offset, n2, along, lo, hi, cells, config.voxel_m)
-                thickness = max(thickness, depth / 2 + config.voxel_m / 2)
+            # the body is towards the wall's other face (seen from the other room); failing that, away from the
+            # floor seen in front of it
+            others = np.ones(len(centres), dtype=bool)
+            others[inliers[piece]] = False
+            side, depth = _other_face(offset, n2, along, lo, hi, centres[others, :2], config.voxel_m)
+            thickness = max(config.voxel_m, depth)
+            if side == 0:
+                side = _behind((offset * n2 + lo * along, offset * n2 + hi * along), n2, floors, config.voxel_m)
+                thickness = ONE_FACED_M if side else config.voxel_m
             offset += side * thickness / 2
             a = offset * n2 + (lo - config.voxel_m / 2) * along
             b = offset * n2 + (hi + config.voxel_m / 2) * along
@@ -81,38 +89,68 @@ def _ransac_line(xy: np.ndarray, within: float, rng: np.random.Generator, draws:
     return np.flatnonzero(np.abs(xy @ normal - offset) < within), normal
 
 
-def _behind(middle: np.ndarray, normal: np.ndarray, floor: set[tuple[int, int]], voxel_m: float) -> int:
-    """+1 or -1: the side of a wall surface through ``middle`` (along ``normal``) with no seen floor in front of
-    it, where the wall's body stands; 0 when the floor is seen on both sides or neither."""
-    seen = []
-    for side in (1, -1):
-        probe = np.floor((middle + side * 0.3 * normal) / voxel_m).astype(int)
-        seen.append((int(probe[0]), int(probe[1])) in floor)
-    return 0 if seen[0] == seen[1] else (1 if seen[1] else -1)
+#: a wall plane this near (deg) to the building's own square is tried square to it
+SQUARE_DEG = 10.0
 
 
-#: how far behind a wall's face its other face is looked for (m): the thickest interior wall
-OTHER_FACE_M = (0.15, 0.25, 0.35)
+def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: float, within: float) -> tuple:
+    """The plane (``inliers`` of ``xy``, unit ``normal``) turned square to the building (``square``: a wall's
+    normal, rad) where it lies within ``SQUARE_DEG`` of it and holds at least as many points so (a thin wall's
+    two faces, fitted on a slant across both, are one plane square to the building), else as it is."""
+    angle = np.arctan2(normal[1], normal[0])
+    turn = (angle - square + np.pi / 4) % (np.pi / 2) - np.pi / 4
+    if abs(turn) > np.radians(SQUARE_DEG) or not len(inliers):
+        return inliers, normal
+    snapped = np.array([np.cos(angle - turn), np.sin(angle - turn)])
+    offset = float(np.median(xy[inliers] @ snapped))
+    for _ in range(2):
+        kept = np.flatnonzero(np.abs(xy @ snapped - offset) < within)
+        if not len(kept):
+            return inliers, normal
+        offset = float(np.median(xy[kept] @ snapped))
+    return (kept, snapped) if len(kept) >= len(inliers) else (inliers, normal)
 
 
-def _other_face(
-    offset: float, normal: np.ndarray, along: np.ndarray, lo: float, hi: float, cells: set, voxel_m: float
-) -> tuple[int, float]:
+def _behind(face: tuple[np.ndarray, np.ndarray], normal: np.ndarray, floors: tuple[set, set], voxel_m: float) -> int:
+    """+1 or -1: the side of a wall face (from ``face[0]`` to ``face[1]``, facing along ``normal``) where its body
+    stands: away from the floor seen right at its foot (``floors[0]``, voxel columns: the LiDAR saw that side),
+    else away from the open floor a little further out (``floors[1]``); 0 when neither tells."""
+    for floor, reach in zip(floors, (0.15, 0.25), strict=True):
+        counts = []
+        for side in (1, -1):
+            probes = [face[0] + t * (face[1] - face[0]) + side * reach * normal for t in np.linspace(0.1, 0.9, 5)]
+            counts.append(sum((int(x), int(y)) in floor for x, y in np.floor(np.array(probes) / voxel_m)))
+        if counts[0] != counts[1]:
+            return 1 if counts[1] > counts[0] else -1
+    return 0
+
+
+#: the body of a wall seen from one side only (m): as thick as an outer wall, so that the corners of its back
+#: lie outside the building
+ONE_FACED_M = 0.15
+#: how far behind a wall's face its other face is looked for (m): the thinnest and thickest interior walls
+OTHER_FACE_M = (0.15, 0.4)
+
+
+def _other_face(offset: float, normal: np.ndarray, along: np.ndarray, lo: float, hi: float, xy: np.ndarray, v: float):
     """+1 or -1: the side of a wall face (its line at ``offset`` along ``normal``, from ``lo`` to ``hi`` along
-    ``along``) where wall voxels (``cells``, voxel columns) stand within ``OTHER_FACE_M`` of it, over the face's
-    length: its other face, seen from the other room; and how far (m). 0, 0.0 when neither side or both."""
-    found = {}
-    for side in (1, -1):
-        for depth in OTHER_FACE_M:
-            probes = [(offset + side * depth) * normal + s * along for s in np.linspace(lo, hi, 7)]
-            hits = sum((int(x), int(y)) in cells for x, y in np.floor(np.array(probes) / voxel_m))
-            if hits >= 3:
-                found[side] = depth
-                break
-    if len(found) != 1:
-        return 0, 0.0
-    side, depth = next(iter(found.items()))
-    return side, depth
+    ``along``) where other wall voxels' points (``xy``) lie parallel to it, within ``OTHER_FACE_M`` and a voxel
+    (``v``) of one depth, along a third of the face's length and 0.3 m at least: its other face, seen from the
+    other room, with fewer points between the two (the wall's body) than on it; and how far it is (m, their
+    median). 0, 0.0 when neither side; the nearer when both."""
+    depth = xy @ normal - offset
+    s = xy @ along
+    inside = (s > lo + v) & (s < hi - v)  # not at its ends, where the walls it meets stand
+    for probe in np.arange(OTHER_FACE_M[0], OTHER_FACE_M[1] + 1e-9, v / 4):
+        for side in (1, -1):
+            band = inside & (np.abs(side * depth - probe) < v / 2)
+            count = np.count_nonzero(band)
+            # the wall's body between its faces is empty: a face's own scatter thins out, it does not come back
+            body = np.count_nonzero(inside & (side * depth > v / 2) & (side * depth < probe - v / 2))
+            along_it = len(np.unique(np.floor(s[band] / v)))  # walls across it fill a voxel or two each
+            if body < count / 2 and along_it >= max(3, (hi - lo) / v / 3):
+                return side, float(np.median(side * depth[band]))
+    return 0, 0.0
 
 
 def meet(walls: np.ndarray, reach: float) -> np.ndarray:
@@ -141,8 +179,12 @@ def meet(walls: np.ndarray, reach: float) -> np.ndarray:
                 p0, p1 = walls[other, 0:2], walls[other, 2:4]
                 along = float(np.dot(point - p0, p1 - p0) / np.dot(p1 - p0, p1 - p0))
                 near = near if 0.0 <= along <= 1.0 else []
-            for k, end in near:
-                walls[k, 2 * end : 2 * end + 2] = point
+            for k, end in near:  # onto the meeting point and on by half the other's thickness: its far face
+                other = j if k == i else i
+                start = walls[k, 2 - 2 * end : 4 - 2 * end]
+                walls[k, 2 * end : 2 * end + 2] = point + (point - start) / np.hypot(*(point - start)) * (
+                    walls[other, 4] / 2
+                )
     return walls
 
 
