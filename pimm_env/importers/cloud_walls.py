@@ -125,10 +125,11 @@ def _behind(face: tuple[np.ndarray, np.ndarray], normal: np.ndarray, floors: tup
     return 0
 
 
-#: the body of a wall seen from one side only (m): as thick as an outer wall, so that the corners of its back
-#: lie outside the building
+#: the body of a wall seen from one side only (m): a common interior wall (its back is not in the map), and
+#: thick enough that the corners of its back lie beyond the ceiling, which stops at the walls' faces
 ONE_FACED_M = 0.15
-#: how far behind a wall's face its other face is looked for (m): the thinnest and thickest interior walls
+#: how far behind a wall's face its other face is looked for (m): a thinner wall's two faces lie in one plane's
+#: band (``wall_plane_m`` either side); the thickest interior wall
 OTHER_FACE_M = (0.15, 0.4)
 
 
@@ -157,7 +158,8 @@ def meet(walls: np.ndarray, reach: float) -> np.ndarray:
     """``walls`` with the ends of each two that turn by 45 degrees or more and end within ``reach`` of their
     meeting point moved onto it (furniture in a room's corner hides where its walls meet), and the end of one
     that stops within ``reach`` of another running past it (a T: a partition's last metre is seen at a grazing
-    angle, in voxels too sparse to keep)."""
+    angle, in voxels too sparse to keep). A moved end runs on past the meeting point by half the other wall's
+    thickness, to its far face, so that the two boxes' outline turns once on each side."""
     walls = walls.copy()
     for i in range(len(walls)):
         for j in range(i + 1, len(walls)):
