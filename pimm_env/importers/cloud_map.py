@@ -37,7 +37,7 @@ import numpy as np
 
 from pimm_env.errors import MapFileError
 from pimm_env.geometry import rotation_onto_z
-from pimm_env.importers.cloud_walls import wall_planes
+from pimm_env.importers.cloud_walls import in_walls, wall_planes
 
 #: The surface classes of a cloud map's voxels, in the order of ``CLASSES`` indices.
 CLASSES = ("floor", "ceiling", "wall", "clutter")
@@ -305,7 +305,7 @@ def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
             continue
         own = cloud_map.voxels[cloud_map.classes == k]
         if k == CEILING:
-            own = own[~_in_walls((own[:, :2] + 0.5) * v, cloud_map.walls)]  # the ceiling stops at the walls' faces
+            own = own[~in_walls((own[:, :2] + 0.5) * v, cloud_map.walls)]  # the ceiling stops at the walls' faces
             if len(own):
                 meshes[name] = _ceiling_underside(own, v)
             continue
@@ -317,20 +317,6 @@ def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
             continue
         meshes[name] = _quads_mesh(np.concatenate(quads).reshape(-1, 4, 3).astype(float) * v)
     return meshes
-
-
-def _in_walls(xy: np.ndarray, walls: np.ndarray) -> np.ndarray:
-    """Which points ``xy`` (K, 2) lie in the plan of one of ``walls`` (as ``CloudMap.walls``)."""
-    inside = np.zeros(len(xy), dtype=bool)
-    for x0, y0, x1, y1, thickness, _, _ in walls:
-        line = np.array([x1 - x0, y1 - y0])
-        length = float(np.hypot(*line))
-        if length < 1e-9:
-            continue
-        along = (xy - [x0, y0]) @ line / length
-        across = (xy - [x0, y0]) @ np.array([-line[1], line[0]]) / length
-        inside |= (along >= 0.0) & (along <= length) & (np.abs(across) < thickness / 2)
-    return inside
 
 
 def _ceiling_underside(ceiling: np.ndarray, v: float):

@@ -190,6 +190,20 @@ def meet(walls: np.ndarray, reach: float) -> np.ndarray:
     return walls
 
 
+def in_walls(xy: np.ndarray, walls: np.ndarray) -> np.ndarray:
+    """Which points ``xy`` (K, 2) lie in the plan of one of ``walls`` (as ``CloudMap.walls``)."""
+    inside = np.zeros(len(xy), dtype=bool)
+    for x0, y0, x1, y1, thickness, _, _ in walls:
+        line = np.array([x1 - x0, y1 - y0])
+        length = float(np.hypot(*line))
+        if length < 1e-9:
+            continue
+        along = (xy - [x0, y0]) @ line / length
+        across = (xy - [x0, y0]) @ np.array([-line[1], line[0]]) / length
+        inside |= (along >= 0.0) & (along <= length) & (np.abs(across) < thickness / 2)
+    return inside
+
+
 def wall_elements(walls: np.ndarray) -> list[dict[str, Any]]:
     """The walls (W, 7: line, thickness, bottom, top) as world elements ``wall_1``, ...: boxes along their lines,
     so that the corner map reads their outlines (corner_map.py), not a raster of their slant."""
