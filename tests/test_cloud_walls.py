@@ -1,4 +1,5 @@
-"""The walls of a point-cloud map: ends met at L corners and T junctions, a wall seen from both rooms made whole,
+"""The walls of a point-cloud map: ends met at L corners and T junctions, a wall seen from both rooms made whole
+(its faces in two planes or in one plane's band), a jog not taken for a thickness,
 a wall seen from one room stood behind its face, a thin wall's two faces fitted square to the building."""
 
 import numpy as np
@@ -84,3 +85,28 @@ def test_a_thin_walls_two_faces_seen_unevenly_are_one_wall_square_to_the_buildin
     slant = np.arctan2(y1 - y0, x1 - x0) - np.arctan2(longest[3] - longest[1], longest[2] - longest[0])
     assert abs(np.sin(slant)) < 1e-9  # square to the building, not on a slant across the faces
     assert y0 - thickness / 2 <= -0.03 and y0 + thickness / 2 >= 0.03  # the wall between its faces
+
+
+def test_a_thin_walls_two_faces_in_one_planes_band_are_its_thickness():
+    """A 0.1 m partition along x seen from both rooms, more of it from one: its two faces lie in one plane's band
+    (``wall_plane_m`` either side), and the wall stands between them, not at the denser face's median."""
+    rng = np.random.default_rng(3)
+    partition = [_face(rng, 300, 0.0, 5.0, 0.05), _face(rng, 120, 0.0, 5.0, -0.05)]
+    centres = np.vstack([_face(rng, 800, -1.0, 9.0, 2.0), *partition])  # the long wall: the building's square
+    floor = {(i, j) for i in range(-10, 90) for j in range(-20, 20) if abs(j + 0.5) > 2}
+    walls, _ = wall_planes(centres, np.full(len(centres), 2.6), (floor, floor), CloudMapConfig())
+    walls = [w for w in walls if abs((w[1] + w[3]) / 2) < 0.5]
+    assert len(walls) == 1
+    _, y0, _, y1, thickness, _, _ = walls[0]
+    assert abs(y1 - y0) < 1e-3  # square, not on a slant across both faces (0.04 m over its length)
+    assert abs(y0 - thickness / 2 + 0.05) < 0.02 and abs(y0 + thickness / 2 - 0.05) < 0.02
+
+
+def test_a_jog_in_a_wall_is_not_taken_for_its_thickness():
+    """A wall whose face steps back 0.1 m halfway along (each stretch seen from the room at y < 0): one face
+    line per stretch, no box spanning the step."""
+    rng = np.random.default_rng(4)
+    centres = np.vstack([_face(rng, 200, 0.0, 3.0, 0.0), _face(rng, 200, 3.0, 6.0, 0.1)])
+    floor = {(i, j) for i in range(0, 60) for j in range(-40, -1)}
+    walls, _ = wall_planes(centres, np.full(len(centres), 2.6), (floor, floor), CloudMapConfig())
+    assert all(w[4] == ONE_FACED_M for w in walls)

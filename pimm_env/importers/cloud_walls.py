@@ -43,13 +43,18 @@ def wall_planes(
             lo, hi = float(s[piece].min()), float(s[piece].max())
             if hi - lo + config.voxel_m < config.min_wall_m:
                 continue
-            offset = float(np.median(points[piece, :2] @ normal[:2] / np.hypot(normal[0], normal[1])))
             n2 = normal[:2] / np.hypot(normal[0], normal[1])
-            # the body is towards the wall's other face (seen from the other room); failing that, away from the
-            # floor seen in front of it
+            depths = points[piece, :2] @ n2
+            offset = float(np.median(depths))
+            # the body is between the two faces the plane holds (a thin wall seen from both rooms), else towards
+            # its other face beyond the plane's band, else away from the floor seen in front of it
             others = np.ones(len(centres), dtype=bool)
             others[inliers[piece]] = False
-            side, depth = _other_face(offset, n2, along, lo, hi, centres[others, :2], config.voxel_m)
+            faces = _two_faces(depths, s[piece], config.voxel_m)
+            if faces:
+                offset, side, depth = faces[0], 1, faces[1] - faces[0]
+            else:
+                side, depth = _other_face(offset, n2, along, lo, hi, centres[others, :2], config.voxel_m)
             thickness = max(config.voxel_m, depth)
             if side == 0:
                 side = _behind((offset * n2 + lo * along, offset * n2 + hi * along), n2, floors, config.voxel_m)
@@ -102,12 +107,13 @@ def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: fl
     if abs(turn) > np.radians(SQUARE_DEG) or not len(inliers):
         return inliers, normal
     snapped = np.array([np.cos(angle - turn), np.sin(angle - turn)])
-    offset = float(np.median(xy[inliers] @ snapped))
-    for _ in range(2):
-        kept = np.flatnonzero(np.abs(xy @ snapped - offset) < within)
-        if not len(kept):
-            return inliers, normal
-        offset = float(np.median(xy[kept] @ snapped))
+    depth = xy @ snapped
+    # the band (``within`` either side) near the inliers' median that holds the most points: a thin wall's two
+    # faces both, where a median would slide to the face seen more
+    near = np.sort(depth[np.abs(depth - np.median(depth[inliers])) < 2 * within])
+    ends = np.searchsorted(near, near + 2 * within, side="right")
+    best = int(np.argmax(ends - np.arange(len(near))))
+    kept = np.flatnonzero(np.abs(depth - (near[best] + near[ends[best] - 1]) / 2) < within)
     return (kept, snapped) if len(kept) >= len(inliers) else (inliers, normal)
 
 
@@ -131,6 +137,32 @@ ONE_FACED_M = 0.15
 #: how far behind a wall's face its other face is looked for (m): a thinner wall's two faces lie in one plane's
 #: band (``wall_plane_m`` either side); the thickest interior wall
 OTHER_FACE_M = (0.15, 0.4)
+
+
+#: the least gap between the two faces of a thin wall in one plane's band (m): half that band's width; one
+#: face's own scatter (a few centimetres of pose and range error) splits into halves nearer than this
+TWO_FACES_M = 0.06
+
+
+def _two_faces(depth: np.ndarray, s: np.ndarray, v: float) -> tuple[float, float] | None:
+    """The two faces (their depths, nearer first) where the points of one plane (``depth`` across it, ``s``
+    along it) are a thin wall's two faces: split where each side is tightest (Otsu's threshold), the halves'
+    medians at least ``TWO_FACES_M`` apart and both seen along the same third of the wall (in voxels of ``v``),
+    so that neither a jog in a wall nor a pillar standing out of it is taken for its thickness. None when the
+    plane holds one face."""
+    if len(depth) < 6:
+        return None
+    order = np.argsort(depth)
+    d, n = depth[order], len(depth)
+    k = np.arange(1, n)
+    split = int(np.argmax(k * (n - k) * (np.cumsum(d)[:-1] / k - (d.sum() - np.cumsum(d)[:-1]) / (n - k)) ** 2)) + 1
+    halves = order[:split], order[split:]
+    near, far = (float(np.median(depth[half])) for half in halves)
+    bins = [set(np.floor(s[half] / v).astype(int).tolist()) for half in halves]
+    stretch = (s.max() - s.min()) / v
+    if far - near < TWO_FACES_M or len(bins[0] & bins[1]) < max(3, stretch / 3):
+        return None
+    return near, far
 
 
 def _other_face(offset: float, normal: np.ndarray, along: np.ndarray, lo: float, hi: float, xy: np.ndarray, v: float):
