@@ -16,7 +16,8 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    than ``wall_gap_m`` (a wall seen from afar shows only the LiDAR's rings), is wall; the rest is clutter. Ceiling gaps
    of up to three columns between seen ceiling (a LiDAR's rings leave stripes) are filled in. Clutter rising
    from the floor to no more than a person's height over floor the map saw under it is the ghost of someone who
-   walked by while mapping (a thing standing there hides its floor): set aside and counted.
+   walked by while mapping (a thing standing there hides its floor), and so are their arms beside it
+   (``cloud_ghosts.py``): set aside and counted.
 4. **Surfaces**: walls are upright planes fitted to the wall voxels (``cloud_walls.py``), each a box element of
    the world standing behind the surface the LiDAR saw (so the corner map reads the walls' outlines, at the
    slant they were fitted at, not a raster of it); the ceiling is a downward face at each column's top up to the
@@ -36,6 +37,7 @@ import numpy as np
 
 from pimm_env.errors import MapFileError
 from pimm_env.geometry import rotation_onto_z
+from pimm_env.importers.cloud_ghosts import ghost_voxels
 from pimm_env.importers.cloud_walls import in_walls, wall_planes
 
 #: The surface classes of a cloud map's voxels, in the order of ``CLASSES`` indices.
@@ -157,7 +159,7 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
     if not len(voxels):
         raise MapFileError(f"{source}: no surface left in the map after setting aside {set_aside}")
     classes, tops = _classes(voxels, config)
-    ghosts = _ghosts(voxels, classes, levelled, config)
+    ghosts = ghost_voxels(voxels, classes == CLUTTER, levelled, config)
     set_aside["ghosts (clutter over seen floor, as high as a person: people who walked by while mapping)"] = int(
         np.count_nonzero(ghosts)
     )
@@ -174,30 +176,6 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
     classes[loose] = CLUTTER  # upright structure on no wall plane: a cabinet's side, a pillar
     set_aside["wall voxels on no wall plane (taken as clutter)"] = len(loose)
     return CloudMap(voxels, classes, config.voxel_m, tilt, floor_z, len(points), set_aside, walls)
-
-
-def _ghosts(voxels: np.ndarray, classes: np.ndarray, levelled: np.ndarray, config: CloudMapConfig) -> np.ndarray:
-    """Which voxels are the ghosts of people who walked by while the map was made: the clutter of a column that
-    rises from the floor (below 0.5 m) to above 1 m but no higher than ``person_m``, over floor the map saw
-    under it (its points at the floor over ``ghost_floor`` of the column's half-voxel cells). A thing that
-    stands there hides the floor under it; a person walked on, and the floor was seen after."""
-    v = config.voxel_m
-    clutter = np.flatnonzero(classes == CLUTTER)
-    if not len(clutter):
-        return np.zeros(len(voxels), dtype=bool)
-    column, inverse = np.unique(voxels[clutter, :2], axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    z = voxels[clutter, 2] * v
-    low, high = _extent(inverse, z, z + v, len(column))
-    on_floor = levelled[np.abs(levelled[:, 2]) < v / 2, :2]
-    cells = np.unique(np.floor(on_floor / (v / 2)).astype(np.int64), axis=0)  # the half-voxel cells seen
-    under, seen = np.unique(np.floor(cells / 2).astype(np.int64), axis=0, return_counts=True)
-    seen_in = dict(zip(map(tuple, under.tolist()), seen.tolist(), strict=True))
-    share = np.array([seen_in.get(tuple(c), 0) / 4 for c in column.tolist()])
-    ghost = (low < 0.5) & (high > 1.0) & (high <= config.person_m + 1e-9) & (share >= config.ghost_floor)
-    out = np.zeros(len(voxels), dtype=bool)
-    out[clutter[ghost[inverse]]] = True
-    return out
 
 
 def _closed_ceiling(voxels: np.ndarray, classes: np.ndarray, gap: int = 3) -> np.ndarray:
