@@ -74,6 +74,9 @@ def test_a_map_of_two_storeys_or_of_no_floor_is_refused_before_anything_is_writt
     beside = slam_like_room(rng) + np.array([6.0, 0.0, 0.0])
     beside[:, 2] *= 2.5 / 3.0  # and beside it a room 2.5 m high: a hall's ceiling beside a ceiling is no storey
     import_world(write_pcd(tmp_path / "hall.pcd", np.vstack([hall, beside])), "hall", tmp_path / "halls")
+    corridor = slam_like_room(rng) * np.array([0.5, 1.0, 2.5 / 3.0]) + np.array([6.0, 0.0, 0.0])
+    # a corridor 3 m wide beside the hall: the hall's wall rises over the edge of the corridor's ceiling
+    import_world(write_pcd(tmp_path / "hc.pcd", np.vstack([hall, corridor])), "hall_corridor", tmp_path / "halls")
     walls = write_pcd(tmp_path / "walls.pcd", surface(rng, [0, 0, 0], [0, 4, 3], 20_000))
     with pytest.raises(MapFileError, match="walls.pcd: no level surface"):
         import_world(walls, "walls", tmp_path / "maps")

@@ -132,13 +132,16 @@ def level_frame(points: np.ndarray, config: CloudMapConfig, source: Path | str) 
 
 def _built_over(level: np.ndarray, thin: np.ndarray, height: float, share: float) -> bool:
     """Whether the map goes on a metre over the level surface at ``height`` (its 10 cm bin of ``level`` points),
-    over that surface itself (0.5 m cells): more than ``share`` as many points as it holds. A storey's floor has its
-    walls and ceiling over it; a ceiling, seen from below, has nothing (a hall's higher ceiling is beside it)."""
+    over that surface itself (0.5 m cells, those at its edge left out): more than ``share`` as many points as it
+    holds there. A storey's floor has its walls and ceiling over it; a ceiling, seen from below, has nothing (a
+    hall's higher ceiling and the wall up to it are beside it, in its edge cells at most)."""
     on = level[(level[:, 2] >= height) & (level[:, 2] < height + 0.1)]
-    cells = {(int(x), int(y)) for x, y in np.floor(on[:, :2] / 0.5)}
+    at = [(int(x), int(y)) for x, y in np.floor(on[:, :2] / 0.5)]
+    cells = set(at)
+    inner = {(x, y) for x, y in cells if all((x + a, y + b) in cells for a in (-1, 0, 1) for b in (-1, 0, 1))}
     above = thin[thin[:, 2] > height + 1.05]
-    over = sum((int(x), int(y)) in cells for x, y in np.floor(above[:, :2] / 0.5))
-    return over > share * len(on)
+    over = sum((int(x), int(y)) in inner for x, y in np.floor(above[:, :2] / 0.5))
+    return over > share * sum(c in inner for c in at)
 
 
 def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), source: Path | str = "cloud") -> CloudMap:
