@@ -148,8 +148,8 @@ def _run_commands(commands: tuple[tuple[str, ...], ...], workers: int, out: Path
 
 @command_line.command(app, "cloud-maps")
 def cloud_maps(
-    seeds: str = typer.Option("1300-1303", help="building seeds (suites cloud-maps-development, cloud-maps-held-out)"),
-    trials: int = typer.Option(1, min=0, help="PIMM trials per route with each map (0: the maps' figures only)"),
+    seeds: str = typer.Option("1300-1303,1320", help="building seeds (suites cloud-maps-development, -held-out)"),
+    trials: int = typer.Option(3, min=0, help="PIMM trials per route with each map (0: the maps' figures only)"),
     workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
     worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds (and the imports)"),
     out: Path = typer.Option(Path("results/cloud_maps"), help="where the maps, runs and the table go"),
