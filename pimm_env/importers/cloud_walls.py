@@ -15,8 +15,9 @@ def wall_planes(
     """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
     voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
     ``door_gap_m``: the walls, (W, 7) as ``CloudMap.walls``, each up to the ceiling over it (its columns'
-    ``tops``) and standing behind its surface: towards its other face (a wall seen from both rooms), else away
-    from the floor in front of it (``floors``: the voxel columns of the floor seen and of the open floor,
+    ``tops``) and standing behind its surface: between its two faces where the plane holds both (a thin wall
+    seen from both rooms, :func:`_two_faces`), towards its other face (a thicker one), else away from the floor
+    in front of it (``floors``: the voxel columns of the floor seen and of the open floor,
     :func:`_behind`); and which centres lie on one. Planes within ``SQUARE_DEG`` of the first (the longest
     wall) are fitted square to it where that holds as many points. ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
@@ -139,13 +140,14 @@ ONE_FACED_M = 0.15
 OTHER_FACE_M = (0.15, 0.4)
 
 
-#: the least gap between the two faces of a thin wall in one plane's band (m): half that band's width; one
-#: face's own scatter (a few centimetres of pose and range error) splits into halves nearer than this
+#: the least gap between the two faces of a thin wall in one plane's band (m): well under the 0.1 m of the
+#: thinnest wall, while one face's own scatter (a few centimetres of pose and range error) splits into halves
+#: nearer than this
 TWO_FACES_M = 0.06
 
 
 def _two_faces(depth: np.ndarray, s: np.ndarray, v: float) -> tuple[float, float] | None:
-    """The two faces (their depths, nearer first) where the points of one plane (``depth`` across it, ``s``
+    """The two faces (their depths, the lesser first) where the points of one plane (``depth`` across it, ``s``
     along it) are a thin wall's two faces: split where each side is tightest (Otsu's threshold), the halves'
     medians at least ``TWO_FACES_M`` apart and both seen along the same third of the wall (in voxels of ``v``),
     so that neither a jog in a wall nor a pillar standing out of it is taken for its thickness. None when the
