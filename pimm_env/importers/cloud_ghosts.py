@@ -9,7 +9,7 @@ import numpy as np
 
 #: voxels the ghost of a person reaches out sideways from the columns that rose from the floor to their height:
 #: arms and shoulders, a head leaning, the edge of a stride (the columns their few points fall in do not rise
-#: from the floor themselves)
+#: from the floor themselves); at least 1 (scipy's dilation takes 0 as "until nothing changes")
 REACH_VOXELS = 2
 
 

@@ -49,12 +49,12 @@ def wall_planes(
             offset = float(np.median(depths))
             # the body is between the two faces the plane holds (a thin wall seen from both rooms), else towards
             # its other face beyond the plane's band, else away from the floor seen in front of it
-            others = np.ones(len(centres), dtype=bool)
-            others[inliers[piece]] = False
             faces = _two_faces(depths, s[piece], config.voxel_m)
             if faces:
                 offset, side, depth = faces[0], 1, faces[1] - faces[0]
             else:
+                others = np.ones(len(centres), dtype=bool)
+                others[inliers[piece]] = False
                 side, depth = _other_face(offset, n2, along, lo, hi, centres[others, :2], config.voxel_m)
             thickness = max(config.voxel_m, depth)
             if side == 0:
