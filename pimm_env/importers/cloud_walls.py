@@ -161,10 +161,15 @@ def _two_faces(depth: np.ndarray, s: np.ndarray, v: float) -> tuple[float, float
     halves = order[:split], order[split:]
     near, far = (float(np.median(depth[half])) for half in halves)
     bins = [set(np.floor(s[half] / v).astype(int).tolist()) for half in halves]
-    stretch = (s.max() - s.min()) / v
-    if far - near < TWO_FACES_M or len(bins[0] & bins[1]) < max(3, stretch / 3):
+    if far - near < TWO_FACES_M or not _along_a_third(len(bins[0] & bins[1]), float(s.max() - s.min()), v):
         return None
     return near, far
+
+
+def _along_a_third(voxels: int, length_m: float, v: float) -> bool:
+    """Whether ``voxels`` (of ``v``) along a wall ``length_m`` long are a third of it, and 3 at least: a face seen
+    along the wall, not a wall across it or a pillar beside it."""
+    return voxels >= max(3, length_m / v / 3)
 
 
 def _other_face(offset: float, normal: np.ndarray, along: np.ndarray, lo: float, hi: float, xy: np.ndarray, v: float):
@@ -183,7 +188,7 @@ def _other_face(offset: float, normal: np.ndarray, along: np.ndarray, lo: float,
             # the wall's body between its faces is empty: a face's own scatter thins out, it does not come back
             body = np.count_nonzero(inside & (side * depth > v / 2) & (side * depth < probe - v / 2))
             along_it = len(np.unique(np.floor(s[band] / v)))  # walls across it fill a voxel or two each
-            if body < count / 2 and along_it >= max(3, (hi - lo) / v / 3):
+            if body < count / 2 and _along_a_third(along_it, hi - lo, v):
                 return side, float(np.median(side * depth[band]))
     return 0, 0.0
 
