@@ -81,6 +81,8 @@ class CloudMap:
     set_aside: dict[str, int] = field(default_factory=dict)  # voxels, by why
     #: the walls fitted to the wall voxels: (W, 7) x0, y0, x1, y1 of the wall's line, its thickness, bottom, top
     walls: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+    #: (S, 2) where the map saw the walls: the mean point, in the plane, of each voxel on a wall plane
+    seen_walls: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     def counts(self) -> dict[str, int]:
         return {name: int(np.count_nonzero(self.classes == k)) for k, name in enumerate(CLASSES)}
@@ -178,7 +180,8 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
     loose = wall[~on_plane]
     classes[loose] = CLUTTER  # upright structure on no wall plane: a cabinet's side, a pillar
     set_aside["wall voxels on no wall plane (taken as clutter)"] = len(loose)
-    return CloudMap(voxels, classes, config.voxel_m, tilt, floor_z, len(points), set_aside, walls)
+    seen_walls = means[wall[on_plane], :2]
+    return CloudMap(voxels, classes, config.voxel_m, tilt, floor_z, len(points), set_aside, walls, seen_walls)
 
 
 def _closed_ceiling(voxels: np.ndarray, classes: np.ndarray, gap: int = 3) -> np.ndarray:
