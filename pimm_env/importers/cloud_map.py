@@ -20,9 +20,11 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    (``cloud_ghosts.py``): set aside and counted.
 4. **Surfaces**: walls are upright planes fitted to the wall voxels (``cloud_walls.py``), each a box element of
    the world standing behind the surface the LiDAR saw (so the corner map reads the walls' outlines, at the
-   slant they were fitted at, not a raster of it); the ceiling is a downward face at each column's top up to the
-   walls' faces, smoothed over 5 x 5 columns; floor and clutter are the faces of their voxels that border empty
-   space. One mesh per other class (``floor``, ``ceiling``, ``clutter``), one GLB the mesh import reads.
+   slant they were fitted at, not a raster of it), and where the map saw them (``seen_walls``: the mean point of
+   each voxel on a wall plane; the corner map keeps only corners with a face seen); the ceiling is a downward face
+   at each column's top up to the walls' faces, smoothed over 5 x 5 columns; floor and clutter are the faces of
+   their voxels that border empty space. One mesh per other class (``floor``, ``ceiling``, ``clutter``), one GLB
+   the mesh import reads.
 5. **Where the robot can be**: the outline of the floor seen and of the floor hidden under a seen ceiling with
    nothing standing there (the far corners of a room seen through its doorway), as the world's areas.
 """
