@@ -71,7 +71,7 @@ def derive_corner_map(world: World, config: CornerMapConfig | None = None) -> Co
 #: a face was seen where a scan's wall point lies this near it (m): 3/4 of the point-cloud import's voxel, so a
 #: guessed back face, 0.15 m behind the seen one, is not
 SEEN_REACH_M = 0.075
-#: ... at this many of the points every resolution step along its first ``min_face`` from the corner
+#: ... from this many of the points ``resolution`` apart along the face's first ``min_face`` from the corner
 SEEN_SAMPLES = 2
 
 

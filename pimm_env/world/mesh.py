@@ -24,7 +24,7 @@ Mesh world file::
     elements: [...]            # optional: solid elements beside the mesh's objects, as in a world file (the
                                # point-cloud import writes its walls so: importers/cloud_walls.py)
     areas: {...}               # optional named polygons, as in a world file; default: the floor's outline
-    seen_walls: walls_seen.npy # optional: where a scan saw the walls, (S, 2) x, y points (the point-cloud
+    seen_walls: seen_walls.npy # optional: where a scan saw the walls, (S, 2) x, y points (the point-cloud
                                # import writes it): the corner map leaves out corners neither of whose faces
                                # was seen (pimm_env/mapping/corner_map.py)
 
