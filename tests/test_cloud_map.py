@@ -171,16 +171,6 @@ def test_a_far_wall_seen_only_as_the_lidars_rings_is_a_wall_and_a_cabinet_is_not
     assert front.any() and np.all(cloud.classes[front] == CLUTTER)
 
 
-def test_a_wall_column_that_spans_the_least_a_wall_spans_is_wall():
-    """Voxels 1.4-2.0 m high (0.6 m: ``wall_min_span_m``) with 0.2 m between the LiDAR's rings, under a 2.5 m
-    ceiling: six whole voxels, which in floating point spanned a hair less than 0.6 m."""
-    from pimm_env.importers.cloud_map import CEILING, WALL, CloudMapConfig, _classes
-
-    voxels = np.array([[0, 0, k] for k in (10, 11, 14, 15, 18, 19, 22, 23, 24)])
-    classes, _ = _classes(voxels, CloudMapConfig())
-    assert list(classes) == [WALL] * 6 + [CEILING] * 3
-
-
 def test_a_rooms_floor_hidden_from_the_lidar_under_its_seen_ceiling_is_floor():
     """A room mapped through its doorway: the floor seen only near the door (x < 2), the ceiling over all of it.
     Its floor area reaches the far walls (where the corners are), not only the floor the LiDAR saw, and stops

@@ -232,11 +232,6 @@ def _member(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
     return sorted_keys[at] == keys
 
 
-#: heights, spans and gaps of whole voxels are compared this share of a voxel wide, so that floating point does
-#: not decide a column whose span or gap is exactly a setting's
-HAIR = 1e-6
-
-
 def _classes(voxels: np.ndarray, config: CloudMapConfig) -> tuple[np.ndarray, np.ndarray]:
     v = config.voxel_m
     z = (voxels[:, 2] + 0.5) * v
@@ -246,11 +241,10 @@ def _classes(voxels: np.ndarray, config: CloudMapConfig) -> tuple[np.ndarray, np
     top = np.full(len(column), -np.inf)
     np.maximum.at(top, inverse, z)
     above_floor = z > config.floor_band_m
-    under_top = top - config.ceiling_band_m - HAIR * v  # 0.2 m under a column's top stays 0.2 m in floating point
     # a wall is judged on its upper part, above desks and chairs, which hide its foot from a LiDAR
-    band = above_floor & (z >= config.wall_from_m) & (z < under_top[inverse])
-    wall_column = _stacked(inverse[band], z[band], len(column), config.wall_from_m, under_top, config)
-    ceiling = (top[inverse] >= config.ceiling_min_m) & (z >= under_top[inverse])
+    band = above_floor & (z >= config.wall_from_m) & (z < top[inverse] - config.ceiling_band_m)
+    wall_column = _stacked(inverse[band], z[band], len(column), config.wall_from_m, top - config.ceiling_band_m, config)
+    ceiling = (top[inverse] >= config.ceiling_min_m) & (z >= top[inverse] - config.ceiling_band_m)
     classes[wall_column[inverse] & above_floor] = WALL
     classes[ceiling & above_floor] = CEILING  # a wall's column ends in the ceiling it holds up
     classes[~above_floor] = FLOOR
@@ -276,8 +270,7 @@ def _stacked(column: np.ndarray, z: np.ndarray, columns: int, bottom: float, top
     same = column[1:] == column[:-1]
     np.maximum.at(gap, column[1:][same], np.diff(z)[same] - config.voxel_m)
     gap = np.maximum(gap, np.maximum(low - bottom, top - high))
-    hair = HAIR * config.voxel_m  # six 0.1 m voxels span 0.6 m, which in floating point fell short of 0.6
-    return (high - low >= config.wall_min_span_m - hair) & (gap <= config.wall_gap_m + hair)
+    return (high - low >= config.wall_min_span_m) & (gap <= config.wall_gap_m)
 
 
 def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
