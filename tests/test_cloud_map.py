@@ -58,6 +58,8 @@ def test_a_slam_like_map_of_a_room_imports_with_its_corners_and_what_it_set_asid
     gaps = np.hypot(*(maps.corners.xy[:, None, :] - ROOM_CORNERS[None, :, :]).transpose(2, 0, 1))
     assert len(maps.corners) == 4 and gaps.min(axis=0).max() < 0.1  # each corner once, within 10 cm
     assert np.allclose(maps.corners.z, 3.0, atol=0.15)
+    seen = np.load(world_file.parent / "seen_walls.npy")  # where the map saw walls: the room's four faces
+    assert world.seen_walls is not None and len(seen) > 100 and np.abs(seen).max() < 6.5
     text = world_file.read_text()
     assert "sparse voxels" in text and "outliers" in text  # counted, not silently dropped
     free = maps.occupancy.free.sum() * maps.occupancy.grid.resolution**2

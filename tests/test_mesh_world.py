@@ -111,3 +111,39 @@ def test_a_mesh_world_takes_solid_elements_beside_its_objects(mesh_world_file):
     mesh_world_file.write_text(text + "elements: {post: 1}\n")
     with pytest.raises(WorldFileError, match="elements: expected a list of world elements"):
         load_world(mesh_world_file)
+
+
+def test_a_scanned_world_keeps_only_the_corners_whose_faces_were_seen(mesh_world_file):
+    from pimm_env.mapping.corner_map import derive_corner_map
+
+    all_four = derive_corner_map(load_world(mesh_world_file))
+    assert len(all_four) == 4
+    # the scan saw the room's south wall (y = 0) and, 5 cm off it, a stretch of the west wall near (0, 4)
+    south = np.column_stack([np.arange(0.0, 4.01, 0.05), np.full(81, 0.01)])
+    west = np.column_stack([np.full(7, 0.03), np.linspace(3.6, 3.9, 7)])
+    np.save(mesh_world_file.parent / "seen.npy", np.vstack([south, west]))
+    mesh_world_file.write_text(mesh_world_file.read_text() + "seen_walls: seen.npy\n")
+    world = load_world(mesh_world_file)
+    kept = derive_corner_map(world)
+    near = [np.min(np.hypot(*(kept.xy - corner).T)) if len(kept) else 9.0 for corner in ((0, 0), (0, 4), (4, 0))]
+    assert len(kept) == 3 and max(near) <= 0.1  # one cell of the raster; (4, 4), no face of it seen, is a guess
+    assert len(ensure_derived_maps(world).corners) == 3
+    # a wall seen 10 cm off a face (a guessed back, behind the face the scan saw) is not that face
+    np.save(mesh_world_file.parent / "seen.npy", np.column_stack([np.arange(0.0, 4.01, 0.05), np.full(81, -0.1)]))
+    assert len(derive_corner_map(load_world(mesh_world_file))) == 0
+
+
+@pytest.mark.parametrize(
+    ("saved", "message"),
+    [
+        (np.zeros((3, 3)), r"seen.npy: expected \(S, 2\) numbers, got float64 \(3, 3\)"),
+        (np.array([[0.0, np.nan]]), "seen.npy: 1 values not finite"),
+        (None, "seen_walls: cannot read .*seen.npy"),
+    ],
+)
+def test_seen_walls_errors_name_the_field_and_the_file(mesh_world_file, saved, message):
+    if saved is not None:
+        np.save(mesh_world_file.parent / "seen.npy", saved)
+    mesh_world_file.write_text(mesh_world_file.read_text() + "seen_walls: seen.npy\n")
+    with pytest.raises(WorldFileError, match=message):
+        load_world(mesh_world_file)

@@ -20,9 +20,11 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    (``cloud_ghosts.py``): set aside and counted.
 4. **Surfaces**: walls are upright planes fitted to the wall voxels (``cloud_walls.py``), each a box element of
    the world standing behind the surface the LiDAR saw (so the corner map reads the walls' outlines, at the
-   slant they were fitted at, not a raster of it); the ceiling is a downward face at each column's top up to the
-   walls' faces, smoothed over 5 x 5 columns; floor and clutter are the faces of their voxels that border empty
-   space. One mesh per other class (``floor``, ``ceiling``, ``clutter``), one GLB the mesh import reads.
+   slant they were fitted at, not a raster of it), and where the map saw them (``seen_walls``: the mean point of
+   each voxel on a wall plane; the corner map keeps only corners with a face seen); the ceiling is a downward face
+   at each column's top up to the walls' faces, smoothed over 5 x 5 columns; floor and clutter are the faces of
+   their voxels that border empty space. One mesh per other class (``floor``, ``ceiling``, ``clutter``), one GLB
+   the mesh import reads.
 5. **Where the robot can be**: the outline of the floor seen and of the floor hidden under a seen ceiling with
    nothing standing there (the far corners of a room seen through its doorway), as the world's areas.
 """
@@ -81,6 +83,8 @@ class CloudMap:
     set_aside: dict[str, int] = field(default_factory=dict)  # voxels, by why
     #: the walls fitted to the wall voxels: (W, 7) x0, y0, x1, y1 of the wall's line, its thickness, bottom, top
     walls: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+    #: (S, 2) where the map saw the walls: the mean point, in the plane, of each voxel on a wall plane
+    seen_walls: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     def counts(self) -> dict[str, int]:
         return {name: int(np.count_nonzero(self.classes == k)) for k, name in enumerate(CLASSES)}
@@ -178,7 +182,8 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
     loose = wall[~on_plane]
     classes[loose] = CLUTTER  # upright structure on no wall plane: a cabinet's side, a pillar
     set_aside["wall voxels on no wall plane (taken as clutter)"] = len(loose)
-    return CloudMap(voxels, classes, config.voxel_m, tilt, floor_z, len(points), set_aside, walls)
+    seen_walls = means[wall[on_plane], :2]
+    return CloudMap(voxels, classes, config.voxel_m, tilt, floor_z, len(points), set_aside, walls, seen_walls)
 
 
 def _closed_ceiling(voxels: np.ndarray, classes: np.ndarray, gap: int = 3) -> np.ndarray:

@@ -147,6 +147,8 @@ def _from_mesh(
 
 
 def _from_cloud(source: Path, name: str, folder: Path, rules: list[dict[str, str]], wall_line: bool) -> dict[str, Any]:
+    import numpy as np
+
     from pimm_env.clouds.read import read_cloud
     from pimm_env.importers.cloud_map import CloudMapConfig, classify, floor_areas, write_cloud_world_mesh
     from pimm_env.importers.cloud_walls import wall_elements
@@ -160,6 +162,8 @@ def _from_cloud(source: Path, name: str, folder: Path, rules: list[dict[str, str
     walls = wall_elements(cloud_map.walls)
     spec = _mesh_spec(mesh.name, name, folder, rules, "z", None, source, wall_line, walls)
     spec["areas"] = areas
+    np.save(folder / "seen_walls.npy", np.round(cloud_map.seen_walls, 3))
+    spec["seen_walls"] = "seen_walls.npy"
     spec["cloud_map"] = {
         "points": cloud_map.points,
         "voxel_m": config.voxel_m,

@@ -7,6 +7,10 @@ it hold one odd cell out (three wall cells and a free one: an inside corner; one
 an outside corner) is a candidate. A candidate is kept when both wall faces run straight for at least
 ``min_face`` metres (so wall ends at doorways do not count), the ceiling covers it, and it faces a named
 area. Its orientation is the thesis's: the bisector of the two wall directions seen from the corner.
+
+A world made from a scan knows where the scan saw its walls (``World.seen_walls``: the point-cloud import);
+there a corner is kept only where the scan saw at least one of its two faces. The rest stand where the import
+guessed a wall's hidden back (the far side of a wall seen from one room, the outside of an outer wall).
 """
 
 from __future__ import annotations
@@ -58,8 +62,36 @@ def derive_corner_map(world: World, config: CornerMapConfig | None = None) -> Co
     walls = [e.shape for e in world.elements if e.semantic == SemanticClass.WALL]
     slanted = any(isinstance(s, Prism) or (isinstance(s, Box) and not _on_grid(s.yaw)) for s in walls)
     if slanted and not any(isinstance(s, Mesh) for s in walls):
-        return _vector_corner_map(world, config)
-    return _raster_corner_map(world, config)
+        corners = _vector_corner_map(world, config)
+    else:
+        corners = _raster_corner_map(world, config)
+    return corners if world.seen_walls is None else _seen_corners(corners, world.seen_walls, config)
+
+
+#: a face was seen where a scan's wall point lies this near it (m): 3/4 of the point-cloud import's voxel, so a
+#: guessed back face, 0.15 m behind the seen one, is not
+SEEN_REACH_M = 0.075
+#: ... from this many of the points ``resolution`` apart along the face's first ``min_face`` from the corner
+SEEN_SAMPLES = 2
+
+
+def _seen_corners(corners: CornerMap, seen_walls: np.ndarray, config: CornerMapConfig) -> CornerMap:
+    """The corners at least one of whose faces has seen wall points along it (a right angle's faces leave the
+    corner 45 degrees either side of its orientation)."""
+    from scipy.spatial import cKDTree
+
+    if not len(corners) or not len(seen_walls):
+        return CornerMap(corners.xy[:0], corners.z[:0], corners.theta[:0])
+    tree = cKDTree(seen_walls)
+    steps = np.arange(1, round(config.min_face / config.resolution) + 1) * config.resolution
+    keep = np.zeros(len(corners), dtype=bool)
+    for side in (-1.0, 1.0):
+        heading = corners.theta + side * np.pi / 4
+        along = np.stack([np.cos(heading), np.sin(heading)], axis=1)
+        samples = corners.xy[:, None, :] + steps[None, :, None] * along[:, None, :]
+        distance, _ = tree.query(samples.reshape(-1, 2))
+        keep |= np.sum(distance.reshape(len(corners), -1) <= SEEN_REACH_M, axis=1) >= SEEN_SAMPLES
+    return CornerMap(corners.xy[keep], corners.z[keep], corners.theta[keep])
 
 
 def _on_grid(yaw: float) -> bool:

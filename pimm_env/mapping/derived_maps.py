@@ -44,6 +44,8 @@ def _stamp(world: World) -> str:
     if world.source is not None and Path(world.source).is_file():
         digest.update(Path(world.source).read_bytes())
     digest.update(f"{_VERSION}/{OCCUPANCY_RESOLUTION}/{SCAN_HEIGHT}/{CornerMapConfig()}".encode())
+    if world.seen_walls is not None:
+        digest.update(np.ascontiguousarray(world.seen_walls).tobytes())
     return digest.hexdigest()[:16]
 
 

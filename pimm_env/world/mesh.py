@@ -24,6 +24,9 @@ Mesh world file::
     elements: [...]            # optional: solid elements beside the mesh's objects, as in a world file (the
                                # point-cloud import writes its walls so: importers/cloud_walls.py)
     areas: {...}               # optional named polygons, as in a world file; default: the floor's outline
+    seen_walls: seen_walls.npy # optional: where a scan saw the walls, (S, 2) x, y points (the point-cloud
+                               # import writes it): the corner map leaves out corners neither of whose faces
+                               # was seen (pimm_env/mapping/corner_map.py)
 
 Name rules: a ``match`` with a wildcard (``*?[``) is an fnmatch pattern on the whole object name
 (case-sensitive); a plain word matches names holding that word, whole and in any case, alone or plural
@@ -203,7 +206,26 @@ def world_from_mesh_spec(data: Mapping[str, Any], path: Path) -> World:
         lo, hi = extent
         areas = {"all": np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])}
     name = data.get("name") or Path(path).parent.name
-    return World(name=str(name), elements=elements, areas=areas, floor_z=floor_z, source=Path(path))
+    seen = _seen_walls(data.get("seen_walls"), path)
+    return World(str(name), elements, areas, floor_z=floor_z, source=Path(path), seen_walls=seen)
+
+
+def _seen_walls(ref: Any, path: Path) -> np.ndarray | None:
+    """The ``seen_walls`` points of a mesh world file (an ``.npy`` of (S, 2) finite numbers), or None."""
+    if ref is None:
+        return None
+    if not isinstance(ref, str):
+        raise WorldFileError(path, "seen_walls", f"expected the path of an .npy file, got {ref!r}")
+    file = Path(path).parent / ref
+    try:
+        points = np.load(file, allow_pickle=False)
+    except (OSError, ValueError) as error:
+        raise WorldFileError(path, "seen_walls", f"cannot read {file}: {error}") from None
+    if points.ndim != 2 or points.shape[1] != 2 or not np.issubdtype(points.dtype, np.number):
+        raise WorldFileError(path, "seen_walls", f"{file}: expected (S, 2) numbers, got {points.dtype} {points.shape}")
+    if not np.all(np.isfinite(points)):
+        raise WorldFileError(path, "seen_walls", f"{file}: {int(np.sum(~np.isfinite(points)))} values not finite")
+    return points.astype(float)
 
 
 def _added_ceiling(elements: list[Element], floor_z: float, height: Any, path: Path) -> Element:

@@ -26,13 +26,15 @@ class Element:
 
 @dataclass
 class World:
-    """A building: its elements, its named areas and the height of its floor."""
+    """A building: its elements, its named areas and the height of its floor; a world made from a scan also
+    knows where the scan saw its walls (``seen_walls``, (S, 2) points in the plane)."""
 
     name: str
     elements: list[Element]
     areas: dict[str, np.ndarray]
     floor_z: float = 0.0
     source: Path | None = None
+    seen_walls: np.ndarray | None = None
     _footprints: dict[tuple[Any, ...], np.ndarray] = field(default_factory=dict, repr=False)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
