@@ -2,7 +2,7 @@ import numpy as np
 
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.world.grid import GridSpec
-from training.cloud_maps import MATCH_M, corner_figures, in_sight, seen_cells
+from training.cloud_maps import MATCH_M, corner_figures, in_sight, pooled_times, seen_cells
 
 
 def test_rays_from_the_mapping_poses_see_the_faces_in_front_of_them_not_the_rooms_behind():
@@ -56,3 +56,17 @@ def test_the_figure_shows_the_map_beside_its_import_over_the_building(room_file,
         ensure_derived_maps(load_world(world))
     figure = cloud_map_figure(points, room_file, imported, tmp_path / "room.png")
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and figure.stat().st_size > 20_000
+
+
+def test_the_pooled_times_take_every_buildings_trials_and_say_how_sure_the_ratio_is():
+    rows = {
+        "gen-1": {"own_maps": {"times_s": [2.0, 2.0, 4.0]}, "cloud_maps": {"times_s": [3.0, 3.0, 6.0]}},
+        "gen-2": {"own_maps": {"times_s": [2.0, 4.0]}, "cloud_maps": {"times_s": [3.0, 6.0]}},
+    }
+    line = pooled_times(rows)
+    assert "2.0 s with their own maps (5 trials), 3.0 s with the imported ones (5)" in line
+    assert "1.50 times as long" in line
+    low, high = (float(v) for v in line.split("interval ")[1].rstrip(").").split("-"))
+    assert low <= 1.5 <= high and high > low  # resampled medians of 2 / 4 and 3 / 6: anywhere from 0.75 to 3
+    assert line == pooled_times(rows)  # seeded
+    assert pooled_times({"gen-1": {"own_maps": {"times_s": [2.0]}}}) == ""  # no imported maps' trials
