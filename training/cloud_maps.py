@@ -274,7 +274,8 @@ def import_cloud(cloud_file: Path, name: str, worlds: Path) -> tuple[Path, float
 def localize_with(building: Path, maps: Path | None, trials: int, workers: int, out: Path) -> dict[str, Any]:
     """PIMM on the building's routes (its kidnap route aside: the map was made on the others), with the maps of
     ``maps`` (a world) or the building's own: convergence rate, median time to a right ``localized`` and the
-    seconds ``localized`` while wrong, over all trials."""
+    seconds ``localized`` while wrong, over all trials, and each trial's time to a right ``localized`` (of those
+    that got there) for :func:`pooled_times`."""
     from pimm_agents.experiments.experiment import Execution, Experiment
     from pimm_agents.experiments.run_plan import RunPlan, resolve_localizers
     from pimm_agents.scoring.honesty import honesty_metrics
@@ -288,7 +289,7 @@ def localize_with(building: Path, maps: Path | None, trials: int, workers: int, 
     times = [r["time_to_localized_s"] for r in rows if r.get("time_to_localized_s") is not None]
     each = [honesty_metrics(t.log.after_kidnap(), None).time_to_localized_s for t in outcome.results]
     return {
-        "times_s": [t for t in each if t is not None],  # every trial's that got there: pooled_times
+        "times_s": [t for t in each if t is not None],
         "convergence_rate": float(
             np.average([r["convergence_rate"] for r in rows], weights=[r["trials"] for r in rows])
         ),
@@ -353,9 +354,9 @@ RESAMPLES = 2000
 def pooled_times(rows: dict[str, dict[str, Any]], seed: int = 0) -> str:
     """One line under the table: every building's trials pooled, the median time to a right ``localized`` with
     the building's own maps and with the imported ones, their ratio and its 90 % bootstrap interval (each set of
-    trials resampled with replacement). A building's median over twelve trials swings by half either way from
-    one set of trials to the next; the pooled ratio says whether the imported maps are slower at all. Empty
-    when no building has trials with both."""
+    trials resampled with replacement; trials that never got there are in neither, as in the table's medians).
+    A building's median over twelve trials swings by half either way from one set of trials to the next; the
+    pooled ratio says whether the imported maps are slower at all. Empty when no building has trials with both."""
     own = [t for r in rows.values() for t in r.get("own_maps", {}).get("times_s", [])]
     cloud = [t for r in rows.values() for t in r.get("cloud_maps", {}).get("times_s", [])]
     if not own or not cloud:
