@@ -44,6 +44,20 @@ def test_the_twin_place_is_a_rival_and_a_wrong_one_is_not():
     assert np.hypot(*(tracker.rivals[0, :2] - twin[:2])) < 0.1
 
 
+@pytest.mark.parametrize("degrees", [12.0, 20.0])
+def test_a_twin_offered_well_off_its_heading_is_fitted_back_and_stands(degrees):
+    """A filter mode's mean can lie 10-20 deg off its place's heading: offered so (and 0.28 m off), the twin is
+    fitted back to its place, not screened out while the estimate is called unrivalled (3 rounds of fit did not
+    reach it from 12 deg)."""
+    truths = west_half_drive()
+    tracker = tracker_along(truths)
+    now = truths[-1]
+    twin = now - np.array([12.0, 0.0, 0.0])
+    offered = twin + np.array([0.2, -0.2, np.radians(degrees)])
+    assert tracker.update(now, now, np.zeros((0, 3)), first=offered[None, :]) == 1
+    assert np.hypot(*(tracker.rivals[0, :2] - twin[:2])) < 0.15 and abs(tracker.rivals[0, 2]) < np.radians(3)
+
+
 def test_the_block_rules_the_twin_out():
     truths = np.vstack([west_half_drive(), [[x, 1.0, 0.0] for x in np.arange(15.0, 19.0, 0.1)]])
     tracker = tracker_along(truths)

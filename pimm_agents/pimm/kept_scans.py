@@ -25,6 +25,10 @@ from pimm_env.geometry import relative_motion, wrap_angle
 MAP_ERROR_CELLS = 0.5
 REFINE_SCANS = 10  # a candidate is first fitted to the newest scans
 ADMIT_ROUNDS = 3  # rounds of each step a new candidate gets against all the kept scans before it is scored
+#: rounds of each step a new candidate gets against the newest scans, from wherever it was offered: up to 1.5 m and
+#: 30 deg back to its place (a filter mode's mean heading lay 13 deg off its place's, and 3 rounds left the true place
+#: screened out while a wrong one was called localized: docs/design.md#the-ambiguity-check)
+OFFER_ROUNDS = 10
 
 #: Coordinate steps (x m, y m, heading rad) a candidate is refined by, coarse then fine.
 REFINE_STEPS = (np.array([0.1, 0.1, np.radians(2.0)]), np.array([0.05, 0.05, np.radians(1.0)]))
@@ -194,4 +198,5 @@ class KeptScans:
         """Places newly offered (K, 3) fitted as the check fits a new candidate: to the ``recent`` scans from
         wherever they were offered, then ``ADMIT_ROUNDS`` of ``ADMIT_STEPS`` against all the kept scans
         (``history``). ``update`` screens the candidates between the two."""
-        return self.refine(self.refine(poses, recent, rounds=3), history, rounds=ADMIT_ROUNDS, steps=ADMIT_STEPS)
+        fitted = self.refine(poses, recent, rounds=OFFER_ROUNDS)
+        return self.refine(fitted, history, rounds=ADMIT_ROUNDS, steps=ADMIT_STEPS)

@@ -33,6 +33,7 @@ from pimm_agents.pimm.kept_scans import (
     DEEP_STEPS,
     DEEP_TOUCH,
     FINE_STEP,
+    OFFER_ROUNDS,
     REFINE_SCANS,
     KeptScans,
 )
@@ -215,7 +216,7 @@ class RivalTracker(KeptScans):
             refined = self.refine(refined, history, rounds=1, steps=DEEP_TOUCH)
         offered = np.array(pool[kept:], dtype=float).reshape(-1, 3)
         if len(offered):
-            offered = self.refine(offered, recent, rounds=3)
+            offered = self.refine(offered, recent, rounds=OFFER_ROUNDS)
             newest = self.evidence(np.vstack([*places, offered]), recent)
             offered = offered[newest[len(places) :] >= newest[: len(places)].max() - ADMIT_SCREEN]
             if len(offered):
