@@ -210,3 +210,76 @@ def test_the_ceiling_stops_at_the_walls_faces():
     cloud_map = classify(slam_like_room(np.random.default_rng(4)), CloudMapConfig())
     low, high = surface_meshes(cloud_map)["ceiling"].bounds
     assert low[0] > -0.01 and low[1] > -0.01 and high[0] < 6.01 and high[1] < 4.01
+
+
+def write_trajectory(path: Path, xy: np.ndarray, z: float = 0.5) -> Path:
+    """A TUM trajectory file of positions ``xy`` (N, 2) at height ``z``, heading along x."""
+    table = np.column_stack(
+        [np.arange(len(xy)) * 0.1, xy, np.full(len(xy), z), np.zeros((len(xy), 3)), np.ones(len(xy))]
+    )
+    np.savetxt(path, table, header="timestamp x y z qx qy qz qw")
+    return path
+
+
+def test_clutter_where_the_robot_drove_is_set_aside_given_its_trajectory(tmp_path):
+    """A person stood at (2, 1.5) while the room was mapped (the floor under them never seen, so the ghost rule
+    keeps them); the robot drove through there later. With the trajectory they are set aside; a cabinet 0.6 m
+    beside the path stays."""
+    from pimm_env.importers.cloud_map import CLUTTER, classify
+    from pimm_env.importers.cloud_path import read_path
+
+    rng = np.random.default_rng(2)
+    room = slam_like_room(rng)
+    under = (np.abs(room[:, 0] - 2.0) < 0.25) & (np.abs(room[:, 1] - 1.5) < 0.25) & (room[:, 2] < 0.05)
+    person = rng.uniform([1.8, 1.3, 0.0], [2.2, 1.7, 1.7], (4000, 3))
+    cabinet = surface(rng, [3.5, 2.1, 0.0], [4.5, 2.1, 1.0], 2000)  # its front, 0.6 m north of the path
+    points = np.vstack([room[~under], person, cabinet])
+    path = read_path(
+        write_trajectory(tmp_path / "path.tum", np.column_stack([np.linspace(0.5, 5.5, 60), np.full(60, 1.5)]))
+    )
+
+    def clutter_near(cloud, x, y, r):
+        centres = (cloud.voxels[cloud.classes == CLUTTER] + 0.5) * cloud.voxel_m
+        return int(np.count_nonzero(np.hypot(centres[:, 0] - x, centres[:, 1] - y) < r))
+
+    without, with_path = classify(points), classify(points, path=path)
+    cleared = next(n for key, n in with_path.set_aside.items() if key.startswith("clutter where the trajectory"))
+    assert clutter_near(without, 2.0, 1.5, 0.2) > 20  # the ghost rule alone keeps the person
+    assert clutter_near(with_path, 2.0, 1.5, 0.2) == 0 and cleared >= clutter_near(without, 2.0, 1.5, 0.2)
+    assert clutter_near(with_path, 4.0, 2.15, 0.1) == clutter_near(without, 4.0, 2.15, 0.1) > 0  # the cabinet stays
+    assert not any(key.startswith("clutter where") for key in without.set_aside)
+
+
+def test_a_trajectory_in_another_frame_not_tum_or_with_a_plan_is_refused_before_anything_is_written(tmp_path):
+    rng = np.random.default_rng(3)
+    cloud = write_pcd(tmp_path / "room.pcd", slam_like_room(rng))
+    far = write_trajectory(tmp_path / "far.tum", np.column_stack([np.linspace(100, 110, 20), np.full(20, 50.0)]))
+    with pytest.raises(MapFileError, match=r"far.tum: 20 of 20 poses of the trajectory lie outside the map .*frame"):
+        import_world(cloud, "room", tmp_path / "maps", trajectory=far)
+    text = tmp_path / "poses.txt"
+    text.write_text("0 1 2\n")
+    with pytest.raises(MapFileError, match=r"poses.txt: not a TUM trajectory"):
+        import_world(cloud, "room", tmp_path / "maps", trajectory=text)
+    nan = tmp_path / "nan.tum"
+    nan.write_text("0 1 1 0.5 0 0 0 1\n0.1 nan 1 0.5 0 0 0 1\n")
+    with pytest.raises(MapFileError, match=r"nan.tum: pose 2 is not finite"):
+        import_world(cloud, "room", tmp_path / "maps", trajectory=nan)
+    plan = tmp_path / "plan.yaml"
+    plan.write_text("image: plan.pgm\n")
+    with pytest.raises(MapFileError, match=r"--trajectory .*far.tum: a trajectory goes with a point-cloud map"):
+        import_world(plan, "room", tmp_path / "maps", trajectory=far)
+    assert not (tmp_path / "maps" / "room").exists()
+
+
+def test_world_import_takes_the_trajectory_and_says_what_it_set_aside(tmp_path):
+    import yaml
+
+    rng = np.random.default_rng(4)
+    cloud = write_pcd(tmp_path / "room.pcd", slam_like_room(rng))
+    path = write_trajectory(tmp_path / "path.tum", np.column_stack([np.linspace(0.5, 5.5, 30), np.full(30, 2.0)]))
+    args = ["world", "import", str(cloud), "--name", "room", "--maps-dir", str(tmp_path / "maps"), "--no-prepare"]
+    result = CliRunner().invoke(evaluate.app, [*args, "--trajectory", str(path)])
+    assert result.exit_code == 0, result.output
+    spec = yaml.safe_load((tmp_path / "maps" / "room" / "world.yaml").read_text())
+    assert spec["cloud_map"]["trajectory"] == {"file": str(path), "poses": 30}
+    assert any(key.startswith("clutter where the trajectory drove") for key in spec["cloud_map"]["set_aside"])

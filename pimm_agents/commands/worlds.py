@@ -36,6 +36,11 @@ def world_import(
         True, help="class objects standing in a wall's line (windows, closed doors) wall, whatever their names say"
     ),
     strict: bool = typer.Option(False, help="a Gazebo model or mesh not found stops the import (default: left out)"),
+    trajectory: Path | None = typer.Option(
+        None,
+        help="a point-cloud map's SLAM trajectory (TUM: t x y z qx qy qz qw, the map's frame): clutter where it drove"
+        " is set aside as ghosts",
+    ),
     routes: int = typer.Option(4, min=1, help="routes to generate"),
     maps_dir: Path | None = typer.Option(None, help="where worlds live (default: the project's maps/)"),
     prepare: bool = typer.Option(True, help="also prepare the world (maps, fingerprints, routes)"),
@@ -63,6 +68,7 @@ def world_import(
         geometry="visual" if visual else "collision",
         wall_line=wall_line,
         strict=strict,
+        trajectory=trajectory,
     )
     typer.echo(f"wrote {path}\n{describe_world(load_world(path))}")
     if prepare:

@@ -17,7 +17,8 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    of up to three columns between seen ceiling (a LiDAR's rings leave stripes) are filled in. Clutter rising
    from the floor to no more than a person's height over floor the map saw under it is the ghost of someone who
    walked by while mapping (a thing standing there hides its floor), and so are their arms beside it
-   (``cloud_ghosts.py``): set aside and counted.
+   (``cloud_ghosts.py``): set aside and counted. Given the trajectory the map was made along, clutter up to a
+   person's height where the robot drove is set aside too (``cloud_path.py``).
 4. **Surfaces**: walls are upright planes fitted to the wall voxels (``cloud_walls.py``), each a box element of
    the world standing behind the surface the LiDAR saw (so the corner map reads the walls' outlines, at the
    slant they were fitted at, not a raster of it), and where the map saw them (``seen_walls``: the mean point of
@@ -40,6 +41,7 @@ import numpy as np
 from pimm_env.errors import MapFileError
 from pimm_env.geometry import rotation_onto_z
 from pimm_env.importers.cloud_ghosts import ghost_voxels
+from pimm_env.importers.cloud_path import check_frame, on_path
 from pimm_env.importers.cloud_walls import in_walls, wall_planes
 
 #: The surface classes of a cloud map's voxels, in the order of ``CLASSES`` indices.
@@ -90,9 +92,11 @@ class CloudMap:
         return {name: int(np.count_nonzero(self.classes == k)) for k, name in enumerate(CLASSES)}
 
 
-def level_frame(points: np.ndarray, config: CloudMapConfig, source: Path | str) -> tuple[np.ndarray, float, float]:
-    """``points`` turned and moved so that the floor plane is z = 0 (see the module's text); the tilt (deg) and
-    the floor's height in the given frame."""
+def level_frame(
+    points: np.ndarray, config: CloudMapConfig, source: Path | str
+) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """``points`` turned and moved so that the floor plane is z = 0 (see the module's text); the tilt (deg), the
+    floor's height in the given frame and the turn (3, 3; a point p levels to ``turn @ p - (0, 0, floor)``)."""
     import open3d as o3d
 
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)).voxel_down_sample(config.voxel_m)
@@ -131,7 +135,7 @@ def level_frame(points: np.ndarray, config: CloudMapConfig, source: Path | str) 
     levelled = np.asarray(points, dtype=float) @ turn.T
     floor_z = float(np.median((near @ turn.T)[:, 2])) if len(near) else floor_at
     levelled[:, 2] -= floor_z
-    return levelled, float(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0)))), floor_z
+    return levelled, float(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0)))), floor_z, turn
 
 
 def _built_over(level: np.ndarray, thin: np.ndarray, height: float, share: float) -> bool:
@@ -148,9 +152,16 @@ def _built_over(level: np.ndarray, thin: np.ndarray, height: float, share: float
     return over > share * sum(c in inner for c in at)
 
 
-def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), source: Path | str = "cloud") -> CloudMap:
-    """The cloud map of ``points`` (N, 3, any frame with z up): levelled, voxelized, classified."""
-    levelled, tilt, floor_z = level_frame(points, config, source)
+def classify(
+    points: np.ndarray,
+    config: CloudMapConfig = CloudMapConfig(),
+    source: Path | str = "cloud",
+    path: np.ndarray | None = None,
+    path_source: Path | str = "trajectory",
+) -> CloudMap:
+    """The cloud map of ``points`` (N, 3, any frame with z up): levelled, voxelized, classified. ``path``: the
+    positions (M, 3, the points' frame) the map was made along, read from ``path_source`` (cloud_path.py)."""
+    levelled, tilt, floor_z, turn = level_frame(points, config, source)
     index = np.floor(levelled / config.voxel_m).astype(np.int64)
     voxels, inverse, hits = np.unique(index, axis=0, return_inverse=True, return_counts=True)
     inverse = inverse.reshape(-1)
@@ -171,6 +182,12 @@ def classify(points: np.ndarray, config: CloudMapConfig = CloudMapConfig(), sour
         np.count_nonzero(ghosts)
     )
     voxels, classes, means, tops = voxels[~ghosts], classes[~ghosts], means[~ghosts], tops[~ghosts]
+    if path is not None:
+        driven = np.asarray(path, dtype=float) @ turn.T - [0.0, 0.0, floor_z]
+        check_frame(driven, voxels, config.voxel_m, path_source)
+        cleared = on_path(voxels, classes == CLUTTER, driven, config.voxel_m, config.person_m)
+        set_aside["clutter where the trajectory drove (ghosts the floor rule missed)"] = int(np.count_nonzero(cleared))
+        voxels, classes, means, tops = voxels[~cleared], classes[~cleared], means[~cleared], tops[~cleared]
     filled = _closed_ceiling(voxels, classes)
     set_aside["ceiling voxels filled in (gaps between seen ceiling)"] = len(filled)
     voxels, classes = np.vstack([voxels, filled]), np.concatenate([classes, np.full(len(filled), CEILING, np.int8)])

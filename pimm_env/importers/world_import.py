@@ -70,13 +70,15 @@ def import_world(
     geometry: str = "collision",
     wall_line: bool = True,
     strict: bool = False,
+    trajectory: Path | None = None,
 ) -> Path:
     """Write ``maps_dir/name/world.yaml`` from a map_server ``.yaml``, a mesh or an SDF world; returns its path.
 
     ``ceiling_height``: a floor plan's ceiling (default 3 m); for a mesh or SDF world, a flat ceiling added that
     high above the floor (none is added when not given). ``rules`` are added after the defaults and win. With
     ``wall_line``, a mesh's objects standing in a wall's line are classed wall (:mod:`wall_line`). ``strict``: a
-    Gazebo model or mesh that cannot be found stops the import (else it is left out, said and counted)."""
+    Gazebo model or mesh that cannot be found stops the import (else it is left out, said and counted).
+    ``trajectory``: a point-cloud map's SLAM trajectory (TUM, the map's frame): clutter where it drove is set aside."""
     source = Path(source)
     check_world_name(name)
     if not source.is_file():
@@ -86,14 +88,16 @@ def import_world(
     folder = Path(maps_dir) / name
     existed = folder.exists()
     suffix = source.suffix.lower()
+    if trajectory is not None and suffix not in (*CLOUD_SUFFIXES, ".ply"):
+        raise MapFileError(f"--trajectory {trajectory}: a trajectory goes with a point-cloud map, not {source}")
     all_rules = DEFAULT_MESH_RULES + list(rules or [])
     try:
         if suffix in (".yaml", ".yml"):
             spec = _from_ros_map(source, name, ceiling_height or PLAN_CEILING_HEIGHT, ceilings, furnish_count, seed)
         elif suffix in CLOUD_SUFFIXES:
-            spec = _from_cloud(source, name, folder, all_rules, wall_line)
+            spec = _from_cloud(source, name, folder, all_rules, wall_line, trajectory)
         elif suffix in MESH_SUFFIXES:
-            spec = _from_mesh(source, name, folder, all_rules, up_axis, ceiling_height, wall_line)
+            spec = _from_mesh(source, name, folder, all_rules, up_axis, ceiling_height, wall_line, trajectory)
         elif suffix in SDF_SUFFIXES:
             spec = _from_sdf(source, name, folder, all_rules, ceiling_height, model_paths, geometry, wall_line, strict)
         else:
@@ -132,13 +136,16 @@ def _from_mesh(
     up_axis: str,
     ceiling: float | None,
     wall_line: bool,
+    trajectory: Path | None = None,
 ) -> dict[str, Any]:
     from pimm_env.importers.sdf_world import read_mesh_file
 
     if len(read_mesh_file(source).faces) == 0:  # said of the user's file, before anything is written
         if source.suffix.lower() == ".ply":  # points only: a point-cloud map
-            return _from_cloud(source, name, folder, rules, wall_line)
+            return _from_cloud(source, name, folder, rules, wall_line, trajectory)
         raise MapFileError(f"{source}: the mesh has no faces (a point set?): world import needs surfaces")
+    if trajectory is not None:
+        raise MapFileError(f"--trajectory {trajectory}: a trajectory goes with a point-cloud map; {source} is a mesh")
     folder.mkdir(parents=True, exist_ok=True)
     target = folder / source.name
     if source.resolve() != target.resolve():
@@ -146,16 +153,20 @@ def _from_mesh(
     return _mesh_spec(source.name, name, folder, rules, up_axis, ceiling, source, wall_line)
 
 
-def _from_cloud(source: Path, name: str, folder: Path, rules: list[dict[str, str]], wall_line: bool) -> dict[str, Any]:
+def _from_cloud(
+    source: Path, name: str, folder: Path, rules: list[dict[str, str]], wall_line: bool, trajectory: Path | None = None
+) -> dict[str, Any]:
     import numpy as np
 
     from pimm_env.clouds.read import read_cloud
     from pimm_env.importers.cloud_map import CloudMapConfig, classify, floor_areas, write_cloud_world_mesh
+    from pimm_env.importers.cloud_path import read_path
     from pimm_env.importers.cloud_walls import wall_elements
 
     config = CloudMapConfig()
     cloud = read_cloud(source)
-    cloud_map = classify(cloud.points, config, source)  # refused before anything is written
+    path = None if trajectory is None else read_path(trajectory) - cloud.offset  # the cloud's frame, as read
+    cloud_map = classify(cloud.points, config, source, path, trajectory or "")  # refused before anything is written
     areas = floor_areas(cloud_map, config, source)
     folder.mkdir(parents=True, exist_ok=True)
     mesh = write_cloud_world_mesh(cloud_map, folder / f"{source.stem}.glb")
@@ -173,6 +184,8 @@ def _from_cloud(source: Path, name: str, folder: Path, rules: list[dict[str, str
         "floor_z": round(cloud_map.floor_z, 3),
         "offset": [float(v) for v in cloud.offset],
     }
+    if path is not None:
+        spec["cloud_map"]["trajectory"] = {"file": str(trajectory), "poses": len(path)}
     return spec
 
 
