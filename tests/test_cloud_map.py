@@ -250,24 +250,24 @@ def test_clutter_where_the_robot_drove_is_set_aside_given_its_trajectory(tmp_pat
     assert not any(key.startswith("clutter where") for key in without.set_aside)
 
 
-def test_a_trajectory_in_another_frame_not_tum_or_with_a_plan_is_refused_before_anything_is_written(tmp_path):
-    rng = np.random.default_rng(3)
-    cloud = write_pcd(tmp_path / "room.pcd", slam_like_room(rng))
-    far = write_trajectory(tmp_path / "far.tum", np.column_stack([np.linspace(100, 110, 20), np.full(20, 50.0)]))
-    with pytest.raises(MapFileError, match=r"far.tum: 20 of 20 poses of the trajectory lie outside the map .*frame"):
-        import_world(cloud, "room", tmp_path / "maps", trajectory=far)
-    text = tmp_path / "poses.txt"
-    text.write_text("0 1 2\n")
-    with pytest.raises(MapFileError, match=r"poses.txt: not a TUM trajectory"):
-        import_world(cloud, "room", tmp_path / "maps", trajectory=text)
-    nan = tmp_path / "nan.tum"
-    nan.write_text("0 1 1 0.5 0 0 0 1\n0.1 nan 1 0.5 0 0 0 1\n")
-    with pytest.raises(MapFileError, match=r"nan.tum: pose 2 is not finite"):
-        import_world(cloud, "room", tmp_path / "maps", trajectory=nan)
-    plan = tmp_path / "plan.yaml"
-    plan.write_text("image: plan.pgm\n")
-    with pytest.raises(MapFileError, match=r"--trajectory .*far.tum: a trajectory goes with a point-cloud map"):
-        import_world(plan, "room", tmp_path / "maps", trajectory=far)
+FAR_AWAY = "".join(f"{k * 0.1} {100 + k} 50 0.5 0 0 0 1\n" for k in range(20))
+
+
+@pytest.mark.parametrize(
+    "name, text, source, said",
+    [
+        ("far.tum", FAR_AWAY, "room.pcd", r"far.tum: 20 of 20 poses of the trajectory lie outside the map .*frame"),
+        ("poses.txt", "0 1 2\n", "room.pcd", r"poses.txt: not a TUM trajectory"),
+        ("nan.tum", "0 1 1 0.5 0 0 0 1\n0.1 nan 1 0.5 0 0 0 1\n", "room.pcd", r"nan.tum: pose 2 is not finite"),
+        ("far.tum", FAR_AWAY, "plan.yaml", r"--trajectory .*far.tum: a trajectory goes with a point-cloud map"),
+    ],
+)
+def test_a_bad_trajectory_is_refused_naming_it_before_anything_is_written(name, text, source, said, tmp_path):
+    write_pcd(tmp_path / "room.pcd", slam_like_room(np.random.default_rng(3)))
+    (tmp_path / "plan.yaml").write_text("image: plan.pgm\n")
+    (tmp_path / name).write_text(text)
+    with pytest.raises(MapFileError, match=said):
+        import_world(tmp_path / source, "room", tmp_path / "maps", trajectory=tmp_path / name)
     assert not (tmp_path / "maps" / "room").exists()
 
 
