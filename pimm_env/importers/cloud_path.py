@@ -26,7 +26,7 @@ INSIDE_SHARE = 0.5
 
 
 def read_path(path: Path) -> np.ndarray:
-    """The positions (N, 3) of a TUM trajectory file (evo's reader); errors name the file, the line and the value."""
+    """The positions (N, 3) of a TUM trajectory file (evo's reader); errors name the file (and the pose, the value)."""
     from evo.tools import file_interface
 
     path = Path(path)
