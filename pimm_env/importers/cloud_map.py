@@ -41,7 +41,7 @@ import numpy as np
 from pimm_env.errors import MapFileError
 from pimm_env.geometry import rotation_onto_z
 from pimm_env.importers.cloud_ghosts import ghost_voxels
-from pimm_env.importers.cloud_path import check_frame, on_path
+from pimm_env.importers.cloud_path import on_path
 from pimm_env.importers.cloud_walls import in_walls, wall_planes
 
 #: The surface classes of a cloud map's voxels, in the order of ``CLASSES`` indices.
@@ -183,9 +183,7 @@ def classify(
     )
     voxels, classes, means, tops = voxels[~ghosts], classes[~ghosts], means[~ghosts], tops[~ghosts]
     if path is not None:
-        driven = np.asarray(path, dtype=float) @ turn.T - [0.0, 0.0, floor_z]
-        check_frame(driven, voxels, config.voxel_m, path_source)
-        cleared = on_path(voxels, classes == CLUTTER, driven, config.voxel_m, config.person_m)
+        cleared = on_path(voxels, classes == CLUTTER, np.asarray(path) @ turn.T - [0, 0, floor_z], config, path_source)
         set_aside["clutter where the trajectory drove (ghosts the floor rule missed)"] = int(np.count_nonzero(cleared))
         voxels, classes, means, tops = voxels[~cleared], classes[~cleared], means[~cleared], tops[~cleared]
     filled = _closed_ceiling(voxels, classes)

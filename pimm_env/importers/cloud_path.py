@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -58,17 +59,21 @@ def driven(positions: np.ndarray, step_m: float) -> np.ndarray:
     return np.vstack(parts)
 
 
-def on_path(voxels: np.ndarray, clutter: np.ndarray, path: np.ndarray, voxel_m: float, person_m: float) -> np.ndarray:
-    """Which ``voxels`` (V, 3 indices, levelled frame) are ``clutter`` up to ``person_m`` high whose centre lies
-    within ``CLEAR_M`` of the driven ``path`` (N, 3, levelled frame) in the plane."""
+def on_path(voxels: np.ndarray, clutter: np.ndarray, path: np.ndarray, config: Any, source: Path | str) -> np.ndarray:
+    """Which ``voxels`` (V, 3 indices, levelled frame) are ``clutter`` up to ``config.person_m`` high whose centre
+    lies within ``CLEAR_M`` of the driven ``path`` (N, 3, levelled frame) in the plane; a path from another frame
+    (``check_frame``) is refused naming ``source``. ``config``: cloud_map.CloudMapConfig."""
     from scipy.spatial import cKDTree
 
-    centres = (voxels + 0.5) * voxel_m
-    candidate = np.flatnonzero(clutter & (centres[:, 2] <= person_m))
+    path = np.asarray(path, dtype=float)
+    check_frame(path, voxels, config.voxel_m, source)
+    centres = (voxels + 0.5) * config.voxel_m
+    candidate = np.flatnonzero(clutter & (centres[:, 2] <= config.person_m))
     out = np.zeros(len(voxels), dtype=bool)
     if not len(candidate):
         return out
-    distance, _ = cKDTree(driven(path, voxel_m / 2)).query(centres[candidate, :2], distance_upper_bound=CLEAR_M)
+    tree = cKDTree(driven(path, config.voxel_m / 2))
+    distance, _ = tree.query(centres[candidate, :2], distance_upper_bound=CLEAR_M)
     out[candidate[distance <= CLEAR_M]] = True
     return out
 
