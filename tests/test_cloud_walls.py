@@ -110,3 +110,30 @@ def test_a_jog_in_a_wall_is_not_taken_for_its_thickness():
     floor = {(i, j) for i in range(0, 60) for j in range(-40, -1)}
     walls, _ = wall_planes(centres, np.full(len(centres), 2.6), (floor, floor), CloudMapConfig())
     assert all(w[4] == ONE_FACED_M for w in walls)
+
+
+def _cabinet_face(rng, n, start, end, top):
+    """A face from ``start`` to ``end`` (x, y) seen from 1.2 m up to ``top``."""
+    t = rng.uniform(0.0, 1.0, n)[:, None]
+    xy = np.asarray(start) + t * (np.asarray(end) - np.asarray(start)) + rng.normal(0.0, 0.01, (n, 2))
+    return np.column_stack([xy, rng.uniform(1.2, top, n)])
+
+
+def test_a_cabinet_short_of_the_ceiling_is_not_a_wall_nor_a_walls_other_face():
+    """A room's wall along y = 0 seen from y < 0 (ceiling 2.6 m); a 1.9 m cabinet's side standing out of it
+    (x = 2.5) and a cabinet's back 0.35 m behind it, seen through a doorway: neither is a wall (its corners would
+    be none of the building's), and the wall stands as thick as a wall seen from one room. A partition as long as
+    the cabinet's side but up to the ceiling stays a wall."""
+    rng = np.random.default_rng(5)
+    floor = {(i, j) for i in range(0, 60) for j in range(-40, -1)}
+    wall = _face(rng, 400, 0.0, 5.0, 0.0)
+    side = _cabinet_face(rng, 120, (2.5, -0.05), (2.5, -0.8), 1.9)
+    back = _cabinet_face(rng, 120, (1.0, 0.35), (1.6, 0.35), 1.9)
+    centres = np.vstack([wall, side, back])
+    walls, on_plane = wall_planes(centres, np.full(len(centres), 2.6), (floor, floor), CloudMapConfig())
+    assert len(walls) == 1 and walls[0][4] == ONE_FACED_M
+    cabinet = centres[len(wall) :]
+    assert on_plane[: len(wall)].all() and not on_plane[len(wall) :][np.abs(cabinet[:, 1]) > 0.15].any()
+    partition = _cabinet_face(rng, 120, (2.5, -0.05), (2.5, -0.8), 2.5)
+    walls, on_plane = wall_planes(np.vstack([wall, partition]), np.full(520, 2.6), (floor, floor), CloudMapConfig())
+    assert len(walls) == 2 and on_plane[len(wall) :].mean() > 0.9

@@ -1,6 +1,6 @@
 """The walls of a point-cloud map (cloud_map.py): upright planes fitted across the plan to the wall voxels'
-points, cut at doorways, met where furniture hides a room's corner, and each stood as a box behind the surface the
-LiDAR saw."""
+points that reach the ceiling (a cabinet as high as a wall's judged part stops short of it), cut at doorways, met
+where furniture hides a room's corner, and each stood as a box behind the surface the LiDAR saw."""
 
 from __future__ import annotations
 
@@ -26,6 +26,7 @@ def wall_planes(
     remaining = np.arange(len(centres))
     tops = np.asarray(tops, dtype=float)
     square = None  # the building's square: the direction of its longest wall, the first plane found
+    reaches = _up_to_ceiling(centres, tops, config)
     while len(remaining) >= 20:
         inliers, normal = _ransac_line(centres[remaining, :2], config.wall_plane_m, rng)
         if square is None:
@@ -42,8 +43,8 @@ def wall_planes(
         cuts = np.flatnonzero(np.diff(s[order]) > config.door_gap_m) + 1
         for piece in np.split(order, cuts):
             lo, hi = float(s[piece].min()), float(s[piece].max())
-            if hi - lo + config.voxel_m < config.min_wall_m:
-                continue
+            if hi - lo + config.voxel_m < config.min_wall_m or reaches[inliers[piece]].mean() < 0.5:
+                continue  # a pillar's side, a shelf's end; furniture as high as a wall but short of the ceiling
             n2 = normal[:2] / np.hypot(normal[0], normal[1])
             depths = points[piece, :2] @ n2
             offset = float(np.median(depths))
@@ -55,6 +56,7 @@ def wall_planes(
             else:
                 others = np.ones(len(centres), dtype=bool)
                 others[inliers[piece]] = False
+                others &= reaches  # a cabinet standing behind a wall is not its other face
                 side, depth = _other_face(offset, n2, along, lo, hi, centres[others, :2], config.voxel_m)
             thickness = max(config.voxel_m, depth)
             if side == 0:
@@ -68,6 +70,19 @@ def wall_planes(
             on_plane[inliers[piece]] = True
         remaining = np.setdiff1d(remaining, inliers)
     return meet(np.array(walls).reshape(-1, 7), config.corner_reach_m), on_plane
+
+
+def _up_to_ceiling(centres: np.ndarray, tops: np.ndarray, config: Any) -> np.ndarray:
+    """Which wall voxels (their mean points ``centres``, their columns' ``tops``) stand in a column whose wall
+    voxels come within half ``wall_gap_m`` of the ceiling band over it: a wall holds its ceiling up (the LiDAR's
+    rings on a far wall end half a gap below it on average), a tall cabinet stops short."""
+    v = config.voxel_m
+    column, inverse = np.unique(np.floor(centres[:, :2] / v).astype(np.int64), axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    highest = np.full(len(column), -np.inf)
+    np.maximum.at(highest, inverse, (np.floor(centres[:, 2] / v) + 0.5) * v)
+    below = tops - v / 2 - config.ceiling_band_m - highest[inverse] - v  # 0: the wall's top voxel meets the band
+    return below <= config.wall_gap_m / 2 + 1e-9
 
 
 def _ransac_line(xy: np.ndarray, within: float, rng: np.random.Generator, draws: int = 300) -> tuple:
