@@ -283,3 +283,38 @@ def test_world_import_takes_the_trajectory_and_says_what_it_set_aside(tmp_path):
     spec = yaml.safe_load((tmp_path / "maps" / "room" / "world.yaml").read_text())
     assert spec["cloud_map"]["trajectory"] == {"file": str(path), "poses": 30}
     assert any(key.startswith("clutter where the trajectory drove") for key in spec["cloud_map"]["set_aside"])
+
+
+def _low_room_with_a_tall_cabinet(rng: np.random.Generator) -> np.ndarray:
+    """A 6 m x 4 m room 2.5 m high whose south-west corner a 1.9 m cabinet (1.5 m x 0.5 m) hides up to its top,
+    and in its north wall an opening 1.5 m wide under a header from 2.0 m, the floor beyond it seen."""
+    parts = [
+        surface(rng, [0, 0, 0], [6, 4, 0], 60_000),
+        surface(rng, [0, 0, 2.5], [6, 4, 2.5], 60_000),
+        surface(rng, [0, 0, 0], [6, 0, 2.5], 40_000),
+        surface(rng, [0, 4, 0], [6, 4, 2.5], 40_000),
+        surface(rng, [0, 0, 0], [0, 4, 2.5], 30_000),
+        surface(rng, [6, 0, 0], [6, 4, 2.5], 30_000),
+        surface(rng, [2, 4, 0], [3.5, 5, 0], 6000),  # the floor beyond the opening
+    ]
+    points = np.vstack(parts)
+    hidden = (points[:, 0] < 1.5) & (points[:, 1] < 0.5) & (points[:, 2] < 1.9)  # behind and under the cabinet
+    opening = (points[:, 0] > 2) & (points[:, 0] < 3.5) & (np.abs(points[:, 1] - 4) < 0.1) & (points[:, 2] < 2.0)
+    cabinet = [surface(rng, [0, 0.5, 0], [1.5, 0.5, 1.9], 6000), surface(rng, [1.5, 0, 0], [1.5, 0.5, 1.9], 2000)]
+    return np.vstack([points[~hidden & ~opening], *cabinet])
+
+
+def test_a_walls_top_seen_over_a_tall_cabinet_closes_the_corner_it_hides_and_a_header_is_no_wall(tmp_path):
+    """The cabinet's top stands 0.4 m under the ceiling band: the wall behind it is seen only over it (too short
+    to be judged a wall), but on the wall's plane, over floor the map never saw: the wall runs on to the corner,
+    standing from the cabinet's top. The header over the opening stands over floor the map saw: no wall."""
+    source = write_pcd(tmp_path / "low.pcd", _low_room_with_a_tall_cabinet(np.random.default_rng(4)))
+    world_file = import_world(source, "low_room", tmp_path / "maps")
+    world = load_world(world_file)
+    maps = build_derived_maps(world)
+    gaps = np.hypot(*(maps.corners.xy[:, None, :] - ROOM_CORNERS[None, :, :]).transpose(2, 0, 1))
+    assert len(maps.corners) == 4 and gaps.min(axis=0).max() < 0.1  # the hidden corner too
+    walls = [e.shape for e in world.elements if e.semantic.name == "WALL"]
+    raised = [w for w in walls if w.center[2] - w.half_extents[2] > 1.0]
+    assert raised and all(abs(w.center[2] - w.half_extents[2] - 1.9) < 0.15 for w in raised)  # the cabinet's top
+    assert all(w.center[0] < 1.6 for w in raised)  # none over the opening

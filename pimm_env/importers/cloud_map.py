@@ -42,7 +42,7 @@ from pimm_env.errors import MapFileError
 from pimm_env.geometry import rotation_onto_z
 from pimm_env.importers.cloud_ghosts import ghost_voxels
 from pimm_env.importers.cloud_path import on_path
-from pimm_env.importers.cloud_walls import in_walls, wall_planes
+from pimm_env.importers.cloud_walls import in_walls, near_the_ceiling, wall_planes
 
 #: The surface classes of a cloud map's voxels, in the order of ``CLASSES`` indices.
 CLASSES = ("floor", "ceiling", "wall", "clutter")
@@ -186,16 +186,21 @@ def classify(
         cleared = on_path(voxels, classes == CLUTTER, np.asarray(path) @ turn.T - [0, 0, floor_z], config, path_source)
         set_aside["clutter where the trajectory drove (ghosts the floor rule missed)"] = int(np.count_nonzero(cleared))
         voxels, classes, means, tops = voxels[~cleared], classes[~cleared], means[~cleared], tops[~cleared]
+    upper = near_the_ceiling(
+        voxels, classes == CLUTTER, classes == FLOOR, tops, config
+    )  # a wall's top over a cabinet, a lintel
     filled = _closed_ceiling(voxels, classes)
     set_aside["ceiling voxels filled in (gaps between seen ceiling)"] = len(filled)
     voxels, classes = np.vstack([voxels, filled]), np.concatenate([classes, np.full(len(filled), CEILING, np.int8)])
-    wall = np.flatnonzero(classes == WALL)
+    upper = np.concatenate([upper, np.zeros(len(filled), dtype=bool)])
+    wall = np.flatnonzero((classes == WALL) | upper)
     plan, lo = _open_floor(voxels, classes)
     seen = {(int(x), int(y)) for x, y in voxels[classes == FLOOR, :2]}
     open_floor = {(int(x + lo[0]), int(y + lo[1])) for y, x in zip(*np.nonzero(plan), strict=True)}
-    walls, on_plane = wall_planes(means[wall], tops[wall] + config.voxel_m / 2, (seen, open_floor), config)
-    loose = wall[~on_plane]
+    walls, on_plane = wall_planes(means[wall], tops[wall] + config.voxel_m / 2, (seen, open_floor), config, upper[wall])
+    loose = wall[~on_plane & ~upper[wall]]
     classes[loose] = CLUTTER  # upright structure on no wall plane: a cabinet's side, a pillar
+    classes[wall[on_plane]] = WALL
     set_aside["wall voxels on no wall plane (taken as clutter)"] = len(loose)
     seen_walls = means[wall[on_plane], :2]
     return CloudMap(voxels, classes, config.voxel_m, tilt, floor_z, len(points), set_aside, walls, seen_walls)
@@ -266,21 +271,15 @@ def _classes(voxels: np.ndarray, config: CloudMapConfig) -> tuple[np.ndarray, np
     return classes, top[inverse]
 
 
-def _extent(column: np.ndarray, bottom: np.ndarray, top: np.ndarray, columns: int) -> tuple[np.ndarray, np.ndarray]:
-    """The lowest ``bottom`` and the highest ``top`` of each of ``columns`` (its voxels' ``column``)."""
-    low, high = np.full(columns, np.inf), np.full(columns, -np.inf)
-    np.minimum.at(low, column, bottom)
-    np.maximum.at(high, column, top)
-    return low, high
-
-
 def _stacked(column: np.ndarray, z: np.ndarray, columns: int, bottom: float, top: np.ndarray, config: CloudMapConfig):
     """Which of ``columns`` hold voxels (their ``column`` and heights ``z``) stacked from ``bottom`` to their
     ``top`` over at least ``wall_min_span_m``, no two (nor an end and its nearest) further apart than
     ``wall_gap_m``."""
     order = np.lexsort((z, column))
     column, z = column[order], z[order]
-    low, high = _extent(column, z - config.voxel_m / 2, z + config.voxel_m / 2, columns)
+    low, high = np.full(columns, np.inf), np.full(columns, -np.inf)
+    np.minimum.at(low, column, z - config.voxel_m / 2)
+    np.maximum.at(high, column, z + config.voxel_m / 2)
     gap = np.zeros(columns)
     same = column[1:] == column[:-1]
     np.maximum.at(gap, column[1:][same], np.diff(z)[same] - config.voxel_m)

@@ -10,7 +10,7 @@ import numpy as np
 
 
 def wall_planes(
-    centres: np.ndarray, tops: np.ndarray, floors: tuple[set, set], config: Any
+    centres: np.ndarray, tops: np.ndarray, floors: tuple[set, set], config: Any, upper: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
     voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
@@ -19,7 +19,9 @@ def wall_planes(
     seen from both rooms, :func:`_two_faces`), towards its other face (a thicker one), else away from the floor
     in front of it (``floors``: the voxel columns of the floor seen and of the open floor,
     :func:`_behind`); and which centres lie on one. Planes within ``SQUARE_DEG`` of the first (the longest
-    wall) are fitted square to it where that holds as many points. ``config``: cloud_map.CloudMapConfig."""
+    wall) are fitted square to it where that holds as many points. ``upper`` marks centres of a wall seen only
+    near the ceiling (over a cabinet, over a doorway): a piece needs ``min_wall_m`` of the others, and where only
+    these stand its box starts at their foot (:func:`_runs`). ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
     walls: list[list[float]] = []
     on_plane = np.zeros(len(centres), dtype=bool)
@@ -27,6 +29,7 @@ def wall_planes(
     tops = np.asarray(tops, dtype=float)
     square = None  # the building's square: the direction of its longest wall, the first plane found
     reaches = _up_to_ceiling(centres, tops, config)
+    upper = np.zeros(len(centres), dtype=bool) if upper is None else np.asarray(upper, dtype=bool)
     while len(remaining) >= 20:
         inliers, normal = _ransac_line(centres[remaining, :2], config.wall_plane_m, rng)
         if square is None:
@@ -43,8 +46,11 @@ def wall_planes(
         cuts = np.flatnonzero(np.diff(s[order]) > config.door_gap_m) + 1
         for piece in np.split(order, cuts):
             lo, hi = float(s[piece].min()), float(s[piece].max())
-            if hi - lo + config.voxel_m < config.min_wall_m or reaches[inliers[piece]].mean() < 0.5:
-                continue  # a pillar's side, a shelf's end; furniture as high as a wall but short of the ceiling
+            solid = s[piece][~upper[inliers[piece]]]
+            if not len(solid) or np.ptp(solid) + config.voxel_m < config.min_wall_m:
+                continue  # a pillar's side, a shelf's end
+            if reaches[inliers[piece]].mean() < 0.5:
+                continue  # furniture as high as a wall but short of the ceiling
             n2 = normal[:2] / np.hypot(normal[0], normal[1])
             depths = points[piece, :2] @ n2
             offset = float(np.median(depths))
@@ -56,20 +62,65 @@ def wall_planes(
             else:
                 others = np.ones(len(centres), dtype=bool)
                 others[inliers[piece]] = False
-                others &= reaches  # a cabinet standing behind a wall is not its other face
+                others &= reaches & ~upper  # a cabinet standing behind a wall is not its other face, nor a wall's top
                 side, depth = _other_face(offset, n2, along, lo, hi, centres[others, :2], config.voxel_m)
             thickness = max(config.voxel_m, depth)
             if side == 0:
                 side = _behind((offset * n2 + lo * along, offset * n2 + hi * along), n2, floors, config.voxel_m)
                 thickness = ONE_FACED_M if side else config.voxel_m
             offset += side * thickness / 2
-            a = offset * n2 + (lo - config.voxel_m / 2) * along
-            b = offset * n2 + (hi + config.voxel_m / 2) * along
             top = float(tops[inliers[piece]].max())
-            walls.append([a[0], a[1], b[0], b[1], thickness, 0.0, top])
+            for start, end, bottom in _runs(s[piece], points[piece, 2], upper[inliers[piece]], config.voxel_m):
+                a, b = offset * n2 + start * along, offset * n2 + end * along
+                walls.append([a[0], a[1], b[0], b[1], thickness, bottom, top])
             on_plane[inliers[piece]] = True
         remaining = np.setdiff1d(remaining, inliers)
     return meet(np.array(walls).reshape(-1, 7), config.corner_reach_m), on_plane
+
+
+def near_the_ceiling(
+    voxels: np.ndarray, clutter: np.ndarray, floor: np.ndarray, tops: np.ndarray, config: Any
+) -> np.ndarray:
+    """Which ``clutter`` voxels (``tops``: their columns' highest voxel's height) stand in an unbroken stack of two
+    or more from right under the ceiling band down to no lower than ``wall_from_m``, over no ``floor`` the map saw
+    within a voxel: where they lie on a wall's plane, the wall's top seen over a cabinet that hides its foot (a
+    beam, a lintel or a ceiling's step stands over floor the LiDAR saw under it)."""
+    v = config.voxel_m
+    z = (voxels[:, 2] + 0.5) * v
+    idx = np.flatnonzero(clutter & (z >= config.wall_from_m) & (tops >= config.ceiling_min_m))
+    order = idx[np.lexsort((-voxels[idx, 2], voxels[idx, 1], voxels[idx, 0]))]  # column by column, top first
+    column, height = voxels[order, :2], voxels[order, 2]
+    new = np.r_[True, np.any(column[1:] != column[:-1], axis=1)]
+    first = np.maximum.accumulate(np.where(new, np.arange(len(order)), 0))
+    stacked = height == height[first] - (np.arange(len(order)) - first)  # unbroken from the column's top one
+    band = np.round(tops[order] / v - 0.5) - round(config.ceiling_band_m / v)  # the band's lowest voxel
+    group = np.cumsum(new) - 1
+    size = np.bincount(group, weights=stacked)[group]
+    out = np.zeros(len(voxels), dtype=bool)
+    out[order[stacked & (height[first] >= band - 1) & (size >= 2)]] = True
+    seen = {(int(x) + dx, int(y) + dy) for x, y in voxels[floor, :2] for dx in (-1, 0, 1) for dy in (-1, 0, 1)}
+    over = np.array([(int(x), int(y)) in seen for x, y in voxels[out, :2]], dtype=bool)
+    out[np.flatnonzero(out)[over]] = False
+    return out
+
+
+def _runs(s: np.ndarray, z: np.ndarray, upper: np.ndarray, v: float) -> list[tuple[float, float, float]]:
+    """A wall piece's stretches (from and to along it, foot): a voxel ``v`` along it stands from the floor where
+    any of its points (places ``s`` along it, heights ``z``) is not ``upper``, else from the lowest of them; a
+    voxel without points goes with the one before."""
+    lo, hi = float(s.min()), float(s.max())
+    cell = np.floor((s - lo) / v).astype(int)
+    foot = np.full(cell.max() + 1, np.inf)
+    np.minimum.at(foot, cell, np.where(upper, np.floor(z / v) * v, 0.0))
+    runs: list[list[float]] = []
+    for k, bottom in enumerate(foot):
+        if runs and (np.isinf(bottom) or (bottom > 0) == (runs[-1][2] > 0)):
+            runs[-1][1] = lo + (k + 1) * v
+            runs[-1][2] = min(runs[-1][2], bottom)
+        else:
+            runs.append([lo + k * v, lo + (k + 1) * v, float(bottom)])
+    runs[0][0], runs[-1][1] = lo - v / 2, hi + v / 2
+    return [(start, end, bottom) for start, end, bottom in runs]
 
 
 def _up_to_ceiling(centres: np.ndarray, tops: np.ndarray, config: Any) -> np.ndarray:
