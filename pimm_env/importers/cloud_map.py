@@ -186,16 +186,14 @@ def classify(
         cleared = on_path(voxels, classes == CLUTTER, np.asarray(path) @ turn.T - [0, 0, floor_z], config, path_source)
         set_aside["clutter where the trajectory drove (ghosts the floor rule missed)"] = int(np.count_nonzero(cleared))
         voxels, classes, means, tops = voxels[~cleared], classes[~cleared], means[~cleared], tops[~cleared]
-    upper = near_the_ceiling(
-        voxels, classes == CLUTTER, classes == FLOOR, tops, config
-    )  # a wall's top over a cabinet, a lintel
+    seen = {(int(x), int(y)) for x, y in voxels[classes == FLOOR, :2]}  # the floor's columns
+    upper = near_the_ceiling(voxels, classes == CLUTTER, seen, tops, config)  # walls' tops seen over cabinets
     filled = _closed_ceiling(voxels, classes)
     set_aside["ceiling voxels filled in (gaps between seen ceiling)"] = len(filled)
     voxels, classes = np.vstack([voxels, filled]), np.concatenate([classes, np.full(len(filled), CEILING, np.int8)])
     upper = np.concatenate([upper, np.zeros(len(filled), dtype=bool)])
     wall = np.flatnonzero((classes == WALL) | upper)
     plan, lo = _open_floor(voxels, classes)
-    seen = {(int(x), int(y)) for x, y in voxels[classes == FLOOR, :2]}
     open_floor = {(int(x + lo[0]), int(y + lo[1])) for y, x in zip(*np.nonzero(plan), strict=True)}
     walls, on_plane = wall_planes(means[wall], tops[wall] + config.voxel_m / 2, (seen, open_floor), config, upper[wall])
     loose = wall[~on_plane & ~upper[wall]]

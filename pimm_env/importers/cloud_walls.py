@@ -78,13 +78,11 @@ def wall_planes(
     return meet(np.array(walls).reshape(-1, 7), config.corner_reach_m), on_plane
 
 
-def near_the_ceiling(
-    voxels: np.ndarray, clutter: np.ndarray, floor: np.ndarray, tops: np.ndarray, config: Any
-) -> np.ndarray:
+def near_the_ceiling(voxels: np.ndarray, clutter: np.ndarray, floor: set, tops: np.ndarray, config: Any) -> np.ndarray:
     """Which ``clutter`` voxels (``tops``: their columns' highest voxel's height) stand in an unbroken stack of two
     or more from right under the ceiling band down to no lower than ``wall_from_m``, over no ``floor`` the map saw
-    within a voxel: where they lie on a wall's plane, the wall's top seen over a cabinet that hides its foot (a
-    beam, a lintel or a ceiling's step stands over floor the LiDAR saw under it)."""
+    (its voxel columns) within a voxel: where they lie on a wall's plane, the wall's top seen over a cabinet that
+    hides its foot (a beam, a lintel or a ceiling's step stands over floor the LiDAR saw under it)."""
     v = config.voxel_m
     z = (voxels[:, 2] + 0.5) * v
     idx = np.flatnonzero(clutter & (z >= config.wall_from_m) & (tops >= config.ceiling_min_m))
@@ -98,8 +96,8 @@ def near_the_ceiling(
     size = np.bincount(group, weights=stacked)[group]
     out = np.zeros(len(voxels), dtype=bool)
     out[order[stacked & (height[first] >= band - 1) & (size >= 2)]] = True
-    seen = {(int(x) + dx, int(y) + dy) for x, y in voxels[floor, :2] for dx in (-1, 0, 1) for dy in (-1, 0, 1)}
-    over = np.array([(int(x), int(y)) in seen for x, y in voxels[out, :2]], dtype=bool)
+    near = [(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)]
+    over = np.array([any((int(x) + dx, int(y) + dy) in floor for dx, dy in near) for x, y in voxels[out, :2]], bool)
     out[np.flatnonzero(out)[over]] = False
     return out
 
