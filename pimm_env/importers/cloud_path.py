@@ -45,7 +45,7 @@ def read_path(path: Path) -> np.ndarray:
     return positions
 
 
-def driven(positions: np.ndarray, step_m: float) -> np.ndarray:
+def _driven(positions: np.ndarray, step_m: float) -> np.ndarray:
     """The plane points (K, 2) along the trajectory every ``step_m`` or less, jumps (``JUMP_M``) left out."""
     xy = np.asarray(positions, dtype=float)[:, :2]
     parts = [xy[:1]]
@@ -62,23 +62,23 @@ def driven(positions: np.ndarray, step_m: float) -> np.ndarray:
 def on_path(voxels: np.ndarray, clutter: np.ndarray, path: np.ndarray, config: Any, source: Path | str) -> np.ndarray:
     """Which ``voxels`` (V, 3 indices, levelled frame) are ``clutter`` up to ``config.person_m`` high whose centre
     lies within ``CLEAR_M`` of the driven ``path`` (N, 3, levelled frame) in the plane; a path from another frame
-    (``check_frame``) is refused naming ``source``. ``config``: cloud_map.CloudMapConfig."""
+    (``_check_frame``) is refused naming ``source``. ``config``: cloud_map.CloudMapConfig."""
     from scipy.spatial import cKDTree
 
     path = np.asarray(path, dtype=float)
-    check_frame(path, voxels, config.voxel_m, source)
+    _check_frame(path, voxels, config.voxel_m, source)
     centres = (voxels + 0.5) * config.voxel_m
     candidate = np.flatnonzero(clutter & (centres[:, 2] <= config.person_m))
     out = np.zeros(len(voxels), dtype=bool)
     if not len(candidate):
         return out
-    tree = cKDTree(driven(path, config.voxel_m / 2))
+    tree = cKDTree(_driven(path, config.voxel_m / 2))
     distance, _ = tree.query(centres[candidate, :2], distance_upper_bound=CLEAR_M)
     out[candidate[distance <= CLEAR_M]] = True
     return out
 
 
-def check_frame(path: np.ndarray, voxels: np.ndarray, voxel_m: float, source: Path | str) -> None:
+def _check_frame(path: np.ndarray, voxels: np.ndarray, voxel_m: float, source: Path | str) -> None:
     """Refuse a trajectory most of whose poses lie outside the map's extent in the plane (another frame)."""
     lo, hi = voxels[:, :2].min(axis=0) * voxel_m, (voxels[:, :2].max(axis=0) + 1) * voxel_m
     inside = np.all((path[:, :2] >= lo) & (path[:, :2] <= hi), axis=1)

@@ -20,7 +20,7 @@ def wall_planes(
     in front of it (``floors``: the voxel columns of the floor seen and of the open floor,
     :func:`_behind`); and which centres lie on one. Planes within ``SQUARE_DEG`` of the first (the longest
     wall) are fitted square to it where that holds as many points. ``upper`` marks centres of a wall seen only
-    near the ceiling (over a cabinet, over a doorway): a piece needs ``min_wall_m`` of the others, and where only
+    near the ceiling (over a tall cabinet): a piece needs ``min_wall_m`` of the others, and where only
     these stand its box starts at their foot (:func:`_runs`). ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
     walls: list[list[float]] = []
