@@ -5,7 +5,7 @@ a wall seen from one room stood behind its face, a thin wall's two faces fitted 
 import numpy as np
 
 from pimm_env.importers.cloud_map import CloudMapConfig
-from pimm_env.importers.cloud_walls import ONE_FACED_M, meet, wall_planes
+from pimm_env.importers.cloud_walls import ONE_FACED_M, _squared, meet, wall_planes
 
 
 def _wall(x0, y0, x1, y1):
@@ -137,3 +137,35 @@ def test_a_cabinet_short_of_the_ceiling_is_not_a_wall_nor_a_walls_other_face():
     partition = _cabinet_face(rng, 120, (2.5, -0.05), (2.5, -0.8), 2.5)
     walls, on_plane = wall_planes(np.vstack([wall, partition]), np.full(520, 2.6), (floor, floor), CloudMapConfig())
     assert len(walls) == 2 and on_plane[len(wall) :].mean() > 0.9
+
+
+def test_two_partitions_nearly_in_line_across_the_building_are_each_fitted_square():
+    """A room's partition at x = 5 and one across the corridor at x = 5.35, both along y: a line slanted by 2.5
+    degrees holds most of both, more points than either square plane, but along the square plane's piece (the
+    first partition) it holds fewer: the partition is fitted square, without the other's points."""
+    rng = np.random.default_rng(6)
+    first = np.column_stack([5.0 + rng.normal(0.0, 0.01, 300), rng.uniform(0.0, 4.0, 300), rng.uniform(1.2, 2.5, 300)])
+    other = np.column_stack(
+        [5.35 + rng.normal(0.0, 0.01, 300), rng.uniform(8.0, 12.0, 300), rng.uniform(1.2, 2.5, 300)]
+    )
+    xy = np.vstack([first, other])[:, :2]
+    along = np.array([0.35, 8.0]) / np.hypot(0.35, 8.0)
+    slanted = np.array([along[1], -along[0]])
+    inliers = np.flatnonzero(np.abs((xy - [5.0, 2.0]) @ slanted) < CloudMapConfig().wall_plane_m)
+    assert len(inliers) > 400 and np.count_nonzero(inliers >= 300) > 100  # the slanted line holds both
+    kept, normal = _squared(xy, inliers, slanted, 0.0, CloudMapConfig())
+    assert abs(normal[1]) < 1e-9  # square to the building (its walls' normals along x)
+    assert set(kept.tolist()) == set(range(300)) or set(kept.tolist()) == set(range(300, 600))
+
+
+def test_a_plane_through_a_round_pillars_two_sides_is_not_a_wall():
+    """A plane through a round pillar 0.5 m across holds its two sides (a voxel's mean points each, from 1.2 to
+    2.5 m): 0.6 m end to end with a voxel, as long as a wall's shortest piece, but it fills two voxels along it,
+    not six: no wall stands in the pillar."""
+    rng = np.random.default_rng(7)
+    z = np.arange(1.25, 2.5, 0.1)
+    sides = np.array([[x, y, h] for x in (2.75, 3.25) for y in (2.95, 3.05) for h in z])
+    centres = np.vstack([_face(rng, 600, 0.0, 6.0, 0.0), _face(rng, 600, 0.0, 6.0, 6.0), sides])
+    floor = {(i, j) for i in range(0, 60) for j in range(1, 59)}
+    walls, on_plane = wall_planes(centres, np.full(len(centres), 2.6), (floor, floor), CloudMapConfig())
+    assert len(walls) == 2 and not on_plane[1200:].any()

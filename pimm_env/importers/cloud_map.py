@@ -63,7 +63,7 @@ class CloudMapConfig:
     wall_gap_m: float = 0.4  # ... with gaps no wider than this (a far wall is seen as the LiDAR's rings)
     wall_plane_m: float = 0.08  # a wall voxel within this of a wall plane belongs to it
     door_gap_m: float = 0.6  # a wall plane's voxels further apart along it than this are two walls (a doorway)
-    min_wall_m: float = 0.6  # shorter pieces of a wall plane are not walls (a pillar's side, a shelf's end)
+    min_wall_m: float = 0.6  # pieces of a wall plane filling less along it are not walls (a pillar, a shelf's end)
     corner_reach_m: float = 0.4  # two walls whose ends come this near their meeting line meet there
     person_m: float = 2.0  # clutter rising from the floor to no more than this, over seen floor, is a ghost ...
     ghost_floor: float = 0.75  # ... when the floor under its column was seen over this share of it

@@ -34,7 +34,7 @@ def wall_planes(
         inliers, normal = _ransac_line(centres[remaining, :2], config.wall_plane_m, rng)
         if square is None:
             square = float(np.arctan2(normal[1], normal[0]))
-        inliers, normal = _squared(centres[remaining, :2], inliers, normal, square, config.wall_plane_m)
+        inliers, normal = _squared(centres[remaining, :2], inliers, normal, square, config)
         inliers = remaining[inliers]
         if len(inliers) < 20:
             break
@@ -46,9 +46,8 @@ def wall_planes(
         cuts = np.flatnonzero(np.diff(s[order]) > config.door_gap_m) + 1
         for piece in np.split(order, cuts):
             lo, hi = float(s[piece].min()), float(s[piece].max())
-            solid = s[piece][~upper[inliers[piece]]]
-            if not len(solid) or np.ptp(solid) + config.voxel_m < config.min_wall_m:
-                continue  # a pillar's side, a shelf's end
+            if _filled(s[piece][~upper[inliers[piece]]], config.voxel_m) < config.min_wall_m - 1e-9:
+                continue  # a pillar's side (or a plane through its two sides), a shelf's end
             if reaches[inliers[piece]].mean() < 0.5:
                 continue  # furniture as high as a wall but short of the ceiling
             n2 = normal[:2] / np.hypot(normal[0], normal[1])
@@ -121,6 +120,12 @@ def _runs(s: np.ndarray, z: np.ndarray, upper: np.ndarray, v: float) -> list[tup
     return [(start, end, bottom) for start, end, bottom in runs]
 
 
+def _filled(s: np.ndarray, v: float) -> float:
+    """How far a plane's points (at ``s`` along it) fill it, in voxels of ``v`` from the first: a wall's length
+    where it was seen, not the span between a round pillar's two sides."""
+    return len(np.unique((s - s.min()) // v)) * v if len(s) else 0.0
+
+
 def _up_to_ceiling(centres: np.ndarray, tops: np.ndarray, config: Any) -> np.ndarray:
     """Which wall voxels (their mean points ``centres``, their columns' ``tops``) stand in a column whose wall
     voxels come within half ``wall_gap_m`` of the ceiling band over it: a wall holds its ceiling up (the LiDAR's
@@ -163,14 +168,18 @@ def _ransac_line(xy: np.ndarray, within: float, rng: np.random.Generator, draws:
 SQUARE_DEG = 10.0
 
 
-def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: float, within: float) -> tuple:
+def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: float, config: Any) -> tuple:
     """The plane (``inliers`` of ``xy``, unit ``normal``) turned square to the building (``square``: a wall's
     normal, rad) where it lies within ``SQUARE_DEG`` of it and holds at least as many points so (a thin wall's
-    two faces, fitted on a slant across both, are one plane square to the building), else as it is."""
+    two faces, fitted on a slant across both, are one plane square to the building), or as many along its
+    longest piece, a wall's length at least (a line slanted by a few degrees gathers two walls in line across
+    the building, a room's partition and the one across the corridor), else as it is. ``config``:
+    cloud_map.CloudMapConfig."""
     angle = np.arctan2(normal[1], normal[0])
     turn = (angle - square + np.pi / 4) % (np.pi / 2) - np.pi / 4
     if abs(turn) > np.radians(SQUARE_DEG) or not len(inliers):
         return inliers, normal
+    within = config.wall_plane_m
     snapped = np.array([np.cos(angle - turn), np.sin(angle - turn)])
     depth = xy @ snapped
     # the band (``within`` either side) near the inliers' median that holds the most points: a thin wall's two
@@ -179,7 +188,20 @@ def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: fl
     ends = np.searchsorted(near, near + 2 * within, side="right")
     best = int(np.argmax(ends - np.arange(len(near))))
     kept = np.flatnonzero(np.abs(depth - (near[best] + near[ends[best] - 1]) / 2) < within)
-    return (kept, snapped) if len(kept) >= len(inliers) else (inliers, normal)
+    if len(kept) >= len(inliers):
+        return kept, snapped
+    along = xy @ np.array([-snapped[1], snapped[0]])
+    lo, hi = _longest_piece(along[kept], config.door_gap_m)
+    local = [np.count_nonzero((along[ids] >= lo) & (along[ids] <= hi)) for ids in (kept, inliers)]
+    return (kept, snapped) if hi - lo >= config.min_wall_m and local[0] >= local[1] else (inliers, normal)
+
+
+def _longest_piece(s: np.ndarray, gap: float) -> tuple[float, float]:
+    """From and to (along a plane) of the longest piece of its points at ``s`` cut at gaps wider than ``gap``."""
+    s = np.sort(s)
+    cuts = np.r_[0, np.flatnonzero(np.diff(s) > gap) + 1, len(s)]
+    k = int(np.argmax(s[cuts[1:] - 1] - s[cuts[:-1]]))
+    return float(s[cuts[k]]), float(s[cuts[k + 1] - 1])
 
 
 def _behind(face: tuple[np.ndarray, np.ndarray], normal: np.ndarray, floors: tuple[set, set], voxel_m: float) -> int:
