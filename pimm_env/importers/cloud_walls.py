@@ -42,9 +42,7 @@ def wall_planes(
         along = np.array([-normal[1], normal[0]]) / np.hypot(normal[0], normal[1])
         points = centres[inliers]
         s = points[:, :2] @ along
-        order = np.argsort(s)
-        cuts = np.flatnonzero(np.diff(s[order]) > config.door_gap_m) + 1
-        for piece in np.split(order, cuts):
+        for piece in _pieces(s, config.door_gap_m):
             lo, hi = float(s[piece].min()), float(s[piece].max())
             if _filled(s[piece][~upper[inliers[piece]]], config.voxel_m) < config.min_wall_m - 1e-9:
                 continue  # a pillar's side (or a plane through its two sides), a shelf's end
@@ -191,17 +189,17 @@ def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: fl
     if len(kept) >= len(inliers):
         return kept, snapped
     along = xy @ np.array([-snapped[1], snapped[0]])
-    lo, hi = _longest_piece(along[kept], config.door_gap_m)
+    longest = along[kept][max(_pieces(along[kept], config.door_gap_m), key=lambda p: np.ptp(along[kept][p]))]
+    lo, hi = float(longest.min()), float(longest.max())
     local = [np.count_nonzero((along[ids] >= lo) & (along[ids] <= hi)) for ids in (kept, inliers)]
     return (kept, snapped) if hi - lo >= config.min_wall_m and local[0] >= local[1] else (inliers, normal)
 
 
-def _longest_piece(s: np.ndarray, gap: float) -> tuple[float, float]:
-    """From and to (along a plane) of the longest piece of its points at ``s`` cut at gaps wider than ``gap``."""
-    s = np.sort(s)
-    cuts = np.r_[0, np.flatnonzero(np.diff(s) > gap) + 1, len(s)]
-    k = int(np.argmax(s[cuts[1:] - 1] - s[cuts[:-1]]))
-    return float(s[cuts[k]]), float(s[cuts[k + 1] - 1])
+def _pieces(s: np.ndarray, gap: float) -> list[np.ndarray]:
+    """The points of a plane (at ``s`` along it) in pieces cut at gaps wider than ``gap`` (a doorway): each an
+    index array into ``s``, in order along it."""
+    order = np.argsort(s)
+    return np.split(order, np.flatnonzero(np.diff(s[order]) > gap) + 1)
 
 
 def _behind(face: tuple[np.ndarray, np.ndarray], normal: np.ndarray, floors: tuple[set, set], voxel_m: float) -> int:
