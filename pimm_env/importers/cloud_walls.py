@@ -19,9 +19,10 @@ def wall_planes(
     seen from both rooms, :func:`_two_faces`), towards its other face (a thicker one), else away from the floor
     in front of it (``floors``: the voxel columns of the floor seen and of the open floor,
     :func:`_behind`); and which centres lie on one. Planes within ``SQUARE_DEG`` of the first (the longest
-    wall) are fitted square to it where that holds as many points. ``upper`` marks centres of a wall seen only
-    near the ceiling (over a tall cabinet): a piece needs ``min_wall_m`` of the others, and where only
-    these stand its box starts at their foot (:func:`_runs`). ``config``: cloud_map.CloudMapConfig."""
+    wall) are fitted square to it where that holds as many points, overall or along the wall (:func:`_squared`).
+    ``upper`` marks centres of a wall seen only near the ceiling (over a tall cabinet): a piece needs
+    ``min_wall_m`` of the others, and where only these stand its box starts at their foot (:func:`_runs`).
+    ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
     walls: list[list[float]] = []
     on_plane = np.zeros(len(centres), dtype=bool)
@@ -189,7 +190,8 @@ def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: fl
     if len(kept) >= len(inliers):
         return kept, snapped
     along = xy @ np.array([-snapped[1], snapped[0]])
-    longest = along[kept][max(_pieces(along[kept], config.door_gap_m), key=lambda p: np.ptp(along[kept][p]))]
+    on_it = along[kept]
+    longest = on_it[max(_pieces(on_it, config.door_gap_m), key=lambda piece: np.ptp(on_it[piece]))]
     lo, hi = float(longest.min()), float(longest.max())
     local = [np.count_nonzero((along[ids] >= lo) & (along[ids] <= hi)) for ids in (kept, inliers)]
     return (kept, snapped) if hi - lo >= config.min_wall_m and local[0] >= local[1] else (inliers, normal)
