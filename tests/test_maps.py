@@ -1,3 +1,5 @@
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -68,6 +70,17 @@ def test_doorway_wall_ends_make_no_corner(tmp_path, room_file):
     corners = derive_corner_map(load_world(room_file))
     assert len(corners) == 4
     assert not np.any((corners.xy[:, 0] > 2.0) & (corners.xy[:, 0] < 4.0) & (corners.xy[:, 1] < 1.0))
+
+
+def test_a_corner_is_kept_where_the_scan_saw_a_face_past_the_furniture_standing_in_it(room_file):
+    """A scan saw the south face from 0.6 m east of the room's south-west corner on (a cabinet hides the first
+    stretch), and nothing else: that corner is kept, the south-east one (its face seen from 4 m off) and the two
+    of unseen faces are not; a face first seen 1.2 m off keeps no corner."""
+    world = load_world(room_file)
+    face = np.column_stack([np.arange(0.6, 2.0, 0.05), np.zeros(28)])
+    kept = derive_corner_map(replace(world, seen_walls=face))
+    assert len(kept) == 1 and np.allclose(kept.xy, [[0.0, 0.0]], atol=0.05 + 1e-9)
+    assert len(derive_corner_map(replace(world, seen_walls=face[12:]))) == 0
 
 
 def test_no_ceiling_no_corner(room_file):

@@ -1,6 +1,7 @@
 """The walls of a point-cloud map (cloud_map.py): upright planes fitted across the plan to the wall voxels'
-points that reach the ceiling (a cabinet as high as a wall's judged part stops short of it), cut at doorways, met
-where furniture hides a room's corner, and each stood as a box behind the surface the LiDAR saw."""
+points that reach the ceiling (a cabinet as high as a wall's judged part stops short of it), cut at doorways, closed
+where one wall was fitted as two planes, met where furniture hides a room's corner, and each stood as a box behind
+the surface the LiDAR saw."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ def wall_planes(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
     voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
-    ``door_gap_m``: the walls, (W, 7) as ``CloudMap.walls``, each up to the ceiling over it (its columns'
+    ``door_gap_m`` (two pieces in line across a narrower gap are closed, :func:`bridged`): the walls, (W, 7) as
+    ``CloudMap.walls``, each up to the ceiling over it (its columns'
     ``tops``) and standing behind its surface: between its two faces where the plane holds both (a thin wall
     seen from both rooms, :func:`_two_faces`), towards its other face (a thicker one), else away from the floor
     in front of it (``floors``: the voxel columns of the floor seen and of the open floor,
@@ -73,7 +75,8 @@ def wall_planes(
                 walls.append([a[0], a[1], b[0], b[1], thickness, bottom, top])
             on_plane[inliers[piece]] = True
         remaining = np.setdiff1d(remaining, inliers)
-    return meet(np.array(walls).reshape(-1, 7), config.corner_reach_m), on_plane
+    walls_in_line = bridged(np.array(walls).reshape(-1, 7), config.door_gap_m, config.wall_plane_m)
+    return meet(walls_in_line, config.corner_reach_m), on_plane
 
 
 def near_the_ceiling(voxels: np.ndarray, clutter: np.ndarray, floor: set, tops: np.ndarray, config: Any) -> np.ndarray:
@@ -277,6 +280,36 @@ def _other_face(offset: float, normal: np.ndarray, along: np.ndarray, lo: float,
             if body < count / 2 and _along_a_third(along_it, hi - lo, v):
                 return side, float(np.median(side * depth[band]))
     return 0, 0.0
+
+
+def bridged(walls: np.ndarray, gap: float, within: float) -> np.ndarray:
+    """``walls`` with each two in line (each one's end within ``within`` of the other's line) whose ends face each
+    other across less than ``gap`` (not a doorway) carried to the middle of it: one wall fitted as two planes a
+    centimetre or two apart (a SLAM map's drift), its stretch behind a cabinet not seen."""
+    walls = walls.copy()
+    for i in range(len(walls)):
+        for j in range(len(walls)):
+            a0, a1 = walls[i, 0:2], walls[i, 2:4]
+            length = float(np.hypot(*(a1 - a0)))
+            if i == j or length < 1e-9:
+                continue
+            along = (a1 - a0) / length
+            near = int(np.argmin([(walls[j, 0:2] - a1) @ along, (walls[j, 2:4] - a1) @ along]))  # j's end facing a1
+            b0, b1 = walls[j, 2 * near : 2 * near + 2], walls[j, 2 - 2 * near : 4 - 2 * near]
+            ahead = float((b0 - a1) @ along)  # the gap, i running on towards j, j on away from i
+            if not 0.0 < ahead < gap or (b1 - b0) @ along <= 0.0:
+                continue
+            line = (b1 - b0) / np.hypot(*(b1 - b0))
+            if abs(_across(along, b0 - a0)) < within and abs(_across(line, a1 - b0)) < within:
+                middle = (a1 + b0) / 2
+                walls[i, 2:4] = a0 + ((middle - a0) @ along) * along
+                walls[j, 2 * near : 2 * near + 2] = b1 + ((middle - b1) @ line) * line
+    return walls
+
+
+def _across(direction: np.ndarray, offset: np.ndarray) -> float:
+    """How far ``offset`` (2,) lies to the left of a unit ``direction`` (2,) in the plane."""
+    return float(direction[0] * offset[1] - direction[1] * offset[0])
 
 
 def meet(walls: np.ndarray, reach: float) -> np.ndarray:

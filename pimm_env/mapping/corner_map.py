@@ -71,8 +71,11 @@ def derive_corner_map(world: World, config: CornerMapConfig | None = None) -> Co
 #: a face was seen where a scan's wall point lies this near it (m): 3/4 of the point-cloud import's voxel, so a
 #: guessed back face, 0.15 m behind the seen one, is not
 SEEN_REACH_M = 0.075
-#: ... from this many of the points ``resolution`` apart along the face's first ``min_face`` from the corner
+#: ... from this many of the points ``resolution`` apart along the face's first ``SEEN_ALONG_M`` from the corner
 SEEN_SAMPLES = 2
+#: how far along a face from its corner it may first have been seen (m): furniture standing in the corner (a
+#: cabinet's depth) hides the stretch nearest it from a LiDAR below its top
+SEEN_ALONG_M = 1.0
 
 
 def _seen_corners(corners: CornerMap, seen_walls: np.ndarray, config: CornerMapConfig) -> CornerMap:
@@ -83,7 +86,7 @@ def _seen_corners(corners: CornerMap, seen_walls: np.ndarray, config: CornerMapC
     if not len(corners) or not len(seen_walls):
         return CornerMap(corners.xy[:0], corners.z[:0], corners.theta[:0])
     tree = cKDTree(seen_walls)
-    steps = np.arange(1, round(config.min_face / config.resolution) + 1) * config.resolution
+    steps = np.arange(1, round(SEEN_ALONG_M / config.resolution) + 1) * config.resolution
     keep = np.zeros(len(corners), dtype=bool)
     for side in (-1.0, 1.0):
         heading = corners.theta + side * np.pi / 4
