@@ -308,7 +308,8 @@ def bridged(walls: np.ndarray, gap: float, within: float) -> np.ndarray:
 
 
 def _across(direction: np.ndarray, offset: np.ndarray) -> float:
-    """How far ``offset`` (2,) lies to the left of a unit ``direction`` (2,) in the plane."""
+    """The plane's cross product of ``direction`` and ``offset`` (2,): with a unit ``direction``, how far ``offset``
+    lies to its left."""
     return float(direction[0] * offset[1] - direction[1] * offset[0])
 
 
@@ -323,10 +324,10 @@ def meet(walls: np.ndarray, reach: float) -> np.ndarray:
         for j in range(i + 1, len(walls)):
             a0, a1, b0, b1 = walls[i, 0:2], walls[i, 2:4], walls[j, 0:2], walls[j, 2:4]
             da, db = a1 - a0, b1 - b0
-            cross = da[0] * db[1] - da[1] * db[0]
+            cross = _across(da, db)
             if abs(cross) < np.sin(np.radians(45.0)) * np.hypot(*da) * np.hypot(*db):
                 continue
-            t = ((b0[0] - a0[0]) * db[1] - (b0[1] - a0[1]) * db[0]) / cross
+            t = _across(b0 - a0, db) / cross
             point = a0 + t * da
             ends = []
             for k, (p0, p1) in ((i, (a0, a1)), (j, (b0, b1))):
