@@ -16,11 +16,10 @@ def wall_planes(
     """Upright planes fitted one after another (RANSAC of lines across the floor plan, seeded) to the wall
     voxels' points (``centres``: each voxel's mean point, K x 3), each cut into pieces at gaps wider than
     ``door_gap_m`` (two pieces in line across a narrower gap are closed, :func:`bridged`): the walls, (W, 7) as
-    ``CloudMap.walls``, each up to the ceiling over it (its columns'
-    ``tops``) and standing behind its surface: between its two faces where the plane holds both (a thin wall
-    seen from both rooms, :func:`_two_faces`), towards its other face (a thicker one), else away from the floor
-    in front of it (``floors``: the voxel columns of the floor seen and of the open floor,
-    :func:`_behind`); and which centres lie on one. Planes within ``SQUARE_DEG`` of the first (the longest
+    ``CloudMap.walls``, each up to the ceiling over it (its columns' ``tops``) and standing behind its surface:
+    between its two faces where the plane holds both (a thin wall seen from both rooms, :func:`_two_faces`),
+    towards its other face (a thicker one), else away from the floor in front of it (``floors``: the voxel
+    columns of the floor seen and of the open floor, :func:`_behind`); and which centres lie on one. Planes within ``SQUARE_DEG`` of the first (the longest
     wall) are fitted square to it where that holds as many points, overall or along the wall (:func:`_squared`).
     ``upper`` marks centres of a wall seen only near the ceiling (over a tall cabinet): a piece needs
     ``min_wall_m`` of the others, and where only these stand its box starts at their foot (:func:`_runs`).
