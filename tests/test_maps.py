@@ -77,7 +77,8 @@ def test_a_corner_is_kept_where_the_scan_saw_a_face_past_the_furniture_standing_
     stretch), and nothing else: that corner is kept, the south-east one (its face seen from 4 m off) and the two
     of unseen faces are not; a face first seen 1.2 m off keeps no corner."""
     world = load_world(room_file)
-    face = np.column_stack([np.arange(0.6, 2.0, 0.05), np.zeros(28)])
+    along = np.arange(0.6, 2.0, 0.05)
+    face = np.column_stack([along, np.zeros_like(along)])
     kept = derive_corner_map(replace(world, seen_walls=face))
     assert len(kept) == 1 and np.allclose(kept.xy, [[0.0, 0.0]], atol=0.05 + 1e-9)
     assert len(derive_corner_map(replace(world, seen_walls=face[12:]))) == 0
