@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from pimm_env.mapping.corner_map import SEEN_ALONG_M
+
 
 def wall_planes(
     centres: np.ndarray, tops: np.ndarray, floors: tuple[set, set], config: Any, upper: np.ndarray | None = None
@@ -75,7 +77,7 @@ def wall_planes(
             on_plane[inliers[piece]] = True
         remaining = np.setdiff1d(remaining, inliers)
     walls_in_line = bridged(np.array(walls).reshape(-1, 7), config.door_gap_m, config.wall_plane_m)
-    return meet(walls_in_line, config.corner_reach_m), on_plane
+    return meet(walls_in_line, config.corner_reach_m, floors[0], config.voxel_m), on_plane
 
 
 def near_the_ceiling(voxels: np.ndarray, clutter: np.ndarray, floor: set, tops: np.ndarray, config: Any) -> np.ndarray:
@@ -312,12 +314,14 @@ def _across(direction: np.ndarray, offset: np.ndarray) -> float:
     return float(direction[0] * offset[1] - direction[1] * offset[0])
 
 
-def meet(walls: np.ndarray, reach: float) -> np.ndarray:
+def meet(walls: np.ndarray, reach: float, floor: set | frozenset = frozenset(), voxel_m: float = 0.1) -> np.ndarray:
     """``walls`` with the ends of each two that turn by 45 degrees or more and end within ``reach`` of their
-    meeting point moved onto it (furniture in a room's corner hides where its walls meet), and the end of one
-    that stops within ``reach`` of another running past it (a T: a partition's last metre is seen at a grazing
-    angle, in voxels too sparse to keep). A moved end runs on past the meeting point by half the other wall's
-    thickness, to its far face, so that the two boxes' outline turns once on each side."""
+    meeting point moved onto it, or both short of it by no more than ``SEEN_ALONG_M`` with no ``floor`` seen
+    between (its voxel columns of ``voxel_m``): furniture standing in a room's corner hides where its walls meet,
+    while a doorway beside a corner shows the floor through it; and the end of one that stops within ``reach`` of
+    another running past it (a T: a partition's last metre is seen at a grazing angle, in voxels too sparse to
+    keep). A moved end runs on past the meeting point by half the other wall's thickness, to its far face, so that
+    the two boxes' outline turns once on each side."""
     walls = walls.copy()
     for i in range(len(walls)):
         for j in range(i + 1, len(walls)):
@@ -334,6 +338,16 @@ def meet(walls: np.ndarray, reach: float) -> np.ndarray:
                 end = int(np.argmin(gaps))
                 ends.append((k, end, gaps[end]))
             near = [(k, end) for k, end, gap in ends if gap <= reach]
+            if len(near) < 2 and all(
+                gap <= reach
+                or (
+                    gap <= SEEN_ALONG_M
+                    and _short_of(walls[k], point)
+                    and not _floor_between(walls[k, 2 * end : 2 * end + 2], point, floor, voxel_m)
+                )
+                for k, end, gap in ends
+            ):  # a corner hidden by furniture: both stop short of it, no floor seen where either would run on
+                near = [(k, end) for k, end, _ in ends]
             if len(near) == 1:  # a T: the other wall runs past the meeting point, only this one ends there
                 other = j if near[0][0] == i else i
                 p0, p1 = walls[other, 0:2], walls[other, 2:4]
@@ -346,6 +360,21 @@ def meet(walls: np.ndarray, reach: float) -> np.ndarray:
                     walls[other, 4] / 2
                 )
     return walls
+
+
+def _short_of(wall: np.ndarray, point: np.ndarray) -> bool:
+    """Whether ``point`` lies on the line of ``wall`` (a row of ``CloudMap.walls``) beyond one of its ends."""
+    start, end = wall[0:2], wall[2:4]
+    along = float(np.dot(point - start, end - start) / max(float(np.dot(end - start, end - start)), 1e-12))
+    return along < 0.0 or along > 1.0
+
+
+def _floor_between(a: np.ndarray, b: np.ndarray, floor: set | frozenset, voxel_m: float) -> bool:
+    """Whether the LiDAR saw the ``floor`` (voxel columns of ``voxel_m``) under half or more of the way from ``a``
+    to ``b`` (a doorway's floor is seen through it; behind a cabinet it is not)."""
+    steps = max(1, int(np.ceil(np.hypot(*(b - a)) / (voxel_m / 2))))
+    probes = np.floor((a + np.linspace(0.0, 1.0, steps + 1)[1:, None] * (b - a)) / voxel_m).astype(int)
+    return 2 * sum((int(x), int(y)) in floor for x, y in probes) >= len(probes)
 
 
 def in_walls(xy: np.ndarray, walls: np.ndarray) -> np.ndarray:
