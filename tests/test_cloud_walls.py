@@ -1,8 +1,8 @@
 """The walls of a point-cloud map: ends met at L corners (one a cabinet hides, not across a doorway beside one)
-and T junctions, a wall seen from both rooms made whole
-(its faces in two planes or in one plane's band), a jog not taken for a thickness, a wall seen from one room stood
-behind its face, one wall fitted as two planes closed across a cabinet's shadow, a thin wall's two faces and two
-partitions in line across a corridor fitted square to the building, furniture and a round pillar no walls."""
+and T junctions, a wall seen from both rooms made whole (its faces in two planes or in one plane's band), a jog
+not taken for a thickness, a wall seen from one room stood behind its face, one wall fitted as two planes closed
+across a cabinet's shadow, a thin wall's two faces and two partitions in line across a corridor fitted square to
+the building, furniture and a round pillar no walls."""
 
 import numpy as np
 
