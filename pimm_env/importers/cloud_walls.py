@@ -339,15 +339,9 @@ def meet(walls: np.ndarray, reach: float, floor: set | frozenset = frozenset(), 
                 ends.append((k, end, gaps[end]))
             near = [(k, end) for k, end, gap in ends if gap <= reach]
             if len(near) < 2 and all(
-                gap <= reach
-                or (
-                    gap <= SEEN_ALONG_M
-                    and _short_of(walls[k], point)
-                    and not _floor_between(walls[k, 2 * end : 2 * end + 2], point, floor, voxel_m)
-                )
-                for k, end, gap in ends
-            ):  # a corner hidden by furniture: both stop short of it, no floor seen where either would run on
-                near = [(k, end) for k, end, _ in ends]
+                gap <= reach or _hidden(walls[k], end, point, floor, voxel_m) for k, end, gap in ends
+            ):
+                near = [(k, end) for k, end, _ in ends]  # a corner furniture hides: both stop short of it
             if len(near) == 1:  # a T: the other wall runs past the meeting point, only this one ends there
                 other = j if near[0][0] == i else i
                 p0, p1 = walls[other, 0:2], walls[other, 2:4]
@@ -362,19 +356,16 @@ def meet(walls: np.ndarray, reach: float, floor: set | frozenset = frozenset(), 
     return walls
 
 
-def _short_of(wall: np.ndarray, point: np.ndarray) -> bool:
-    """Whether ``point`` lies on the line of ``wall`` (a row of ``CloudMap.walls``) beyond one of its ends."""
-    start, end = wall[0:2], wall[2:4]
-    along = float(np.dot(point - start, end - start) / max(float(np.dot(end - start, end - start)), 1e-12))
-    return along < 0.0 or along > 1.0
-
-
-def _floor_between(a: np.ndarray, b: np.ndarray, floor: set | frozenset, voxel_m: float) -> bool:
-    """Whether the LiDAR saw the ``floor`` (voxel columns of ``voxel_m``) under half or more of the way from ``a``
-    to ``b`` (a doorway's floor is seen through it; behind a cabinet it is not)."""
-    steps = max(1, int(np.ceil(np.hypot(*(b - a)) / (voxel_m / 2))))
-    probes = np.floor((a + np.linspace(0.0, 1.0, steps + 1)[1:, None] * (b - a)) / voxel_m).astype(int)
-    return 2 * sum((int(x), int(y)) in floor for x, y in probes) >= len(probes)
+def _hidden(wall: np.ndarray, end: int, point: np.ndarray, floor: set | frozenset, voxel_m: float) -> bool:
+    """Whether ``point`` lies on the line of ``wall`` (a row of ``CloudMap.walls``) past its ``end`` (0: its
+    start, 1: its end) by no more than ``SEEN_ALONG_M``, with the ``floor`` (voxel columns of ``voxel_m``) seen
+    under less than half of the way there: a doorway's floor is seen through it; behind a cabinet it is not."""
+    far, near = wall[2 - 2 * end : 4 - 2 * end], wall[2 * end : 2 * end + 2]
+    if np.dot(point - far, near - far) <= np.dot(near - far, near - far) or np.hypot(*(point - near)) > SEEN_ALONG_M:
+        return False
+    steps = max(1, int(np.ceil(np.hypot(*(point - near)) / (voxel_m / 2))))
+    probes = np.floor((near + np.linspace(0.0, 1.0, steps + 1)[1:, None] * (point - near)) / voxel_m).astype(int)
+    return 2 * sum((int(x), int(y)) in floor for x, y in probes) < len(probes)
 
 
 def in_walls(xy: np.ndarray, walls: np.ndarray) -> np.ndarray:
