@@ -213,28 +213,18 @@ def test_the_ceiling_stops_at_the_walls_faces():
 
 
 def test_a_corner_a_cabinet_hides_is_closed_and_a_doorway_beside_a_corner_stays_open():
-    """A 6 m x 4 m room 3 m high: a cabinet (0.45 m x 0.9 m) in its north-west corner hid both walls' faces
-    near it from the drive, and its west wall has a doorway 0.9 m wide beside the south-west corner, the floor
-    beyond and under it seen. The walls meet in the corner the cabinet hides; the doorway stays open."""
+    """The SLAM-like room: a cabinet (0.45 m x 0.9 m) in its north-west corner hid both walls' faces near it from
+    the drive, and its west wall has a doorway 0.9 m wide beside the south-west corner, the floor beyond and under
+    it seen. The walls meet in the corner the cabinet hides; the doorway stays open."""
     from pimm_env.importers.cloud_map import CloudMapConfig, classify
     from pimm_env.importers.cloud_walls import in_walls
 
     rng = np.random.default_rng(6)
-    points = np.vstack(
-        [
-            surface(rng, [0, 0, 0], [6, 4, 0], 60_000),
-            surface(rng, [0, 0, 3], [6, 4, 3], 60_000),
-            surface(rng, [0, 0, 0], [6, 0, 3], 40_000),
-            surface(rng, [0, 4, 0], [6, 4, 3], 40_000),
-            surface(rng, [0, 0, 0], [0, 4, 3], 30_000),
-            surface(rng, [6, 0, 0], [6, 4, 3], 30_000),
-            surface(rng, [-1.5, 0, 0], [0, 0.9, 0], 6000),  # the floor through the doorway
-        ]
-    )
-    x, y = points[:, 0], points[:, 1]
-    doorway = (x < 0.05) & (x > -0.05) & (y < 0.9)
-    shadow = ((x < 0.05) & (y > 3.1)) | ((y > 3.95) & (x < 0.45))  # the faces the cabinet hid
-    under = (x < 0.45) & (y > 3.1) & (points[:, 2] < 0.05)
+    points = np.vstack([slam_like_room(rng), surface(rng, [-1.5, 0, 0], [0, 0.9, 0], 6000)])  # floor past the door
+    x, y, up = points[:, 0], points[:, 1], points[:, 2] > 0.05
+    doorway = (np.abs(x) < 0.12) & (y < 0.9) & up  # the wall's points (the map's drift is 3 cm)
+    shadow = ((x < 0.12) & (y > 3.1)) | ((y > 3.88) & (x < 0.45))  # the faces the cabinet hid ...
+    under = (x < 0.45) & (y > 3.1) & ~up  # ... and the floor under it
     cabinet = [surface(rng, [0.45, 3.1, 0], [0.45, 4, 1.9], 3000), surface(rng, [0, 3.1, 0], [0.45, 3.1, 1.9], 1500)]
     walls = classify(np.vstack([points[~doorway & ~shadow & ~under], *cabinet]), CloudMapConfig()).walls
     assert not in_walls(np.column_stack([np.full(7, -0.05), np.linspace(0.1, 0.7, 7)]), walls).any()
