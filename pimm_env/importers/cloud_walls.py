@@ -360,11 +360,11 @@ def _hidden(wall: np.ndarray, end: int, point: np.ndarray, floor: set | frozense
     """Whether ``point`` lies on the line of ``wall`` (a row of ``CloudMap.walls``) past its ``end`` (0: its
     start, 1: its end) by no more than ``SEEN_ALONG_M``, with the ``floor`` (voxel columns of ``voxel_m``) seen
     under less than half of the way there: a doorway's floor is seen through it; behind a cabinet it is not."""
-    far, near = wall[2 - 2 * end : 4 - 2 * end], wall[2 * end : 2 * end + 2]
-    if np.dot(point - far, near - far) <= np.dot(near - far, near - far) or np.hypot(*(point - near)) > SEEN_ALONG_M:
+    far, tip = wall[2 - 2 * end : 4 - 2 * end], wall[2 * end : 2 * end + 2]  # the wall's other end, this one
+    if np.dot(point - far, tip - far) <= np.dot(tip - far, tip - far) or np.hypot(*(point - tip)) > SEEN_ALONG_M:
         return False
-    steps = max(1, int(np.ceil(np.hypot(*(point - near)) / (voxel_m / 2))))
-    probes = np.floor((near + np.linspace(0.0, 1.0, steps + 1)[1:, None] * (point - near)) / voxel_m).astype(int)
+    steps = max(1, int(np.ceil(np.hypot(*(point - tip)) / (voxel_m / 2))))
+    probes = np.floor((tip + np.linspace(0.0, 1.0, steps + 1)[1:, None] * (point - tip)) / voxel_m).astype(int)
     return 2 * sum((int(x), int(y)) in floor for x, y in probes) < len(probes)
 
 
