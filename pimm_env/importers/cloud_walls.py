@@ -20,12 +20,11 @@ def wall_planes(
     ``CloudMap.walls``, each up to the ceiling over it (its columns' ``tops``) and standing behind its surface:
     between its two faces where the plane holds both (a thin wall seen from both rooms, :func:`_two_faces`),
     towards its other face (a thicker one), else away from the floor in front of it (``floors``: the voxel
-    columns of the floor seen and of the open floor, :func:`_behind`); and which centres are a wall's (on its
-    plane, or left in its box: its faces' scatter). Planes within ``SQUARE_DEG`` of the first (the longest wall)
-    are fitted square to it where that holds as many points, overall or along the wall (:func:`_squared`).
-    ``upper`` marks centres of a wall seen only near the ceiling (over a tall cabinet): a piece needs
-    ``min_wall_m`` of the others, and where only these stand its box starts at their foot (:func:`_runs`). Boxes
-    that together fit a column's size are none (:func:`pillars`). ``config``: cloud_map.CloudMapConfig."""
+    columns of the floor seen and of the open floor, :func:`_behind`); and which centres lie on one or in a box. Planes
+    within ``SQUARE_DEG`` of the first (the longest wall) are fitted square to it where that holds as many
+    points, overall or along the wall (:func:`_squared`). ``upper`` marks centres of a wall seen only near the
+    ceiling (over a tall cabinet): a piece needs ``min_wall_m`` of the others, and where only these stand its box
+    starts at their foot (:func:`_runs`). ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
     walls: list[list[float]] = []
     owners: list[np.ndarray] = []  # each wall's centres
