@@ -6,7 +6,7 @@ furniture and round pillars no walls."""
 import numpy as np
 
 from pimm_env.importers.cloud_map import CloudMapConfig
-from pimm_env.importers.cloud_walls import ONE_FACED_M, _squared, in_walls, wall_planes
+from pimm_env.importers.cloud_walls import ONE_FACED_M, _squared, wall_planes
 
 
 def test_a_wall_seen_from_both_rooms_stands_between_its_two_faces():
@@ -164,28 +164,3 @@ def test_a_plane_through_a_round_pillars_two_sides_is_not_a_wall():
     floor = {(i, j) for i in range(0, 60) for j in range(1, 59)}
     walls, on_plane = wall_planes(centres, np.full(len(centres), 2.6), (floor, floor), CloudMapConfig())
     assert len(walls) == 2 and not on_plane[1200:].any()
-
-
-def _voxel_means(points: np.ndarray, v: float = 0.1) -> np.ndarray:
-    _, inverse = np.unique(np.floor(points / v).astype(int), axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    return np.column_stack([np.bincount(inverse, points[:, k]) / np.bincount(inverse) for k in range(3)])
-
-
-def test_a_column_standing_in_a_hall_is_no_wall():
-    """A round column 0.5 m across (the generated halls' columns, clutter to the segmenter) seen all round in a
-    map with 4 cm of scatter: the planes fitted to its sides are a group of boxes 1.2 m across at most, standing
-    apart from the walls, so none is a wall (each gave the corner map four corners no building has); the room's
-    two walls stay."""
-    rng = np.random.default_rng(8)
-    angle = rng.uniform(0.0, 2.0 * np.pi, 4000)
-    ring = np.column_stack([3.0 + 0.25 * np.cos(angle), 3.0 + 0.25 * np.sin(angle), rng.uniform(1.2, 2.5, 4000)])
-    ring[:, :2] += rng.normal(0.0, 0.04, (4000, 2))
-    column = _voxel_means(ring)
-    centres = np.vstack([_face(rng, 600, 0.0, 6.0, 0.0), _face(rng, 600, 0.0, 6.0, 6.0), column])
-    floor = {(i, j) for i in range(0, 60) for j in range(1, 59)} - {
-        (i, j) for i in range(27, 33) for j in range(27, 33)
-    }
-    walls, on_plane = wall_planes(centres, np.full(len(centres), 2.6), (floor, floor), CloudMapConfig())
-    assert len(walls) == 2 and not on_plane[1200:].any()
-    assert not in_walls(np.array([[3.0, 3.0], [3.25, 3.0], [3.0, 2.75]]), walls).any()

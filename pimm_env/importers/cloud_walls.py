@@ -27,7 +27,6 @@ def wall_planes(
     starts at their foot (:func:`_runs`). ``config``: cloud_map.CloudMapConfig."""
     rng = np.random.default_rng(0)
     walls: list[list[float]] = []
-    owners: list[np.ndarray] = []  # each wall's centres
     on_plane = np.zeros(len(centres), dtype=bool)
     remaining = np.arange(len(centres))
     tops = np.asarray(tops, dtype=float)
@@ -71,51 +70,19 @@ def wall_planes(
                 thickness = ONE_FACED_M if side else config.voxel_m
             offset += side * thickness / 2
             top = float(tops[inliers[piece]].max())
-            runs = _runs(s[piece], points[piece, 2], upper[inliers[piece]], config.voxel_m)
-            for start, end, bottom in runs:
+            for start, end, bottom in _runs(s[piece], points[piece, 2], upper[inliers[piece]], config.voxel_m):
                 a, b = offset * n2 + start * along, offset * n2 + end * along
                 walls.append([a[0], a[1], b[0], b[1], thickness, bottom, top])
+            on_plane[inliers[piece]] = True
             # the points left in its box grown by half a voxel, its faces' scatter, are not fitted as a wall beside it
             rest = np.setdiff1d(remaining, inliers)
             local = centres[rest, :2] @ np.column_stack([n2, along]) - [offset, (lo + hi) / 2]
-            body = rest[np.all(np.abs(local) < (np.array([thickness, hi - lo]) + config.voxel_m) / 2, axis=1)]
-            owners += [np.concatenate([inliers[piece], body])] * len(runs)
-            inliers = np.concatenate([inliers, body])
+            body = np.all(np.abs(local) < (np.array([thickness, hi - lo]) + config.voxel_m) / 2, axis=1)
+            on_plane[rest[body]] = True
+            inliers = np.concatenate([inliers, rest[body]])
         remaining = np.setdiff1d(remaining, inliers)
-    fitted = np.array(walls).reshape(-1, 7)
-    pillar = pillars(fitted, PILLAR_M, config.corner_reach_m)
-    for k in np.flatnonzero(~pillar):
-        on_plane[owners[k]] = True
-    walls_in_line = bridged(fitted[~pillar], config.door_gap_m, config.wall_plane_m)
+    walls_in_line = bridged(np.array(walls).reshape(-1, 7), config.door_gap_m, config.wall_plane_m)
     return meet(walls_in_line, config.corner_reach_m, floors[0], config.voxel_m), on_plane
-
-
-#: a group of wall boxes, each within ``corner_reach_m`` of another (the reach walls' ends are met across), that
-#: fits a rectangle no longer than the first figure and no narrower than the second (m) is a pillar standing apart
-#: (a column's sides): the segmenter learnt columns as clutter, and a column's faces give it no corners. A wall
-#: seen along a short stretch is narrower: one box, as thick as a wall
-PILLAR_M = (1.2, 0.3)
-
-
-def pillars(walls: np.ndarray, size: tuple[float, float], touch: float) -> np.ndarray:
-    """Which ``walls`` (rows of ``CloudMap.walls``) stand in a group of boxes, each within ``touch`` of another,
-    whose corners fit a rectangle at most ``size[0]`` long and at least ``size[1]`` wide: a pillar's sides."""
-    import shapely
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    if not len(walls):
-        return np.zeros(0, dtype=bool)
-    boxes = [shapely.LineString([w[:2], w[2:4]]).buffer(w[4] / 2, cap_style="flat") for w in walls]
-    pairs = shapely.STRtree(boxes).query(boxes, predicate="dwithin", distance=touch)
-    count, group = connected_components(coo_matrix((np.ones(pairs.shape[1]), pairs), shape=(len(walls),) * 2))
-    out = np.zeros(len(walls), dtype=bool)
-    for k in range(count):
-        corners = shapely.MultiPoint(np.vstack([boxes[i].exterior.coords for i in np.flatnonzero(group == k)]))
-        ring = np.asarray(shapely.minimum_rotated_rectangle(corners).exterior.coords)
-        sides = np.hypot(*np.diff(ring[:3], axis=0).T)
-        out[group == k] = sides.max() <= size[0] and sides.min() >= size[1]
-    return out
 
 
 def near_the_ceiling(voxels: np.ndarray, clutter: np.ndarray, floor: set, tops: np.ndarray, config: Any) -> np.ndarray:
