@@ -20,7 +20,7 @@ def wall_planes(
     ``CloudMap.walls``, each up to the ceiling over it (its columns' ``tops``) and standing behind its surface:
     between its two faces where the plane holds both (a thin wall seen from both rooms, :func:`_two_faces`),
     towards its other face (a thicker one), else away from the floor in front of it (``floors``: the voxel
-    columns of the floor seen and of the open floor, :func:`_behind`); and which centres lie on one or in a box. Planes
+    columns of the floor seen and of the open floor, :func:`_behind`); and which centres lie on one. Planes
     within ``SQUARE_DEG`` of the first (the longest wall) are fitted square to it where that holds as many
     points, overall or along the wall (:func:`_squared`). ``upper`` marks centres of a wall seen only near the
     ceiling (over a tall cabinet): a piece needs ``min_wall_m`` of the others, and where only these stand its box
@@ -74,12 +74,6 @@ def wall_planes(
                 a, b = offset * n2 + start * along, offset * n2 + end * along
                 walls.append([a[0], a[1], b[0], b[1], thickness, bottom, top])
             on_plane[inliers[piece]] = True
-            # the points left in its box grown by half a voxel, its faces' scatter, are not fitted as a wall beside it
-            rest = np.setdiff1d(remaining, inliers)
-            local = centres[rest, :2] @ np.column_stack([n2, along]) - [offset, (lo + hi) / 2]
-            body = np.all(np.abs(local) < (np.array([thickness, hi - lo]) + config.voxel_m) / 2, axis=1)
-            on_plane[rest[body]] = True
-            inliers = np.concatenate([inliers, rest[body]])
         remaining = np.setdiff1d(remaining, inliers)
     walls_in_line = bridged(np.array(walls).reshape(-1, 7), config.door_gap_m, config.wall_plane_m)
     return meet(walls_in_line, config.corner_reach_m, floors[0], config.voxel_m), on_plane
