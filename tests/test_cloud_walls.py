@@ -1,7 +1,7 @@
 """The walls of a point-cloud map: a wall seen from both rooms made whole (its faces in two planes or in one
-plane's band, or scattered past it), a jog not taken for a thickness, a wall seen from one room stood behind its
-face, a thin wall's two faces and two partitions in line across a corridor fitted square to the building,
-furniture and round pillars no walls."""
+plane's band), a jog not taken for a thickness, a wall seen from one room stood behind its face, a thin wall's two
+faces and two partitions in line across a corridor fitted square to the building, furniture and a round pillar no
+walls."""
 
 import numpy as np
 
