@@ -16,7 +16,7 @@ def bridged(walls: np.ndarray, gap: float, within: float) -> np.ndarray:
     walls = walls.copy()
     for i in range(len(walls)):
         for j in range(len(walls)):
-            a0, a1 = walls[i, 0:2], walls[i, 2:4]
+            a0, a1 = walls[i, 0:2], walls[i, 2:4]  # read again for each j: an earlier j may have moved a1
             length = float(np.hypot(*(a1 - a0)))
             if i == j or length < 1e-9:
                 continue
@@ -40,6 +40,10 @@ def _across(direction: np.ndarray, offset: np.ndarray) -> float:
     return float(direction[0] * offset[1] - direction[1] * offset[0])
 
 
+#: the least turn between two walls that meet at a corner or a T: sin 45 degrees
+TURN = float(np.sin(np.radians(45.0)))
+
+
 def meet(walls: np.ndarray, reach: float, floor: set | frozenset = frozenset(), voxel_m: float = 0.1) -> np.ndarray:
     """``walls`` with the ends of each two that turn by 45 degrees or more and end within ``reach`` of their
     meeting point moved onto it, or both short of it by no more than ``SEEN_ALONG_M`` with no ``floor`` seen
@@ -54,7 +58,7 @@ def meet(walls: np.ndarray, reach: float, floor: set | frozenset = frozenset(), 
             a0, a1, b0, b1 = walls[i, 0:2], walls[i, 2:4], walls[j, 0:2], walls[j, 2:4]
             da, db = a1 - a0, b1 - b0
             cross = _across(da, db)
-            if abs(cross) < np.sin(np.radians(45.0)) * np.hypot(*da) * np.hypot(*db):
+            if abs(cross) < TURN * np.hypot(*da) * np.hypot(*db):
                 continue
             t = _across(b0 - a0, db) / cross
             point = a0 + t * da
