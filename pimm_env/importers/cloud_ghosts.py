@@ -53,10 +53,9 @@ def ghost_voxels(voxels: np.ndarray, clutter: np.ndarray, levelled: np.ndarray, 
 
 def _fragments(voxels: np.ndarray, clutter: np.ndarray, over_floor: np.ndarray, config: Any) -> np.ndarray:
     """The ``clutter`` voxels (a mask) of pieces that are a passer-by seen from afar: a piece (clutter voxels
-    joined to those in the 3 x 3 columns around them up to ``RING_GAP_VOXELS`` + 1 voxels above or below) no wider
-    than ``FRAGMENT_M`` in x and y, no higher than ``person_m``, every voxel ``over_floor`` (a mask: its column's
-    floor was seen), and no voxel outside ``clutter`` (floor, wall, ceiling, a ghost already taken) beside any of
-    it: it stands on nothing and hangs from nothing."""
+    joined to a neighbour, 26-connected, or in one column across ``RING_GAP_VOXELS``) no wider than ``FRAGMENT_M``
+    in x and y, no higher than ``person_m``, every voxel ``over_floor`` (a mask: its column's floor was seen), and
+    no voxel of another class (floor, wall, ceiling) beside any of it: it stands on nothing and hangs from nothing."""
     from scipy import ndimage
 
     index = np.flatnonzero(clutter)
