@@ -16,10 +16,9 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    than ``wall_gap_m`` (a wall seen from afar shows only the LiDAR's rings), is wall; the rest is clutter. Ceiling gaps
    of up to three columns between seen ceiling (a LiDAR's rings leave stripes) are filled in. Clutter rising
    from the floor to no more than a person's height over floor the map saw under it is the ghost of someone who
-   walked by while mapping (a thing standing there hides its floor), and so are their arms beside it and small
-   pieces floating free over such floor, seen by a few rings (``cloud_ghosts.py``): set aside and counted. Given
-   the trajectory the map was made along, clutter up to a person's height where the robot drove is set aside too
-   (``cloud_path.py``).
+   walked by while mapping (a thing standing there hides its floor), and so are their arms beside it
+   (``cloud_ghosts.py``): set aside and counted. Given the trajectory the map was made along, clutter up to a
+   person's height where the robot drove is set aside too (``cloud_path.py``).
 4. **Surfaces**: walls are upright planes fitted to the wall voxels (``cloud_walls.py``), each a box element of
    the world standing behind the surface the LiDAR saw (so the corner map reads the walls' outlines, at the
    slant they were fitted at, not a raster of it), and where the map saw them (``seen_walls``: the mean point of
