@@ -153,13 +153,14 @@ def cloud_maps(
     workers: int = typer.Option(0, help="worker processes per run (0: one per core)"),
     worlds: Path = typer.Option(Path("build/worlds"), help="folder of the generated worlds (and the imports)"),
     out: Path = typer.Option(Path("results/cloud_maps"), help="where the maps, runs and the table go"),
+    trajectory: bool = typer.Option(True, help="import each map with the trajectory it was made along, as SLAM writes"),
 ) -> None:
     """SLAM-like point-cloud maps of generated buildings, imported and scored against the buildings' own maps;
     PIMM localizing in each building with the imported maps beside its own (training/cloud_maps.py)."""
     from training.cloud_maps import run_cloud_maps
 
     made = "python -m training " + shlex.join(sys.argv[1:])
-    run_cloud_maps(_seed_list(seeds), trials, workers, worlds, out, made, typer.echo)
+    run_cloud_maps(_seed_list(seeds), trials, workers, worlds, out, made, typer.echo, trajectory)
 
 
 def _seed_list(text: str) -> list[int]:

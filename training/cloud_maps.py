@@ -47,9 +47,18 @@ class SlamLike:
     voxel_m: float = 0.05  # the map's voxel filter
 
 
-def slam_like_cloud(world: Any, seed: int, config: SlamLike = SlamLike()) -> tuple[np.ndarray, np.ndarray]:
-    """A SLAM-like point-cloud map (N, 3, world frame) of ``world`` (loaded), from its routes (see the module),
-    and the true poses its clouds were taken at (M, 3)."""
+@dataclass(frozen=True)
+class SlamLikeMap:
+    """What a SLAM run over a building leaves: its point-cloud map and its trajectory; and the truth beside them."""
+
+    points: np.ndarray  # (N, 3) the map, world frame, one point a voxel
+    true_poses: np.ndarray  # (M, 3) where each of its clouds was taken
+    times: np.ndarray  # (M,) s, the routes one after another
+    poses: np.ndarray  # (M, 3) where SLAM laid each cloud (the truth and its drift): the trajectory it writes
+
+
+def slam_like_cloud(world: Any, seed: int, config: SlamLike = SlamLike()) -> SlamLikeMap:
+    """A SLAM-like point-cloud map of ``world`` (loaded) from its routes (see the module), with its trajectory."""
     from pimm_env.bags.cloud_map import laid_at, thinned
     from pimm_env.driving.rollout import run
     from pimm_env.driving.scenarios import load_scenarios
@@ -61,15 +70,24 @@ def slam_like_cloud(world: Any, seed: int, config: SlamLike = SlamLike()) -> tup
     lidar = env.config.lidar3d
     clouds: list[np.ndarray] = []
     poses: list[np.ndarray] = []
+    laid: list[np.ndarray] = []
+    times: list[float] = []
     scale = np.array([config.pose_error_m, config.pose_error_m, np.radians(config.yaw_error_deg)])
     try:
         for k, scenario in enumerate(s for s in load_scenarios(world).values() if s.kidnap_to is None):
             amplitude = scale * rng.uniform(0.5, 1.0, 3)
             period, phase = rng.uniform(20.0, 60.0, 3), rng.uniform(0.0, 2 * np.pi, 3)
             fresh = [0]
+            start = times[-1] + 1.0 if times else 0.0  # each route's clock after the last one's
 
             def lay(
-                obs: dict[str, Any], info: dict[str, Any], amplitude=amplitude, period=period, phase=phase, fresh=fresh
+                obs: dict[str, Any],
+                info: dict[str, Any],
+                amplitude=amplitude,
+                period=period,
+                phase=phase,
+                fresh=fresh,
+                start=start,
             ) -> None:
                 if not info.get("fresh_cloud"):
                     return
@@ -78,12 +96,14 @@ def slam_like_cloud(world: Any, seed: int, config: SlamLike = SlamLike()) -> tup
                     return
                 drift = amplitude * np.sin(2 * np.pi * float(obs["time"][0]) / period + phase)
                 poses.append(np.asarray(info["true_pose"], dtype=float))
-                clouds.append(laid_at(obs["cloud"], obs["cloud_mask"], poses[-1] + drift, lidar))
+                laid.append(poses[-1] + drift)
+                times.append(start + float(obs["time"][0]))
+                clouds.append(laid_at(obs["cloud"], obs["cloud_mask"], laid[-1], lidar))
 
             run(scenario, seed=seed + k, env=env, on_step=lay)
     finally:
         env.close()
-    return thinned(np.vstack(clouds), config.voxel_m), np.array(poses)
+    return SlamLikeMap(thinned(np.vstack(clouds), config.voxel_m), np.array(poses), np.array(times), np.array(laid))
 
 
 def corner_figures(truth: Any, found: Any, seen: np.ndarray) -> dict[str, float]:
@@ -255,9 +275,9 @@ def cloud_map_figure(points: np.ndarray, building: Path, imported: Path, path: P
     return path
 
 
-def import_cloud(cloud_file: Path, name: str, worlds: Path) -> tuple[Path, float]:
-    """``world import`` of ``cloud_file`` as ``worlds/name`` (replacing one there), prepared; the import's own
-    seconds (without the preparation's fingerprints and routes)."""
+def import_cloud(cloud_file: Path, name: str, worlds: Path, trajectory: Path | None = None) -> tuple[Path, float]:
+    """``world import`` of ``cloud_file`` (with its SLAM ``trajectory``, a TUM file) as ``worlds/name`` (replacing
+    one there), prepared; the import's own seconds (without the preparation's fingerprints and routes)."""
     import shutil
 
     from pimm_agents.preparation.prepare import prepare_world
@@ -265,7 +285,7 @@ def import_cloud(cloud_file: Path, name: str, worlds: Path) -> tuple[Path, float
 
     shutil.rmtree(worlds / name, ignore_errors=True)
     start = time.perf_counter()
-    path = import_world(cloud_file, name, worlds)
+    path = import_world(cloud_file, name, worlds, trajectory=trajectory)
     seconds = time.perf_counter() - start
     prepare_world(path, progress=False)
     return path, seconds
@@ -298,22 +318,29 @@ def localize_with(building: Path, maps: Path | None, trials: int, workers: int, 
     }
 
 
-def measure_cloud_map(seed: int, worlds: Path, out: Path, trials: int, workers: int) -> dict[str, Any]:
-    """One generated building: its SLAM-like map written (``out/gen-SEED.pcd``), imported as ``gen-SEED-cloud``
-    under ``worlds``, scored (a figure, ``out/gen-SEED.png``), and (``trials`` > 0) PIMM localizing in the
-    building with those maps and its own."""
+def measure_cloud_map(
+    seed: int, worlds: Path, out: Path, trials: int, workers: int, trajectory: bool = True
+) -> dict[str, Any]:
+    """One generated building: its SLAM-like map and trajectory written (``out/gen-SEED.pcd``, ``.tum``),
+    imported (with the trajectory, unless not ``trajectory``) as ``gen-SEED-cloud`` under ``worlds``, scored (a
+    figure, ``out/gen-SEED.png``), and (``trials`` > 0) PIMM localizing in the building with those maps and its
+    own."""
+    from pimm_agents.results.tum import write_tum
     from pimm_env.clouds.pcd import write_pcd
     from pimm_env.world.files import load_world
     from training.heldout import ready_building
 
     building = ready_building(seed, worlds)
     out.mkdir(parents=True, exist_ok=True)
-    points, poses = slam_like_cloud(load_world(building), seed)
-    cloud_file = write_pcd(out / f"gen-{seed}.pcd", points)
-    imported, seconds = import_cloud(cloud_file, f"gen-{seed}-cloud", worlds)
-    figures = score_import(building, imported, poses)
-    cloud_map_figure(points, building, imported, out / f"gen-{seed}.png")
-    figures.update(points=len(points), import_s=seconds, import_s_per_1000m2=1000.0 * seconds / figures["floor_m2"])
+    slam = slam_like_cloud(load_world(building), seed)
+    cloud_file = write_pcd(out / f"gen-{seed}.pcd", slam.points)
+    path = write_tum(out / f"gen-{seed}.tum", slam.times, slam.poses)
+    imported, seconds = import_cloud(cloud_file, f"gen-{seed}-cloud", worlds, path if trajectory else None)
+    figures = score_import(building, imported, slam.true_poses)
+    cloud_map_figure(slam.points, building, imported, out / f"gen-{seed}.png")
+    figures.update(
+        points=len(slam.points), import_s=seconds, import_s_per_1000m2=1000.0 * seconds / figures["floor_m2"]
+    )
     if trials:
         figures["own_maps"] = localize_with(building, None, trials, workers, out / f"gen-{seed}" / "own")
         figures["cloud_maps"] = localize_with(building, imported, trials, workers, out / f"gen-{seed}" / "cloud")
@@ -373,7 +400,9 @@ def pooled_times(rows: dict[str, dict[str, Any]], seed: int = 0) -> str:
     )
 
 
-def run_cloud_maps(seeds: list[int], trials: int, workers: int, worlds: Path, out: Path, made: str, echo: Any) -> None:
+def run_cloud_maps(
+    seeds: list[int], trials: int, workers: int, worlds: Path, out: Path, made: str, echo: Any, trajectory: bool = True
+) -> None:
     """:func:`measure_cloud_map` for each building, writing ``out/cloud_maps.json`` and ``out/cloud_maps.md``
     (headed by the command ``made``, the commit and the machine) after each."""
     import json
@@ -386,7 +415,7 @@ def run_cloud_maps(seeds: list[int], trials: int, workers: int, worlds: Path, ou
     rows: dict[str, dict[str, Any]] = {}
     report = f"{cloud_map_table(rows)}\n\n"
     for seed in tqdm(seeds, desc="buildings", unit="building"):
-        rows[f"gen-{seed}"] = measure_cloud_map(seed, worlds, out, trials, workers)
+        rows[f"gen-{seed}"] = measure_cloud_map(seed, worlds, out, trials, workers, trajectory)
         report = f"{cloud_map_table(rows)}\n\n{pooled_times(rows)}"  # the table and its pooled line, once
         (out / "cloud_maps.json").write_text(json.dumps(rows, indent=1))
         (out / "cloud_maps.md").write_text(f"{provenance_here(made)}\n\n{report}\n")
