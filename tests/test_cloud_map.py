@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from typer.testing import CliRunner
 
 import evaluate
@@ -103,8 +104,12 @@ def test_a_bags_clouds_become_a_point_cloud_map_that_imports_as_the_room(room_fi
     out = tmp_path / "room.pcd"
     result = CliRunner().invoke(evaluate.app, ["map", "--from-bag", str(bag), "--cloud", str(out)])
     assert result.exit_code == 0, result.output
-    assert "then: python evaluate.py world import" in result.output and out.is_file()
-    maps = build_derived_maps(load_world(import_world(out, "from_bag", tmp_path / "maps")))
+    assert f"then: python evaluate.py world import {out} --name NAME --trajectory {out.with_suffix('.tum')}" in (
+        " ".join(result.output.split())
+    )
+    world = import_world(out, "from_bag", tmp_path / "maps", trajectory=out.with_suffix(".tum"))
+    assert yaml.safe_load(world.read_text())["cloud_map"]["trajectory"]["poses"] > 10  # in the map's frame
+    maps = build_derived_maps(load_world(world))
     own = ensure_derived_maps(load_world(room_file)).occupancy
     seen = resample_occupied(
         OccupancyGrid(maps.occupancy.grid, maps.occupancy.surfaces(), ~maps.occupancy.surfaces()), own.grid

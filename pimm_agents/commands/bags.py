@@ -57,7 +57,9 @@ def map_command(
     from_bag: Path = typer.Option(..., "--from-bag", help="a bag with 2D scans (or 3D clouds) and true poses"),
     out: Path | None = typer.Option(None, help="the map_server .yaml to write (its .pgm beside it)"),
     cloud: Path | None = typer.Option(
-        None, help="a point-cloud map (.pcd) to write from the bag's 3D clouds, as SLAM writes one"
+        None,
+        help="a point-cloud map (.pcd) to write from the bag's 3D clouds, as SLAM writes one (its trajectory"
+        " beside it: .tum)",
     ),
     resolution: float = typer.Option(0.05, min=0.01, help="cell size (m); the point-cloud map's voxel"),
     scan_topic: str = typer.Option("/scan", "--scan-topic"),
@@ -73,6 +75,7 @@ def map_command(
     if out is None and cloud is None:
         raise PimmError("map: give --out MAP.yaml (an occupancy map), --cloud MAP.pcd (a point-cloud map) or both")
     if cloud is not None:
+        from pimm_agents.results.tum import write_tum
         from pimm_env.bags.cloud_map import cloud_map_from_bag
         from pimm_env.clouds.pcd import write_pcd
 
@@ -82,12 +85,14 @@ def map_command(
         lidar3d, lidar2d = layouts_from_bag(from_bag, None, points_topic)
         if lidar3d is None:
             raise PimmError(f"{from_bag}: no 3D clouds on {points_topic!r} (--points-topic) to build a point-cloud map")
-        points, clouds = cloud_map_from_bag(from_bag, topics, lidar2d, lidar3d, resolution)
+        points, times, poses = cloud_map_from_bag(from_bag, topics, lidar2d, lidar3d, resolution)
         cloud.parent.mkdir(parents=True, exist_ok=True)
         write_pcd(cloud, points)
+        path = write_tum(cloud.with_suffix(".tum"), times, poses)
         typer.echo(
-            f"wrote {cloud}: {len(points)} points ({resolution} m voxels) from {clouds} clouds; then: python"
-            f" evaluate.py world import {cloud} --name NAME"
+            f"wrote {cloud}: {len(points)} points ({resolution} m voxels) from {len(poses)} clouds, and the"
+            f" trajectory they were laid along, {path}; then: python evaluate.py world import {cloud} --name NAME"
+            f" --trajectory {path}"
         )
     if out is not None:
         _occupancy_map(from_bag, out, resolution, BagTopics(odom_topic, scan_topic, None, truth_topic, None))

@@ -1,5 +1,6 @@
-"""A point-cloud map from a bag: its 3D clouds laid at its true poses and thinned to one point per voxel, the
-kind of file a robot's SLAM writes (``world import`` reads it back as a building)."""
+"""A point-cloud map from a bag: its 3D clouds laid at its true poses and thinned to one point per voxel, with
+the poses they were laid at: the two files a robot's SLAM writes (``world import`` reads them back as a
+building)."""
 
 from __future__ import annotations
 
@@ -18,23 +19,25 @@ THIN_EVERY = 50
 
 def cloud_map_from_bag(
     bag: Path, topics, lidar2d, lidar3d: Lidar3DConfig, voxel_m: float = 0.05
-) -> tuple[np.ndarray, int]:
-    """The bag's clouds at its true poses, one point (the mean) per ``voxel_m`` voxel, and how many clouds
-    (``lidar2d``: the bag's 2D layout, None where it has no scans)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bag's clouds at its true poses, one point (the mean) per ``voxel_m`` voxel; and the time (C,) and
+    pose (C, 3) each of its C clouds was laid at: the map's trajectory (``lidar2d``: the bag's 2D layout, None
+    where it has no scans)."""
 
     from pimm_env.sim.lidar import Lidar2DConfig
 
-    taken, pending, clouds = np.zeros((0, 3)), [], 0
+    taken, pending, times, poses = np.zeros((0, 3)), [], [], []
     for step in read_steps(Path(bag), topics, lidar2d or Lidar2DConfig(), lidar3d):
         if not (step.fresh_cloud and step.true_pose is not None):
             continue
         pending.append(laid_at(step.obs["cloud"], step.obs["cloud_mask"], step.true_pose, lidar3d))
-        clouds += 1
+        times.append(float(step.obs["time"][0]))
+        poses.append(np.asarray(step.true_pose, dtype=float))
         if len(pending) >= THIN_EVERY:
             taken, pending = thinned(np.vstack([taken, *pending]), voxel_m), []
-    if not clouds:
+    if not poses:
         raise BagError(f"{bag}: no cloud ({topics.points}) arrived with a true pose ({topics.truth}): no map to build")
-    return thinned(np.vstack([taken, *pending]), voxel_m), clouds
+    return thinned(np.vstack([taken, *pending]), voxel_m), np.array(times), np.array(poses)
 
 
 def laid_at(cloud: np.ndarray, mask: np.ndarray, pose: np.ndarray, lidar3d: Lidar3DConfig) -> np.ndarray:
