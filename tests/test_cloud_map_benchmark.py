@@ -1,23 +1,8 @@
 import numpy as np
-import pytest
-import yaml
 
 from pimm_env.mapping.corner_map import CornerMap
 from pimm_env.world.grid import GridSpec
 from training.cloud_maps import MATCH_M, corner_figures, in_sight, pooled_times, seen_cells
-
-TWO_ROUTES = """
-format: pimm-scenarios/1
-scenarios:
-  there:
-    start: [1.0, 1.0, 0.0]
-    waypoints: [[1.0, 1.0], [3.0, 1.0]]
-    speed: 0.5
-  back:
-    start: [3.0, 3.0, 3.1416]
-    waypoints: [[3.0, 3.0], [1.0, 3.0]]
-    speed: 0.5
-"""
 
 
 def test_rays_from_the_mapping_poses_see_the_faces_in_front_of_them_not_the_rooms_behind():
@@ -85,24 +70,3 @@ def test_the_pooled_times_take_every_buildings_trials_and_say_how_sure_the_ratio
     assert low <= 1.5 <= high and high > low  # resampled medians of 2 / 4 and 3 / 6: anywhere from 0.75 to 3
     assert line == pooled_times(rows)  # seeded
     assert pooled_times({"gen-1": {"own_maps": {"times_s": [2.0]}}}) == ""  # no imported maps' trials
-
-
-@pytest.mark.expensive
-def test_a_slam_like_map_comes_with_the_trajectory_it_was_laid_along_and_imports_with_it(room_file, tmp_path):
-    from pimm_agents.results.tum import write_tum
-    from pimm_env.clouds.pcd import write_pcd
-    from pimm_env.importers.world_import import import_world
-    from pimm_env.mapping.derived_maps import ensure_derived_maps
-    from pimm_env.world.files import load_world
-    from training.cloud_maps import SlamLike, slam_like_cloud
-
-    (room_file.parent / "scenarios.yaml").write_text(TWO_ROUTES)
-    ensure_derived_maps(load_world(room_file))
-    slam = slam_like_cloud(load_world(room_file), seed=0, config=SlamLike(walkers=1))
-    assert len(slam.times) == len(slam.poses) == len(slam.true_poses) > 10
-    assert np.all(np.diff(slam.times) > 0)  # the second route's clock runs on after the first's
-    drift = np.abs(slam.poses - slam.true_poses)
-    assert 0 < drift[:, :2].max() <= 0.03 and drift[:, 2].max() <= np.radians(0.3)  # SlamLike's drift, no more
-    path = write_tum(tmp_path / "room.tum", slam.times, slam.poses)
-    world = import_world(write_pcd(tmp_path / "room.pcd", slam.points), "room_map", tmp_path / "maps", trajectory=path)
-    assert yaml.safe_load(world.read_text())["cloud_map"]["trajectory"]["poses"] == len(slam.poses)
