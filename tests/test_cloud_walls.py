@@ -137,6 +137,20 @@ def test_two_partitions_nearly_in_line_across_the_building_are_each_fitted_squar
     assert set(kept.tolist()) == set(range(300)) or set(kept.tolist()) == set(range(300, 600))
 
 
+def test_a_slanted_plane_whose_median_falls_between_its_two_ends_is_left_as_fitted():
+    """A line 4 degrees off square holding two groups of 10 points 5 m apart along it: squared, their depths lie
+    0.35 m apart, and the median of the 20 falls halfway between, 0.17 m from any point, beyond the band's 0.16 m:
+    nothing to centre the squared band on, and the plane is kept as fitted (it raised on a generated building's
+    map before)."""
+    angle = np.radians(4.0)
+    along = np.array([np.cos(np.pi / 2 + angle), np.sin(np.pi / 2 + angle)])
+    slanted = np.array([along[1], -along[0]])
+    xy = np.vstack([np.outer(np.linspace(0.0, 0.05, 10), along), np.outer(np.linspace(5.0, 5.05, 10), along)])
+    inliers = np.arange(20)
+    kept, normal = _squared(xy, inliers, slanted, 0.0, CloudMapConfig())
+    assert kept.tolist() == inliers.tolist() and np.allclose(normal, slanted)
+
+
 def test_a_plane_through_a_round_pillars_two_sides_is_not_a_wall():
     """A plane through a round pillar 0.5 m across holds its two sides (a voxel's mean points each, from 1.2 to
     2.5 m): 0.6 m end to end with a voxel, as long as a wall's shortest piece, but it fills two voxels along it,

@@ -187,6 +187,8 @@ def _squared(xy: np.ndarray, inliers: np.ndarray, normal: np.ndarray, square: fl
     # the band (``within`` either side) near the inliers' median that holds the most points: a thin wall's two
     # faces both, where a median would slide to the face seen more
     near = np.sort(depth[np.abs(depth - np.median(depth[inliers])) < 2 * within])
+    if not len(near):  # an even count's median between two faces further apart than the band: none to centre on
+        return inliers, normal
     ends = np.searchsorted(near, near + 2 * within, side="right")
     best = int(np.argmax(ends - np.arange(len(near))))
     kept = np.flatnonzero(np.abs(depth - (near[best] + near[ends[best] - 1]) / 2) < within)
