@@ -29,6 +29,9 @@ def test_a_corner_is_in_sight_from_its_room_not_from_behind_a_thin_wall():
 
 
 def test_corners_are_matched_within_ten_centimetres_and_the_rest_counted_both_ways():
+    """A found corner is not the building's only where no walls of it meet within 10 cm (``there``: with the
+    faces' slack)."""
+
     def corners(xy):
         xy = np.asarray(xy, dtype=float)
         return CornerMap(xy, np.full(len(xy), 3.0), np.zeros(len(xy)))
@@ -38,6 +41,9 @@ def test_corners_are_matched_within_ten_centimetres_and_the_rest_counted_both_wa
     figures = corner_figures(truth, found, np.array([True, True, False, False]))
     assert figures["recall_seen"] == 0.5 and figures["recall_all"] == 0.25
     assert figures["false"] == 2 / 3 and figures["seen"] == 2
+    stub = corners([[0, 0], [4, 0], [4, 3], [0, 3], [4.0, MATCH_M + 0.1]])  # walls meeting with a shorter face
+    with_stub = corner_figures(truth, found, np.array([True, True, False, False]), stub)
+    assert with_stub["false"] == 1 / 3 and with_stub["recall_seen"] == 0.5  # found ones only: recall is the truth's
     none = corner_figures(truth, corners(np.zeros((0, 2))), np.array([True, True, False, False]))
     assert (none["seen"], none["found"], none["recall_seen"], none["false"]) == (2, 0, 0.0, 0.0)
 

@@ -9,7 +9,9 @@ The maps and the trajectories they come with are made in slam_maps.py. The figur
 - corners: the building's own corner map against the imported one, matched within ``MATCH_M`` in the plane:
   the share found of the building's corners the map saw (in sight of a mapping pose, and both faces: seen wall
   cells near it in two directions) and of all; and
-  the share of imported corners that are none of the building's;
+  the share of imported corners that are none of the building's: no two of its walls meet under a ceiling within
+  ``MATCH_M``, the length of their faces judged with the same slack (the corner map asks 0.3 m of each face, so
+  that a doorway's jamb is no corner; a 0.25 m stub beside a door is walls meeting all the same);
 - walls: both worlds cut at ``WALL_HEIGHT`` (people walking through and most furniture are lower), each within
   two cells of a seen wall cell (the face the map saw and the wall's body behind it): IoU cell for cell and within
   one cell (5 cm, the grids' own step);
@@ -32,16 +34,19 @@ WALL_HEIGHT = 2.0
 POSE_SPACING_M = 0.5
 
 
-def corner_figures(truth: Any, found: Any, seen: np.ndarray) -> dict[str, float]:
+def corner_figures(truth: Any, found: Any, seen: np.ndarray, there: Any = None) -> dict[str, float]:
     """Corner maps ``truth`` (the building's) and ``found`` (the import's) matched within ``MATCH_M``; ``seen``
-    marks the building's corners in the part the map saw."""
+    marks the building's corners in the part the map saw; a found corner is none of the building's where it lies
+    farther than ``MATCH_M`` from every corner of ``there`` (the building's corners with their faces' slack;
+    None: ``truth``)."""
     from scipy.spatial import cKDTree
 
+    there = truth if there is None else there
     if not len(truth) or not len(found):
         nothing = {"recall_seen": 0.0, "recall_all": 0.0, "false": 1.0 if len(found) else 0.0}
         return {"corners": len(truth), "seen": int(seen.sum()), "found": len(found), **nothing}
     to_found, _ = cKDTree(found.xy).query(truth.xy)
-    to_truth, _ = cKDTree(truth.xy).query(found.xy)
+    to_truth, _ = cKDTree(there.xy).query(found.xy)
     hit = to_found <= MATCH_M
     return {
         "corners": len(truth),
@@ -136,6 +141,7 @@ def score_import(building: Path, imported: Path, poses: np.ndarray, reach_m: flo
     that was mapped from ``poses`` with a LiDAR of ``reach_m``."""
     from scipy import ndimage
 
+    from pimm_env.mapping.corner_map import CornerMapConfig, derive_corner_map
     from pimm_env.mapping.derived_maps import load_derived_maps
     from pimm_env.mapping.occupancy import occupancy_from_world, resample_occupied, tolerant_iou
     from pimm_env.world.files import load_world
@@ -150,8 +156,9 @@ def score_import(building: Path, imported: Path, poses: np.ndarray, reach_m: flo
     corner_seen = faces_seen(own.corners.xy, seen, grid) & in_sight(
         own.corners.xy, walls.occupied, grid, poses, reach_m
     )
+    there = derive_corner_map(own_world, CornerMapConfig(min_face=CornerMapConfig().min_face - MATCH_M))
     return {
-        **corner_figures(own.corners, made.corners, corner_seen),
+        **corner_figures(own.corners, made.corners, corner_seen, there),
         "wall_iou": tolerant_iou(walls.occupied & near_seen, made_walls & near_seen, 0),
         "wall_iou_5cm": tolerant_iou(walls.occupied & near_seen, made_walls & near_seen, 1),
         "floor_m2": float(made.occupancy.free.sum() * made.occupancy.grid.resolution**2),
