@@ -22,6 +22,17 @@ def test_a_partition_stopping_short_of_the_wall_it_meets_is_carried_to_it():
     assert np.allclose(meet(beside, 0.4), beside)
 
 
+def test_how_far_a_wall_stops_short_is_measured_to_the_face_it_meets_and_a_stub_past_a_wall_is_kept():
+    """A partition's last stretch seen at a grazing angle: it stops 0.33 m short of a 0.2 m thick wall's face
+    (0.43 m of the wall's middle line) and meets it; a wall running 0.43 m on past a partition's line (a stub
+    beside a doorway) is not cut back to it."""
+    thick = [0.0, 0.0, 8.0, 0.0, 0.2, 0.0, 3.0]
+    short = np.array([thick, _wall(3.0, -0.43, 3.0, -5.0)])
+    assert np.allclose(meet(short, 0.4)[1, :4], [3.0, 0.1, 3.0, -5.0])
+    stub = np.array([[3.0, -5.0, 3.0, 0.43, 0.2, 0.0, 3.0], [8.0, 0.0, 3.1, 0.0, 0.1, 0.0, 3.0]])
+    assert np.allclose(meet(stub, 0.4)[0], stub[0])
+
+
 def test_one_wall_fitted_as_two_planes_across_a_cabinets_shadow_is_closed_and_a_doorway_is_not():
     """A corridor wall fitted as two planes 2 cm apart (a SLAM map's drift), its stretch behind a cabinet (0.45 m)
     not seen: both carried to the middle of the gap, whichever way each runs; a doorway (0.9 m) stays open, and

@@ -45,13 +45,14 @@ TURN = float(np.sin(np.radians(45.0)))
 
 
 def meet(walls: np.ndarray, reach: float, floor: set | frozenset = frozenset(), voxel_m: float = 0.1) -> np.ndarray:
-    """``walls`` with the ends of each two that turn by 45 degrees or more and end within ``reach`` of their
-    meeting point moved onto it, or both short of it by no more than ``SEEN_ALONG_M`` with no ``floor`` seen
-    between (its voxel columns of ``voxel_m``): furniture standing in a room's corner hides where its walls meet,
-    while a doorway beside a corner shows the floor through it; and the end of one that stops within ``reach`` of
-    another running past it (a T: a partition's last metre is seen at a grazing angle, in voxels too sparse to
-    keep). A moved end runs on past the meeting point by half the other wall's thickness, to its far face, so that
-    the two boxes' outline turns once on each side."""
+    """``walls`` with the ends of each two that turn by 45 degrees or more moved onto their meeting point where
+    both stop within ``reach`` of it (short of it: of the other's face, the stretch left unseen; past it: of the
+    other's middle line), or both short of it by no more than ``SEEN_ALONG_M`` with no ``floor`` seen between
+    (its voxel columns of ``voxel_m``): furniture standing in a room's corner hides where its walls meet, while a
+    doorway beside a corner shows the floor through it; and the end of one that stops within ``reach`` of another
+    running past it (a T: a partition's last metre is seen at a grazing angle, in voxels too sparse to keep). A
+    moved end runs on past the meeting point by half the other wall's thickness, to its far face, so that the two
+    boxes' outline turns once on each side."""
     walls = walls.copy()
     for i in range(len(walls)):
         for j in range(i + 1, len(walls)):
@@ -62,11 +63,13 @@ def meet(walls: np.ndarray, reach: float, floor: set | frozenset = frozenset(), 
                 continue
             t = _across(b0 - a0, db) / cross
             point = a0 + t * da
-            ends = []
+            ends = []  # each wall's end nearer the meeting point and its gap: short of the other's face, or past
             for k, (p0, p1) in ((i, (a0, a1)), (j, (b0, b1))):
                 gaps = [np.hypot(*(point - p0)), np.hypot(*(point - p1))]
                 end = int(np.argmin(gaps))
-                ends.append((k, end, gaps[end]))
+                tip, far = (p0, p1) if end == 0 else (p1, p0)
+                short = np.dot(point - far, tip - far) < np.dot(point - far, point - far)
+                ends.append((k, end, gaps[end] - (walls[j if k == i else i, 4] / 2 if short else 0.0)))
             near = [(k, end) for k, end, gap in ends if gap <= reach]
             if len(near) < 2 and all(
                 gap <= reach or _hidden(walls[k], end, point, floor, voxel_m) for k, end, gap in ends
