@@ -68,7 +68,7 @@ def meet(walls: np.ndarray, reach: float, floor: set | frozenset = frozenset(), 
                 gaps = [np.hypot(*(point - p0)), np.hypot(*(point - p1))]
                 end = int(np.argmin(gaps))
                 tip, far = (p0, p1) if end == 0 else (p1, p0)
-                short = np.dot(point - far, tip - far) < np.dot(point - far, point - far)
+                short = _short_of(tip, far, point)
                 ends.append((k, end, gaps[end] - (walls[j if k == i else i, 4] / 2 if short else 0.0)))
             near = [(k, end) for k, end, gap in ends if gap <= reach]
             if len(near) < 2 and all(
@@ -94,8 +94,13 @@ def _hidden(wall: np.ndarray, end: int, point: np.ndarray, floor: set | frozense
     start, 1: its end) by no more than ``SEEN_ALONG_M``, with the ``floor`` (voxel columns of ``voxel_m``) seen
     under less than half of the way there: a doorway's floor is seen through it; behind a cabinet it is not."""
     far, tip = wall[2 - 2 * end : 4 - 2 * end], wall[2 * end : 2 * end + 2]  # the wall's other end, this one
-    if np.dot(point - far, tip - far) <= np.dot(tip - far, tip - far) or np.hypot(*(point - tip)) > SEEN_ALONG_M:
+    if not _short_of(tip, far, point) or np.hypot(*(point - tip)) > SEEN_ALONG_M:
         return False
     steps = max(1, int(np.ceil(np.hypot(*(point - tip)) / (voxel_m / 2))))
     probes = np.floor((tip + np.linspace(0.0, 1.0, steps + 1)[1:, None] * (point - tip)) / voxel_m).astype(int)
     return 2 * sum((int(x), int(y)) in floor for x, y in probes) < len(probes)
+
+
+def _short_of(tip: np.ndarray, far: np.ndarray, point: np.ndarray) -> bool:
+    """Whether a wall from ``far`` to ``tip`` stops short of ``point`` on its line (``point`` lies past ``tip``)."""
+    return bool(np.dot(point - far, tip - far) > np.dot(tip - far, tip - far))
