@@ -9,9 +9,9 @@ The maps and the trajectories they come with are made in slam_maps.py. The figur
 - corners: the building's own corner map against the imported one, matched within ``MATCH_M`` in the plane:
   the share found of the building's corners the map saw (in sight of a mapping pose, and both faces: seen wall
   cells near it in two directions) and of all; and
-  the share of imported corners that are none of the building's: no two of its walls meet under a ceiling within
-  ``MATCH_M``, the length of their faces judged with the same slack (the corner map asks 0.3 m of each face, so
-  that a doorway's jamb is no corner; a 0.25 m stub beside a door is walls meeting all the same);
+  the share of imported corners that are none of the building's: no two of the building's walls meet under a
+  ceiling within ``MATCH_M``, the length of their faces judged with the same slack (the corner map asks 0.3 m of
+  each face, so that a doorway's jamb is no corner; a 0.25 m stub beside a door is walls meeting all the same);
 - walls: both worlds cut at ``WALL_HEIGHT`` (people walking through and most furniture are lower), each within
   two cells of a seen wall cell (the face the map saw and the wall's body behind it): IoU cell for cell and within
   one cell (5 cm, the grids' own step);
