@@ -176,6 +176,31 @@ def test_a_far_wall_seen_only_as_the_lidars_rings_is_a_wall_and_a_cabinet_is_not
     assert front.any() and np.all(cloud.classes[front] == CLUTTER)
 
 
+def test_a_wall_rising_over_the_rooms_ceiling_holds_that_ceiling_up():
+    """The room's north wall goes on over its 3 m ceiling to 5 m (as walls do over a suspended ceiling), seen up
+    there only as a far LiDAR's rings from the next room: the wall's column tops out at 5 m with a gap over the
+    ceiling. It is a wall up to the ceiling beside it; the cabinet against the south wall stays clutter."""
+    from pimm_env.importers.cloud_map import CLUTTER, WALL, classify
+
+    rng = np.random.default_rng(5)
+    room = slam_like_room(rng)
+    over = np.vstack([surface(rng, [0.0, 4.0, z], [6.0, 4.0, z], 600, noise=0.01) for z in np.arange(3.7, 5.0, 0.3)])
+    cabinet = [
+        surface(rng, [2.0, 0.5, 0.0], [3.0, 0.5, 1.9], 4000),
+        surface(rng, [2.0, 0.0, 1.9], [3.0, 0.5, 1.9], 2000),
+    ]
+    under = (room[:, 0] > 2.0) & (room[:, 0] < 3.0) & (room[:, 1] < 0.5) & (room[:, 2] < 0.05)  # hidden floor
+    cloud = classify(np.vstack([room[~under], over, *cabinet]))
+    centres = (cloud.voxels + 0.5) * cloud.voxel_m
+    high = (centres[:, 2] > 1.2) & (centres[:, 2] < 2.7)
+    north = high & (centres[:, 1] > 3.9) & (centres[:, 0] > 0.3) & (centres[:, 0] < 5.7)
+    front = high & (np.abs(centres[:, 1] - 0.5) < 0.06) & (centres[:, 0] > 2.1) & (centres[:, 0] < 2.9)
+    assert np.mean(cloud.classes[north] == WALL) > 0.9
+    assert front.any() and np.all(cloud.classes[front] == CLUTTER)
+    along = [w for w in cloud.walls if abs(w[1] - w[3]) < 0.1 and abs(w[1] - 4.0) < 0.2]
+    assert along and max(abs(w[2] - w[0]) for w in along) > 5.0
+
+
 def test_a_rooms_floor_hidden_from_the_lidar_under_its_seen_ceiling_is_floor():
     """A room mapped through its doorway: the floor seen only near the door (x < 2), the ceiling over all of it.
     Its floor area reaches the far walls (where the corners are), not only the floor the LiDAR saw, and stops

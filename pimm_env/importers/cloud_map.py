@@ -9,11 +9,9 @@ surveys give ``.las``; ``.ply`` and ``.npy`` too): one floor's cloud as a triang
    and beside a higher one.
 2. **Voxels** of ``voxel_m``: a voxel with fewer than ``min_points`` points (people who walked through while
    mapping, stray returns) and a voxel with no occupied neighbour (outliers) are set aside and counted.
-3. **Classes per column** of voxels: floor within ``floor_band_m`` of the floor; in a column that rises at least
-   ``ceiling_min_m``, the voxels within ``ceiling_band_m`` of its top are ceiling (each column at its own height:
-   a real ceiling is not flat); a column whose voxels stand stacked from ``wall_from_m`` (above desks and
-   chairs, which hide a wall's foot) to near its top, over at least ``wall_min_span_m`` and with gaps no wider
-   than ``wall_gap_m`` (a wall seen from afar shows only the LiDAR's rings), is wall; the rest is clutter. Ceiling gaps
+3. **Classes per column** of voxels (``cloud_columns.py``): floor near the floor, ceiling at each column's top (a
+   real ceiling is not flat), wall where a column's voxels stand stacked from above the furniture up to its
+   ceiling or to a lower one beside it that it holds up, clutter the rest. Ceiling gaps
    of up to three columns between seen ceiling (a LiDAR's rings leave stripes) are filled in. Clutter rising
    from the floor to no more than a person's height over floor the map saw under it is the ghost of someone who
    walked by while mapping (a thing standing there hides its floor), and so are their arms beside it
@@ -40,13 +38,10 @@ import numpy as np
 
 from pimm_env.errors import MapFileError
 from pimm_env.geometry import rotation_onto_z
+from pimm_env.importers.cloud_columns import CEILING, CLASSES, CLUTTER, FLOOR, WALL, column_classes
 from pimm_env.importers.cloud_ghosts import ghost_voxels
 from pimm_env.importers.cloud_path import on_path
 from pimm_env.importers.cloud_walls import in_walls, near_the_ceiling, wall_planes
-
-#: The surface classes of a cloud map's voxels, in the order of ``CLASSES`` indices.
-CLASSES = ("floor", "ceiling", "wall", "clutter")
-FLOOR, CEILING, WALL, CLUTTER = range(4)
 
 
 @dataclass(frozen=True)
@@ -176,7 +171,7 @@ def classify(
     voxels, means = voxels[~lonely], means[~lonely]
     if not len(voxels):
         raise MapFileError(f"{source}: no surface left in the map after setting aside {set_aside}")
-    classes, tops = _classes(voxels, config)
+    classes, tops = column_classes(voxels, config)
     ghosts = ghost_voxels(voxels, classes == CLUTTER, levelled, config)
     set_aside["ghosts (clutter over seen floor, as high as a person: people who walked by while mapping)"] = int(
         np.count_nonzero(ghosts)
@@ -248,41 +243,6 @@ def _has_neighbour(voxels: np.ndarray) -> np.ndarray:
 def _member(keys: np.ndarray, sorted_keys: np.ndarray) -> np.ndarray:
     at = np.clip(np.searchsorted(sorted_keys, keys), 0, len(sorted_keys) - 1)
     return sorted_keys[at] == keys
-
-
-def _classes(voxels: np.ndarray, config: CloudMapConfig) -> tuple[np.ndarray, np.ndarray]:
-    v = config.voxel_m
-    z = (voxels[:, 2] + 0.5) * v
-    classes = np.full(len(voxels), CLUTTER, dtype=np.int8)
-    column, inverse = np.unique(voxels[:, :2], axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    top = np.full(len(column), -np.inf)
-    np.maximum.at(top, inverse, z)
-    above_floor = z > config.floor_band_m
-    # a wall is judged on its upper part, above desks and chairs, which hide its foot from a LiDAR
-    band = above_floor & (z >= config.wall_from_m) & (z < top[inverse] - config.ceiling_band_m)
-    wall_column = _stacked(inverse[band], z[band], len(column), config.wall_from_m, top - config.ceiling_band_m, config)
-    ceiling = (top[inverse] >= config.ceiling_min_m) & (z >= top[inverse] - config.ceiling_band_m)
-    classes[wall_column[inverse] & above_floor] = WALL
-    classes[ceiling & above_floor] = CEILING  # a wall's column ends in the ceiling it holds up
-    classes[~above_floor] = FLOOR
-    return classes, top[inverse]
-
-
-def _stacked(column: np.ndarray, z: np.ndarray, columns: int, bottom: float, top: np.ndarray, config: CloudMapConfig):
-    """Which of ``columns`` hold voxels (their ``column`` and heights ``z``) stacked from ``bottom`` to their
-    ``top`` over at least ``wall_min_span_m``, no two (nor an end and its nearest) further apart than
-    ``wall_gap_m``."""
-    order = np.lexsort((z, column))
-    column, z = column[order], z[order]
-    low, high = np.full(columns, np.inf), np.full(columns, -np.inf)
-    np.minimum.at(low, column, z - config.voxel_m / 2)
-    np.maximum.at(high, column, z + config.voxel_m / 2)
-    gap = np.zeros(columns)
-    same = column[1:] == column[:-1]
-    np.maximum.at(gap, column[1:][same], np.diff(z)[same] - config.voxel_m)
-    gap = np.maximum(gap, np.maximum(low - bottom, top - high))
-    return (high - low >= config.wall_min_span_m) & (gap <= config.wall_gap_m)
 
 
 def surface_meshes(cloud_map: CloudMap) -> dict[str, Any]:
