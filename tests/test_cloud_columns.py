@@ -42,9 +42,9 @@ def test_a_wall_going_on_over_the_corridors_ceiling_holds_it_up_and_a_cabinet_do
 
 
 def test_a_sparsely_seen_column_is_not_a_ceiling_the_wall_beside_it_holds_up():
-    """The same wall's columns, and beside them (y 6) columns over seen floor holding a few voxels up to 2.3 m
-    (the inside of a wall seen through its rings, not level with anything): the wall's own 5 m top counts, the
-    corridor's ceiling being two columns off; with no corridor, no lower ceiling stands beside it."""
+    """The same wall's columns and, two columns off (y 7), columns over seen floor holding a few voxels up to
+    2.1-2.3 m (the inside of a wall seen through its rings: not level with three neighbours). No lower ceiling
+    stands beside the wall, so it is judged up to its own 5 m top, over the 0.9 m it was not seen: clutter."""
     seen_twice = np.r_[np.arange(0.0, 2.75, 0.1), np.arange(3.6, 5.05, 0.1)]
     wall = [column(x, 5, seen_twice) for x in range(0, 10)]
     inside = [column(x, 7, [0.0, 0.5, 1.4, 2.3 - 0.1 * (x % 3)]) for x in range(0, 10)]

@@ -153,6 +153,14 @@ def test_the_ghost_of_a_person_who_walked_by_is_set_aside_and_a_cabinet_kept():
     assert at_cabinet.sum() > 50  # the cabinet stays
 
 
+def tall_cabinet(rng: np.random.Generator, front_y: float, back_y: float) -> list[np.ndarray]:
+    """A 1.9 m cabinet from x 2 to 3 against a wall at ``back_y``: its front face and its top, as a map sees them."""
+    return [
+        surface(rng, [2.0, front_y, 0.0], [3.0, front_y, 1.9], 4000),
+        surface(rng, [2.0, min(front_y, back_y), 1.9], [3.0, max(front_y, back_y), 1.9], 2000),
+    ]
+
+
 def test_a_far_wall_seen_only_as_the_lidars_rings_is_a_wall_and_a_cabinet_is_not():
     """The room's east wall seen from far (through a doorway): its points lie on the rings of a 16-beam LiDAR,
     0.3 m apart in height; a 1.9 m cabinet stands against the north wall, under the 3 m ceiling."""
@@ -162,10 +170,7 @@ def test_a_far_wall_seen_only_as_the_lidars_rings_is_a_wall_and_a_cabinet_is_not
     room = slam_like_room(rng)
     east = room[:, 0] > 5.95
     rings = np.vstack([surface(rng, [6.0, 0.0, z], [6.0, 4.0, z], 400, noise=0.01) for z in np.arange(0.4, 2.9, 0.3)])
-    cabinet = [
-        surface(rng, [2.0, 3.5, 0.0], [3.0, 3.5, 1.9], 4000),
-        surface(rng, [2.0, 3.5, 1.9], [3.0, 4.0, 1.9], 2000),
-    ]
+    cabinet = tall_cabinet(rng, front_y=3.5, back_y=4.0)
     under = (room[:, 0] > 2.0) & (room[:, 0] < 3.0) & (room[:, 1] > 3.5) & (room[:, 2] < 0.05)  # hidden floor
     cloud = classify(np.vstack([room[~east & ~under], rings, *cabinet]))
     centres = (cloud.voxels + 0.5) * cloud.voxel_m
@@ -185,10 +190,7 @@ def test_a_wall_rising_over_the_rooms_ceiling_holds_that_ceiling_up():
     rng = np.random.default_rng(5)
     room = slam_like_room(rng)
     over = np.vstack([surface(rng, [0.0, 4.0, z], [6.0, 4.0, z], 600, noise=0.01) for z in np.arange(3.7, 5.0, 0.3)])
-    cabinet = [
-        surface(rng, [2.0, 0.5, 0.0], [3.0, 0.5, 1.9], 4000),
-        surface(rng, [2.0, 0.0, 1.9], [3.0, 0.5, 1.9], 2000),
-    ]
+    cabinet = tall_cabinet(rng, front_y=0.5, back_y=0.0)
     under = (room[:, 0] > 2.0) & (room[:, 0] < 3.0) & (room[:, 1] < 0.5) & (room[:, 2] < 0.05)  # hidden floor
     cloud = classify(np.vstack([room[~under], over, *cabinet]))
     centres = (cloud.voxels + 0.5) * cloud.voxel_m
