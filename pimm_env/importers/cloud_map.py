@@ -314,6 +314,8 @@ def floor_areas(
     if not np.any(cloud_map.classes == FLOOR):
         raise MapFileError(f"{source}: the map shows no floor under its surfaces: a robot has nowhere to stand")
     mask, lo = _open_floor(cloud_map.voxels, cloud_map.classes)
+    plans = [_plan(cloud_map.voxels, cloud_map.classes == c, lo, mask.shape) for c in (WALL, CLUTTER)]
+    mask |= _up_to_the_walls(mask, *plans)
     mask = ndimage.binary_closing(np.pad(mask, 3), iterations=3)[3:-3, 3:-3]
     mask = ndimage.binary_fill_holes(mask)
     v = cloud_map.voxel_m
@@ -328,6 +330,32 @@ def floor_areas(
     return areas
 
 
+#: the widest strip (voxels) of floor hidden between the open floor and a wall that is taken as floor (a far
+#: wall's foot, seen over a desk or through a doorway): twice this, as the closing of the gap goes
+WALL_FOOT_VOXELS = 3
+
+
+def _up_to_the_walls(floor: np.ndarray, wall: np.ndarray, clutter: np.ndarray) -> np.ndarray:
+    """The cells of a plan (``floor``, ``wall``, ``clutter``: masks, a voxel column a cell) between the open floor
+    and the walls it reaches, with nothing standing there (a strip the LiDAR did not see the floor of, up to
+    ``2 * WALL_FOOT_VOXELS`` wide), and the walls' columns there: the free space runs up to the faces of the
+    walls the map saw, so that the occupancy shows them as faces a sensor sees (``OccupancyGrid.surfaces``)
+    rather than obstacles beside unknown space."""
+    from scipy import ndimage
+
+    r = WALL_FOOT_VOXELS
+    closed = ndimage.binary_closing(np.pad(floor | wall, r), iterations=r)[r:-r, r:-r]
+    strip = closed & ~wall & ~floor & ~clutter
+    return strip | (wall & ndimage.binary_dilation(floor | strip, np.ones((3, 3), dtype=bool)))
+
+
+def _plan(voxels: np.ndarray, which: np.ndarray, lo: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """The voxel columns of ``voxels[which]`` as a plan (rows y, columns x) whose cell (0, 0) is column ``lo``."""
+    out = np.zeros(shape, dtype=bool)
+    out[voxels[which, 1] - lo[1], voxels[which, 0] - lo[0]] = True
+    return out
+
+
 def _open_floor(voxels: np.ndarray, classes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The plan (rows y, columns x, a voxel a cell) of the floor seen and of where the ceiling was seen over
     nothing standing (floor hidden from the LiDAR: the far corners of rooms seen through their doorways), and the
@@ -335,14 +363,9 @@ def _open_floor(voxels: np.ndarray, classes: np.ndarray) -> tuple[np.ndarray, np
     from scipy import ndimage
 
     lo, hi = voxels[:, :2].min(axis=0), voxels[:, :2].max(axis=0)
-
-    def plan(of: np.ndarray) -> np.ndarray:
-        out = np.zeros(tuple(hi - lo + 1)[::-1], dtype=bool)
-        out[of[:, 1] - lo[1], of[:, 0] - lo[0]] = True
-        return out
-
-    standing = ndimage.binary_dilation(plan(voxels[(classes == WALL) | (classes == CLUTTER)]))
-    return plan(voxels[classes == FLOOR]) | (plan(voxels[classes == CEILING]) & ~standing), lo
+    shape = tuple(hi - lo + 1)[::-1]
+    standing = ndimage.binary_dilation(_plan(voxels, (classes == WALL) | (classes == CLUTTER), lo, shape))
+    return _plan(voxels, classes == FLOOR, lo, shape) | (_plan(voxels, classes == CEILING, lo, shape) & ~standing), lo
 
 
 def write_cloud_world_mesh(cloud_map: CloudMap, path: Path) -> Path:
