@@ -248,6 +248,48 @@ def test_a_rooms_floor_hidden_from_the_lidar_under_its_seen_ceiling_is_floor():
     assert 21.0 < floor[0].area < 26.5  # the room, and the rim of voxels its walls stand in
 
 
+def test_the_free_space_reaches_a_far_wall_whose_foot_the_lidar_did_not_see(tmp_path):
+    """A room seen from its west end: neither the floor nor the ceiling within 0.4 m of its east wall (hidden by
+    the view), that wall seen from 0.6 m up. The occupancy's free space runs up to the wall, whose face is then
+    one a sensor sees (the wall field scores scan points by their distance to such faces), and no further."""
+    rng = np.random.default_rng(5)
+    parts = [
+        surface(rng, [0, 0, 0], [5.6, 4, 0], 50_000),  # the floor seen, short of the east wall
+        surface(rng, [0, 0, 3], [5.6, 4, 3], 50_000),  # the ceiling seen, as short
+        surface(rng, [0, 0, 0], [6, 0, 3], 30_000),
+        surface(rng, [0, 4, 0], [6, 4, 3], 30_000),
+        surface(rng, [0, 0, 0], [0, 4, 3], 25_000),
+        surface(rng, [6, 0, 0.6], [6, 4, 3], 25_000),  # the east wall, its foot hidden
+    ]
+    world = load_world(import_world(write_pcd(tmp_path / "far.pcd", np.vstack(parts)), "far", tmp_path / "maps"))
+    occupancy = build_derived_maps(world).occupancy
+    x, y = occupancy.grid.cell_centers()
+    face = occupancy.occupied & (np.abs(x - 6.0) < 0.15) & (y > 0.5) & (y < 3.5)
+    assert face.sum() >= 60
+    seen = occupancy.surfaces()
+    rows = np.unique(np.flatnonzero(face.any(axis=1)))
+    assert np.mean([seen[r][face[r]].any() for r in rows]) > 0.95  # the wall shows its face along its length
+    assert not (occupancy.free & (x > 6.2)).any()  # nothing free behind it
+
+
+@pytest.mark.parametrize("gap, filled", [(3, True), (6, True), (7, False)])
+def test_the_floor_is_taken_up_to_a_wall_across_a_strip_up_to_twice_the_walls_foot(gap, filled):
+    """Plan cells (a voxel column each): open floor, ``gap`` columns the LiDAR saw nothing of, then a wall; a
+    cabinet in the strip stays out of the floor."""
+    from pimm_env.importers.cloud_map import WALL_FOOT_VOXELS, _up_to_the_walls
+
+    assert 2 * WALL_FOOT_VOXELS == 6
+    floor, wall, clutter = (np.zeros((40, 30), dtype=bool) for _ in range(3))
+    floor[:, :10] = True
+    wall[:, 10 + gap] = True
+    clutter[20, 11] = True
+    added = _up_to_the_walls(floor, wall, clutter)
+    rows = [r for r in range(8, 32) if r != 20]  # away from the plan's edges, which nothing closes
+    strip = added[rows, 10 : 11 + gap]  # the unseen strip and the wall's column
+    assert strip.all() if filled else not strip.any()
+    assert not added[20, 11] and not added[:, 11 + gap :].any()
+
+
 def test_the_ceiling_stops_at_the_walls_faces():
     """The ceiling's points scatter a voxel past the walls' faces; over a wall's body it is no ceiling (the
     corners behind a wall would stand under it)."""
