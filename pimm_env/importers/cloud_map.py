@@ -316,7 +316,7 @@ def floor_areas(
     mask, lo = _open_floor(cloud_map.voxels, cloud_map.classes)
     plans = [_plan(cloud_map.voxels, cloud_map.classes == c, lo, mask.shape) for c in (WALL, CLUTTER)]
     mask |= _up_to_the_walls(mask, *plans)
-    mask = ndimage.binary_closing(np.pad(mask, 3), iterations=3)[3:-3, 3:-3]
+    mask = _closed(mask, 3)
     mask = ndimage.binary_fill_holes(mask)
     v = cloud_map.voxel_m
     areas: dict[str, list[list[float]]] = {}
@@ -343,10 +343,15 @@ def _up_to_the_walls(floor: np.ndarray, wall: np.ndarray, clutter: np.ndarray) -
     rather than obstacles beside unknown space."""
     from scipy import ndimage
 
-    r = WALL_FOOT_VOXELS
-    closed = ndimage.binary_closing(np.pad(floor | wall, r), iterations=r)[r:-r, r:-r]
-    strip = closed & ~wall & ~floor & ~clutter
+    strip = _closed(floor | wall, WALL_FOOT_VOXELS) & ~wall & ~floor & ~clutter
     return strip | (wall & ndimage.binary_dilation(floor | strip, np.ones((3, 3), dtype=bool)))
+
+
+def _closed(plan: np.ndarray, steps: int) -> np.ndarray:
+    """``plan`` closed by ``steps`` steps (gaps up to twice as wide filled), its edges as if open beyond them."""
+    from scipy import ndimage
+
+    return ndimage.binary_closing(np.pad(plan, steps), iterations=steps)[steps:-steps, steps:-steps]
 
 
 def _plan(voxels: np.ndarray, which: np.ndarray, lo: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
