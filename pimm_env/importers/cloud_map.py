@@ -348,7 +348,7 @@ def _up_to_the_walls(floor: np.ndarray, wall: np.ndarray, clutter: np.ndarray) -
 
 
 def _closed(plan: np.ndarray, steps: int) -> np.ndarray:
-    """``plan`` closed by ``steps`` steps (gaps up to twice as wide filled), its edges as if open beyond them."""
+    """``plan`` closed by ``steps`` steps (gaps up to twice as wide filled), with nothing beyond its edges."""
     from scipy import ndimage
 
     return ndimage.binary_closing(np.pad(plan, steps), iterations=steps)[steps:-steps, steps:-steps]
